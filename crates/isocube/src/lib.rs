@@ -1,0 +1,2 @@
+//! isocube: scalar fields to triangle meshes that are correct, good and fast.
+pub mod cube;
