@@ -300,9 +300,18 @@ mod tests {
 
     #[test]
     fn binary_class_counts() {
-        assert_eq!(ClassTable::new(ConfigKind::Binary, Group::Rotations).class_count(), 23);
-        assert_eq!(ClassTable::new(ConfigKind::Binary, Group::RotationsFlip).class_count(), 15);
-        assert_eq!(ClassTable::new(ConfigKind::Binary, Group::All).class_count(), 14);
+        assert_eq!(
+            ClassTable::new(ConfigKind::Binary, Group::Rotations).class_count(),
+            23
+        );
+        assert_eq!(
+            ClassTable::new(ConfigKind::Binary, Group::RotationsFlip).class_count(),
+            15
+        );
+        assert_eq!(
+            ClassTable::new(ConfigKind::Binary, Group::All).class_count(),
+            14
+        );
     }
 
     #[test]
@@ -310,7 +319,10 @@ mod tests {
         let rot = ClassTable::new(ConfigKind::Ternary, Group::Rotations);
         assert_eq!(rot.class_count(), 333);
         assert_eq!(rot.flip_invariant_class_count(), 33);
-        assert_eq!(ClassTable::new(ConfigKind::Ternary, Group::RotationsFlip).class_count(), 183);
+        assert_eq!(
+            ClassTable::new(ConfigKind::Ternary, Group::RotationsFlip).class_count(),
+            183
+        );
         // (333 + 33) / 2: flip pairs up the non-invariant classes.
         assert_eq!((333 + 33) / 2, 183);
     }
@@ -318,7 +330,11 @@ mod tests {
     #[test]
     fn orbits_partition_and_sizes_divide_group_order() {
         for kind in [ConfigKind::Binary, ConfigKind::Ternary] {
-            for (group, order) in [(Group::Rotations, 24), (Group::RotationsFlip, 48), (Group::All, 96)] {
+            for (group, order) in [
+                (Group::Rotations, 24),
+                (Group::RotationsFlip, 48),
+                (Group::All, 96),
+            ] {
                 let t = ClassTable::new(kind, group);
                 let total: usize = t
                     .representatives()
@@ -329,7 +345,10 @@ mod tests {
                 for (c, e) in t.entries().iter().enumerate() {
                     assert_eq!(order % usize::from(e.orbit_size), 0);
                     assert!(usize::from(e.representative) <= c);
-                    assert_eq!(t.representatives()[usize::from(e.class) - 1], e.representative);
+                    assert_eq!(
+                        t.representatives()[usize::from(e.class) - 1],
+                        e.representative
+                    );
                     assert!(group.contains(e.transform));
                     let members = t.entries().iter().filter(|x| x.class == e.class).count();
                     assert_eq!(members, usize::from(e.orbit_size));

@@ -122,9 +122,7 @@ const fn face_edges() -> [[u8; 4]; 6] {
 
 /// Whether two edges lie on a common cube face.
 pub fn edges_share_face(a: u8, b: u8) -> bool {
-    FACE_EDGES
-        .iter()
-        .any(|f| f.contains(&a) && f.contains(&b))
+    FACE_EDGES.iter().any(|f| f.contains(&a) && f.contains(&b))
 }
 
 /// The vertex with the given 0/1 coordinates.
@@ -191,7 +189,11 @@ mod tests {
         for f in 0..6 {
             let g = OPPOSITE_FACE[f] as usize;
             let axis = (0..3)
-                .find(|&a| FACES[f].iter().all(|&v| VERTICES[v as usize][a] == VERTICES[FACES[f][0] as usize][a]))
+                .find(|&a| {
+                    FACES[f]
+                        .iter()
+                        .all(|&v| VERTICES[v as usize][a] == VERTICES[FACES[f][0] as usize][a])
+                })
                 .unwrap();
             let vf = VERTICES[FACES[f][0] as usize][axis];
             let vg = VERTICES[FACES[g][0] as usize][axis];

@@ -145,7 +145,11 @@ pub fn derive_polygons(config: u8, decisions: FaceDecisions) -> Vec<Vec<Corner>>
     let mut next = [u8::MAX; 12];
     for face in 0..6 {
         for (from, to) in face_segments(config, decisions, face) {
-            debug_assert_eq!(next[usize::from(from)], u8::MAX, "each crossing exits one face");
+            debug_assert_eq!(
+                next[usize::from(from)],
+                u8::MAX,
+                "each crossing exits one face"
+            );
             next[usize::from(from)] = to;
         }
     }
@@ -203,7 +207,13 @@ pub fn safe_triangulation(polygon: &[Corner]) -> Option<Vec<[Corner; 3]>> {
     if let Some(apex) = (0..n).find(|&k| (0..n).all(|j| allowed(k, j) || j == k)) {
         return Some(
             (1..n - 1)
-                .map(|i| [polygon[apex], polygon[(apex + i) % n], polygon[(apex + i + 1) % n]])
+                .map(|i| {
+                    [
+                        polygon[apex],
+                        polygon[(apex + i) % n],
+                        polygon[(apex + i + 1) % n],
+                    ]
+                })
                 .collect(),
         );
     }
@@ -397,7 +407,10 @@ impl CaseTable {
 
     /// Number of variants that need an interior point.
     pub fn interior_variant_count(&self) -> usize {
-        self.variants.iter().filter(|v| v.interior.is_some()).count()
+        self.variants
+            .iter()
+            .filter(|v| v.interior.is_some())
+            .count()
     }
 
     /// Total number of stored variants (configurations × decision patterns).
@@ -470,7 +483,10 @@ mod tests {
                     })
                     .count();
                 let corners: usize = polys.iter().map(Vec::len).sum();
-                assert_eq!(corners, crossings, "config {config}: every crossing used once");
+                assert_eq!(
+                    corners, crossings,
+                    "config {config}: every crossing used once"
+                );
                 assert!(polys.iter().all(|p| p.len() >= 3));
             }
         }
@@ -520,7 +536,10 @@ mod tests {
                             n[0] * t[1] - n[1] * t[0],
                         ];
                         let m = [0, 1, 2].map(|i| (pa[i] + pb[i]) / 2.0);
-                        for v in EDGES[usize::from(ea)].into_iter().chain(EDGES[usize::from(eb)]) {
+                        for v in EDGES[usize::from(ea)]
+                            .into_iter()
+                            .chain(EDGES[usize::from(eb)])
+                        {
                             let p = VERTICES[usize::from(v)];
                             let side: f64 = (0..3).map(|i| left[i] * (p[i] as f64 - m[i])).sum();
                             let above = config >> v & 1 == 1;
@@ -540,7 +559,11 @@ mod tests {
         // The vertex across face f (on the neighbour's opposite face) of each vertex of f.
         let across = |f: usize, v: u8| -> u8 {
             let axis = (0..3)
-                .find(|&a| FACES[f].iter().all(|&w| VERTICES[usize::from(w)][a] == VERTICES[usize::from(FACES[f][0])][a]))
+                .find(|&a| {
+                    FACES[f].iter().all(|&w| {
+                        VERTICES[usize::from(w)][a] == VERTICES[usize::from(FACES[f][0])][a]
+                    })
+                })
                 .unwrap();
             let mut c = VERTICES[usize::from(v)];
             c[axis] = 1 - c[axis];
@@ -567,8 +590,9 @@ mod tests {
                 for d1 in decision_patterns(c1) {
                     let mine = on_face(c1, d1, f);
                     for c2 in 0..=255u8 {
-                        let same_face_values =
-                            FACES[f].iter().all(|&v| (c1 >> v & 1) == (c2 >> across(f, v) & 1));
+                        let same_face_values = FACES[f]
+                            .iter()
+                            .all(|&v| (c1 >> v & 1) == (c2 >> across(f, v) & 1));
                         if !same_face_values {
                             continue;
                         }
@@ -611,7 +635,10 @@ mod tests {
                 }
                 assert_eq!(tris.len(), expected);
                 assert!(star_polygons <= 1);
-                assert_eq!(table.interior_polygon(config, d).is_some(), star_polygons == 1);
+                assert_eq!(
+                    table.interior_polygon(config, d).is_some(),
+                    star_polygons == 1
+                );
                 let uses = tris.iter().flatten().any(|&c| c == Corner::INTERIOR);
                 assert_eq!(uses, star_polygons == 1);
                 stars += star_polygons;

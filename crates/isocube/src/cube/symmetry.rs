@@ -187,7 +187,11 @@ fn build_group() -> Group {
         }
         next += 1;
     }
-    assert_eq!(matrices.len(), Rotation::COUNT, "the rotation group has 24 elements");
+    assert_eq!(
+        matrices.len(),
+        Rotation::COUNT,
+        "the rotation group has 24 elements"
+    );
 
     let mirror: Matrix = [[-1, 0, 0], [0, 1, 0], [0, 0, 1]];
     let act = |m: &Matrix, v: u8| -> u8 {
@@ -255,11 +259,19 @@ mod tests {
         let maps: HashSet<[u8; 8]> = Rotation::all()
             .map(|r| {
                 assert_eq!(det(&r.matrix()), 1);
-                Transform { rotation: r, mirror: false, flip: false }.vertex_map()
+                Transform {
+                    rotation: r,
+                    mirror: false,
+                    flip: false,
+                }
+                .vertex_map()
             })
             .collect();
         assert_eq!(maps.len(), 24);
-        assert_eq!(Rotation::IDENTITY.matrix(), [[1, 0, 0], [0, 1, 0], [0, 0, 1]]);
+        assert_eq!(
+            Rotation::IDENTITY.matrix(),
+            [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+        );
     }
 
     #[test]

@@ -1,0 +1,131 @@
+//! Vertex placement: linear interpolation of the crossing on a grid edge, normals from the
+//! interpolated central-difference gradient.
+
+use crate::cube::{EDGES, EDGE_AXIS, VERTICES};
+use crate::field::Grid;
+use crate::mesh::Mesh;
+
+use super::{ExtractError, ExtractOptions};
+
+pub(super) struct Placer<'a> {
+    grid: &'a Grid,
+    level: f64,
+    normals: bool,
+    flip: bool,
+}
+
+impl<'a> Placer<'a> {
+    pub(super) fn new(grid: &'a Grid, options: &ExtractOptions) -> Placer<'a> {
+        Placer {
+            grid,
+            level: f64::from(options.level),
+            normals: options.normals,
+            flip: options.flip,
+        }
+    }
+
+    /// Creates the vertex where the surface crosses edge `e` of cell `cell`.
+    pub(super) fn edge_vertex(
+        &self,
+        cell: [usize; 3],
+        e: u8,
+        mesh: &mut Mesh,
+    ) -> Result<u32, ExtractError> {
+        let [a, _] = EDGES[usize::from(e)];
+        let off = VERTICES[usize::from(a)];
+        let p0 = [0, 1, 2].map(|d| cell[d] + usize::from(off[d]));
+        let axis = usize::from(EDGE_AXIS[usize::from(e)]);
+        let mut p1 = p0;
+        p1[axis] += 1;
+        let v0 = f64::from(self.grid.value(p0[0], p0[1], p0[2]));
+        let v1 = f64::from(self.grid.value(p1[0], p1[1], p1[2]));
+        // One end is at or above the level and the other below, so v1 ≠ v0.
+        let t = ((self.level - v0) / (v1 - v0)).clamp(0.0, 1.0);
+        let mut x = self.grid.point(p0[0], p0[1], p0[2]);
+        x[axis] += t * self.grid.spacing()[axis];
+        let id = u32::try_from(mesh.positions.len()).map_err(|_| ExtractError::TooManyVertices)?;
+        if id == u32::MAX {
+            return Err(ExtractError::TooManyVertices);
+        }
+        mesh.positions.push(x.map(|c| c as f32));
+        if self.normals {
+            let g0 = self.gradient(p0);
+            let g1 = self.gradient(p1);
+            let mut g = [0, 1, 2].map(|d| g0[d] + t * (g1[d] - g0[d]));
+            if g.iter().all(|&c| c == 0.0) {
+                // A flat spot: the edge itself, toward its higher end, is the best guess.
+                g = [0.0; 3];
+                g[axis] = (v1 - v0).signum();
+            }
+            mesh.normals.push(self.unit(g));
+        }
+        Ok(id)
+    }
+
+    /// Creates a vertex at the centroid of existing vertices (a cell's interior point).
+    pub(super) fn centroid_vertex(
+        &self,
+        ids: &[u32],
+        mesh: &mut Mesh,
+    ) -> Result<u32, ExtractError> {
+        let id = u32::try_from(mesh.positions.len()).map_err(|_| ExtractError::TooManyVertices)?;
+        let n = ids.len() as f64;
+        let mut p = [0.0f64; 3];
+        let mut g = [0.0f64; 3];
+        for &v in ids {
+            for d in 0..3 {
+                p[d] += f64::from(mesh.positions[v as usize][d]) / n;
+                if self.normals {
+                    g[d] += f64::from(mesh.normals[v as usize][d]);
+                }
+            }
+        }
+        mesh.positions.push(p.map(|c| c as f32));
+        if self.normals {
+            // Normals of the corners already carry the flip.
+            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+            mesh.normals.push(if len > 0.0 {
+                g.map(|c| (c / len) as f32)
+            } else {
+                [0.0; 3]
+            });
+        }
+        Ok(id)
+    }
+
+    fn unit(&self, g: [f64; 3]) -> [f32; 3] {
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let s = if self.flip { -1.0 / len } else { 1.0 / len };
+        g.map(|c| (c * s) as f32)
+    }
+
+    /// Central differences in world units; one-sided at the grid boundary or next to a
+    /// non-finite value.
+    fn gradient(&self, p: [usize; 3]) -> [f64; 3] {
+        let dims = self.grid.dims();
+        let h = self.grid.spacing();
+        let at = |q: [usize; 3]| f64::from(self.grid.value(q[0], q[1], q[2]));
+        let centre = at(p);
+        [0, 1, 2].map(|d| {
+            let neighbour = |forward: bool| {
+                let mut q = p;
+                if forward {
+                    if q[d] + 1 >= dims[d] {
+                        return None;
+                    }
+                    q[d] += 1;
+                } else {
+                    q[d] = q[d].checked_sub(1)?;
+                }
+                let v = at(q);
+                v.is_finite().then_some(v)
+            };
+            match (neighbour(false), neighbour(true)) {
+                (Some(a), Some(b)) => (b - a) / (2.0 * h[d]),
+                (None, Some(b)) => (b - centre) / h[d],
+                (Some(a), None) => (centre - a) / h[d],
+                (None, None) => 0.0,
+            }
+        })
+    }
+}

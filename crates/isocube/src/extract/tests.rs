@@ -1,0 +1,234 @@
+use proptest::prelude::*;
+
+use super::*;
+use crate::field::Sample;
+use crate::mesh::MeshReport;
+
+fn run(grid: &Grid, level: f32) -> (Mesh, ExtractStats) {
+    extract(grid, &ExtractOptions::default().with_level(level)).unwrap()
+}
+
+fn signed_volume(mesh: &Mesh) -> f64 {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
+            let c = crate::mesh::cross(p[1], p[2]);
+            crate::mesh::dot(p[0], c) / 6.0
+        })
+        .sum()
+}
+
+#[test]
+fn sphere_at_ten_points_has_524_triangles() {
+    let (mesh, stats) = run(&Sample::Sphere.grid(10), 0.0);
+    assert_eq!(mesh.triangle_count(), 524);
+    let r = mesh.report();
+    assert!(r.watertight && r.oriented);
+    assert_eq!((r.components, r.euler, r.genus), (1, 2, Some(0)));
+    assert_eq!(stats.skipped_cells, 0);
+}
+
+#[test]
+fn normals_and_winding_point_toward_increasing_values() {
+    let grid = Sample::Sphere.grid(24);
+    let (mesh, _) = run(&grid, 0.0);
+    // The sphere field increases outward: positive enclosed volume, outward normals.
+    let v = signed_volume(&mesh);
+    let exact = 4.0 / 3.0 * std::f64::consts::PI * 0.8f64.powi(3);
+    assert!((v - exact).abs() < 0.03 * exact, "volume {v} vs {exact}");
+    for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+        let radial: f32 = (0..3).map(|a| p[a] * n[a]).sum();
+        assert!(radial > 0.0);
+        let len: f32 = n.iter().map(|c| c * c).sum();
+        assert!((len - 1.0).abs() < 1e-5);
+    }
+    let (flipped, _) = extract(&grid, &ExtractOptions::default().with_flip(true)).unwrap();
+    assert!((signed_volume(&flipped) + v).abs() < 1e-9 * v.abs());
+    assert!(flipped
+        .normals
+        .iter()
+        .zip(&mesh.normals)
+        .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x == -*y)));
+    assert!(flipped.report().oriented);
+}
+
+#[test]
+fn vertices_lie_on_a_linear_field_level_set() {
+    let f = |p: [f64; 3]| 0.3 * p[0] - 0.5 * p[1] + 0.8 * p[2] - 0.1;
+    let grid = Grid::from_fn([9, 8, 7], [0.25, 0.3, 0.2], [-1.0, -1.1, -0.7], f);
+    let (mesh, _) = run(&grid, 0.0);
+    assert!(mesh.triangle_count() > 50);
+    for p in &mesh.positions {
+        assert!(f(p.map(f64::from)).abs() < 1e-5, "{p:?}");
+    }
+    // A plane through the box: one disc with boundary on the grid faces only.
+    let r = mesh.report();
+    assert_eq!((r.components, r.euler, r.nonmanifold_edges), (1, 1, 0));
+    assert!(r.oriented);
+}
+
+#[test]
+fn nan_cells_are_skipped_and_leave_a_hole() {
+    let mut grid = Sample::Sphere.grid(20);
+    // A NaN on the surface: the eight cells around it are skipped.
+    let idx = grid.index(10, 10, 18);
+    let mut poke = None;
+    for k in (0..20).rev() {
+        if grid.value(10, 10, k) < 0.0 {
+            poke = Some(grid.index(10, 10, k + 1));
+            break;
+        }
+    }
+    let _ = idx;
+    grid.values_mut()[poke.unwrap()] = f32::NAN;
+    let (mesh, stats) = run(&grid, 0.0);
+    assert_eq!(stats.skipped_cells, 8);
+    let r = mesh.report();
+    assert!(r.boundary_edges > 0);
+    assert_eq!(r.nonmanifold_edges, 0);
+    assert!(r.oriented);
+    assert!(mesh
+        .positions
+        .iter()
+        .all(|p| p.iter().all(|c| c.is_finite())));
+}
+
+#[test]
+fn rejects_a_non_finite_level() {
+    let grid = Sample::Sphere.grid(4);
+    for level in [f32::NAN, f32::INFINITY] {
+        let err = extract(&grid, &ExtractOptions::default().with_level(level)).unwrap_err();
+        assert!(matches!(err, ExtractError::Level(_)));
+    }
+}
+
+/// Components and Euler characteristic of the built-in samples, as documented in the README
+/// (sample table). Checked at two resolutions so they are not an accident of sampling.
+#[test]
+fn sample_topology_is_as_documented() {
+    let cases: [(Sample, usize, i64, bool); 8] = [
+        (Sample::Sphere, 1, 2, true),
+        (Sample::Torus, 1, 0, true),
+        (Sample::TwoTori, 2, 0, true),
+        (Sample::Tangle, 1, -8, true),
+        (Sample::Gyroid, 1, -3, false),
+        (Sample::SchwarzP, 1, -32, false),
+        (Sample::Hyperboloid, 1, 0, false),
+        (Sample::Tubes, 1, -108, false),
+    ];
+    for (sample, components, euler, closed) in cases {
+        for n in [40, 64] {
+            let (mesh, _) = run(&sample.grid(n), 0.0);
+            let r = mesh.report();
+            assert_eq!(
+                (r.components, r.euler, r.watertight),
+                (components, euler, closed),
+                "{sample} at {n}: {r:?}"
+            );
+            assert!(r.oriented && r.nonmanifold_edges == 0, "{sample} at {n}");
+        }
+    }
+}
+
+/// A grid whose values come from a small integer set (many exact ties with the level) and whose
+/// boundary is strictly below the level, so the surface is closed.
+fn closed_grid() -> impl Strategy<Value = Grid> {
+    (2usize..6, 2usize..6, 2usize..6)
+        .prop_flat_map(|(a, b, c)| {
+            let dims = [a + 2, b + 2, c + 2];
+            let n = dims.iter().product::<usize>();
+            (Just(dims), proptest::collection::vec(-3i8..=3, n), 0u8..3)
+        })
+        .prop_map(|(dims, raw, scale)| {
+            let mut values: Vec<f32> = raw
+                .iter()
+                .map(|&x| f32::from(x) * (1.0 + f32::from(scale)))
+                .collect();
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        let edge = i == 0
+                            || j == 0
+                            || k == 0
+                            || i + 1 == dims[0]
+                            || j + 1 == dims[1]
+                            || k + 1 == dims[2];
+                        if edge {
+                            values[i + dims[0] * (j + dims[1] * k)] = -1.0;
+                        }
+                    }
+                }
+            }
+            Grid::new(dims, values).unwrap()
+        })
+}
+
+fn assert_closed_manifold(r: &MeshReport) {
+    assert_eq!(r.boundary_edges, 0, "{r:?}");
+    assert_eq!(r.nonmanifold_edges, 0, "{r:?}");
+    assert!(r.oriented, "{r:?}");
+    assert_eq!(r.euler % 2, 0, "{r:?}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 10_000, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// 10 000 random small grids with many exact ties: always watertight, edge-manifold and
+    /// consistently oriented.
+    #[test]
+    fn random_tied_grids_are_closed_manifolds(grid in closed_grid()) {
+        let (mesh, _) = run(&grid, 0.0);
+        mesh.validate().unwrap();
+        let r = mesh.report();
+        if mesh.triangle_count() > 0 {
+            assert_closed_manifold(&r);
+        }
+        // Every vertex lies on a grid edge crossing or is an interior point.
+        prop_assert!(mesh.positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2_000, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Random grids at a random level, surface free to reach the boundary: manifold and
+    /// oriented, and open edges only on the grid's boundary faces.
+    #[test]
+    fn open_edges_lie_on_the_grid_boundary(
+        dims in (2usize..7, 2usize..7, 2usize..7),
+        seed in any::<u64>(),
+        level in -1.0f32..1.0,
+    ) {
+        let dims = [dims.0, dims.1, dims.2];
+        let n: usize = dims.iter().product();
+        let mut state = seed;
+        let values: Vec<f32> = (0..n).map(|_| {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            // Quantised so that ties with the level occur.
+            ((state >> 40) % 9) as f32 / 4.0 - 1.0
+        }).collect();
+        let level = (level * 4.0).round() / 4.0;
+        let grid = Grid::new(dims, values).unwrap();
+        let (mesh, _) = run(&grid, level);
+        let r = mesh.report();
+        prop_assert_eq!(r.nonmanifold_edges, 0);
+        prop_assert!(r.oriented);
+        // Boundary edges: both ends on the same boundary face of the grid.
+        let mut counts = std::collections::HashMap::new();
+        for t in &mesh.triangles {
+            for i in 0..3 {
+                let (a, b) = (t[i].min(t[(i + 1) % 3]), t[i].max(t[(i + 1) % 3]));
+                *counts.entry((a, b)).or_insert(0) += 1;
+            }
+        }
+        let hi = [0, 1, 2].map(|a| (dims[a] - 1) as f32);
+        for ((a, b), c) in counts {
+            if c == 1 {
+                let (p, q) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+                let shared = (0..3).any(|ax| (p[ax] == 0.0 && q[ax] == 0.0) || (p[ax] == hi[ax] && q[ax] == hi[ax]));
+                prop_assert!(shared, "open edge {:?}-{:?} inside the grid", p, q);
+            }
+        }
+    }
+}

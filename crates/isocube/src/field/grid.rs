@@ -1,0 +1,200 @@
+use thiserror::Error;
+
+/// Why a grid could not be built.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum GridError {
+    /// Fewer than two points along some axis (no cell).
+    #[error("grid dimensions {dims:?} need at least 2 points along every axis")]
+    TooSmall {
+        /// The dimensions given.
+        dims: [usize; 3],
+    },
+    /// The product of the dimensions overflows.
+    #[error("grid dimensions {dims:?} are too large (the point count overflows)")]
+    Overflow {
+        /// The dimensions given.
+        dims: [usize; 3],
+    },
+    /// The number of values does not match the dimensions.
+    #[error("grid dimensions {dims:?} need {expected} values, got {actual}")]
+    ValueCount {
+        /// The dimensions given.
+        dims: [usize; 3],
+        /// Product of the dimensions.
+        expected: usize,
+        /// Values supplied.
+        actual: usize,
+    },
+    /// A spacing that is not finite and positive, or an origin that is not finite.
+    #[error("invalid geometry: {0}")]
+    Geometry(String),
+}
+
+/// Values on a regular lattice: `dims[0] × dims[1] × dims[2]` points, `x` fastest.
+///
+/// The point `(i, j, k)` holds `values[i + dims[0] * (j + dims[1] * k)]` and sits at
+/// `origin + (i, j, k) ⊙ spacing` in world coordinates.
+///
+/// ```
+/// use isocube::field::Grid;
+/// let g = Grid::from_fn([3, 3, 3], [0.5; 3], [-0.5; 3], |p| p[0] + p[1] + p[2]);
+/// assert_eq!(g.value(2, 2, 2), 1.5);
+/// assert_eq!(g.point(0, 0, 0), [-0.5, -0.5, -0.5]);
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    dims: [usize; 3],
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    values: Vec<f32>,
+}
+
+impl Grid {
+    /// A grid with unit spacing at the origin. `values.len()` must equal the product of `dims`,
+    /// and every dimension must be at least 2.
+    pub fn new(dims: [usize; 3], values: Vec<f32>) -> Result<Grid, GridError> {
+        let expected = Self::point_count(dims)?;
+        if values.len() != expected {
+            return Err(GridError::ValueCount {
+                dims,
+                expected,
+                actual: values.len(),
+            });
+        }
+        Ok(Grid {
+            dims,
+            spacing: [1.0; 3],
+            origin: [0.0; 3],
+            values,
+        })
+    }
+
+    /// Checks dimensions and returns the number of points.
+    pub fn point_count(dims: [usize; 3]) -> Result<usize, GridError> {
+        if dims.iter().any(|&d| d < 2) {
+            return Err(GridError::TooSmall { dims });
+        }
+        dims.iter()
+            .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+            .ok_or(GridError::Overflow { dims })
+    }
+
+    /// Sets the spacing (each finite and positive).
+    pub fn with_spacing(mut self, spacing: [f64; 3]) -> Result<Grid, GridError> {
+        if spacing.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+            return Err(GridError::Geometry(format!(
+                "spacing {spacing:?} must be finite and positive"
+            )));
+        }
+        self.spacing = spacing;
+        Ok(self)
+    }
+
+    /// Sets the origin (finite).
+    pub fn with_origin(mut self, origin: [f64; 3]) -> Result<Grid, GridError> {
+        if origin.iter().any(|o| !o.is_finite()) {
+            return Err(GridError::Geometry(format!(
+                "origin {origin:?} must be finite"
+            )));
+        }
+        self.origin = origin;
+        Ok(self)
+    }
+
+    /// Samples `f` at every point. Panics if some dimension is below 2 or spacing is not
+    /// positive (use [`Grid::new`] for checked construction).
+    pub fn from_fn(
+        dims: [usize; 3],
+        spacing: [f64; 3],
+        origin: [f64; 3],
+        f: impl Fn([f64; 3]) -> f64,
+    ) -> Grid {
+        let n = Self::point_count(dims).expect("valid dimensions");
+        let mut values = Vec::with_capacity(n);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let p = [
+                        origin[0] + i as f64 * spacing[0],
+                        origin[1] + j as f64 * spacing[1],
+                        origin[2] + k as f64 * spacing[2],
+                    ];
+                    values.push(f(p) as f32);
+                }
+            }
+        }
+        Grid::new(dims, values)
+            .and_then(|g| g.with_spacing(spacing))
+            .and_then(|g| g.with_origin(origin))
+            .expect("valid grid")
+    }
+
+    /// Points along x, y and z.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Distance between neighbouring points along each axis.
+    pub fn spacing(&self) -> [f64; 3] {
+        self.spacing
+    }
+
+    /// World position of point (0, 0, 0).
+    pub fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    /// All values, `x` fastest.
+    pub fn values(&self) -> &[f32] {
+        &self.values
+    }
+
+    /// Mutable access to the values (the dimensions stay fixed).
+    pub fn values_mut(&mut self) -> &mut [f32] {
+        &mut self.values
+    }
+
+    /// Takes the values out.
+    pub fn into_values(self) -> Vec<f32> {
+        self.values
+    }
+
+    /// Linear index of point (i, j, k).
+    #[inline]
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+
+    /// Value at point (i, j, k).
+    #[inline]
+    pub fn value(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.values[self.index(i, j, k)]
+    }
+
+    /// World position of point (i, j, k).
+    #[inline]
+    pub fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
+        [
+            self.origin[0] + i as f64 * self.spacing[0],
+            self.origin[1] + j as f64 * self.spacing[1],
+            self.origin[2] + k as f64 * self.spacing[2],
+        ]
+    }
+
+    /// Number of cells (`(nx−1)(ny−1)(nz−1)`).
+    pub fn cell_count(&self) -> usize {
+        self.dims.iter().map(|d| d - 1).product()
+    }
+
+    /// Smallest and largest finite value, if any value is finite.
+    pub fn finite_range(&self) -> Option<(f32, f32)> {
+        self.values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(None, |acc, &v| match acc {
+                None => Some((v, v)),
+                Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
+            })
+    }
+}

@@ -1,0 +1,12 @@
+//! Scalar fields: sampled grids and the built-in sample functions.
+//!
+//! A [`Grid`] holds `f32` values at the points of a regular lattice, `x` varying fastest, then
+//! `y`, then `z`, with a spacing and an origin giving world coordinates. [`Sample`] is a set of
+//! implicit functions with default bounds, sampled with [`Sample::grid`] or parsed from the
+//! command line's `sample:NAME:N[:SEED]`.
+
+mod grid;
+mod samples;
+
+pub use grid::{Grid, GridError};
+pub use samples::{Sample, SampleSpec};

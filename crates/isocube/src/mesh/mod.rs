@@ -1,0 +1,139 @@
+//! Indexed triangle meshes and the checks every test, the CLI and the reports share.
+//!
+//! [`Mesh`] is plain data: `[f32; 3]` positions, optional per-vertex normals of the same length,
+//! and `[u32; 3]` triangles whose right-hand normal is the front. [`MeshReport`] measures what
+//! matters for an isosurface: boundary and non-manifold edges, orientation, components, Euler
+//! characteristic, genus, degenerate triangles and angle range.
+
+mod report;
+
+pub use report::MeshReport;
+
+/// An indexed triangle mesh.
+///
+/// Invariant: every index in `triangles` is below `positions.len()`, and `normals` is either
+/// empty or as long as `positions`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Unit vertex normals, or empty.
+    pub normals: Vec<[f32; 3]>,
+    /// Triangles as vertex indices, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// An empty mesh.
+    pub fn new() -> Mesh {
+        Mesh::default()
+    }
+
+    /// Empties the mesh, keeping its allocations for reuse.
+    pub fn clear(&mut self) {
+        self.positions.clear();
+        self.normals.clear();
+        self.triangles.clear();
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Whether the mesh has no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Reverses every triangle and negates the normals: front and back trade places.
+    pub fn flip_orientation(&mut self) {
+        for t in &mut self.triangles {
+            t.swap(1, 2);
+        }
+        for n in &mut self.normals {
+            *n = n.map(|c| -c);
+        }
+    }
+
+    /// Checks the index invariant; `Err` names the first offending triangle.
+    pub fn validate(&self) -> Result<(), String> {
+        if !self.normals.is_empty() && self.normals.len() != self.positions.len() {
+            return Err(format!(
+                "{} normals for {} vertices",
+                self.normals.len(),
+                self.positions.len()
+            ));
+        }
+        let n = self.positions.len();
+        for (i, t) in self.triangles.iter().enumerate() {
+            if t.iter().any(|&v| v as usize >= n) {
+                return Err(format!("triangle {i} {t:?} indexes past {n} vertices"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Area-weighted vertex normals from the triangles (replacing any present).
+    pub fn compute_normals(&mut self) {
+        let mut acc = vec![[0.0f64; 3]; self.positions.len()];
+        for t in &self.triangles {
+            let p = t.map(|v| self.positions[v as usize].map(f64::from));
+            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            for &v in t {
+                for a in 0..3 {
+                    acc[v as usize][a] += n[a];
+                }
+            }
+        }
+        self.normals = acc
+            .into_iter()
+            .map(|n| {
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if len > 0.0 {
+                    n.map(|c| (c / len) as f32)
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+    }
+
+    /// Axis-aligned bounds `(min, max)`, or `None` for no vertices.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        let mut it = self.positions.iter();
+        let first = *it.next()?;
+        Some(it.fold((first, first), |(lo, hi), p| {
+            (
+                [0, 1, 2].map(|a| lo[a].min(p[a])),
+                [0, 1, 2].map(|a| hi[a].max(p[a])),
+            )
+        }))
+    }
+
+    /// The topology and quality report.
+    pub fn report(&self) -> MeshReport {
+        MeshReport::of(self)
+    }
+}
+
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}

@@ -1,0 +1,252 @@
+use super::{cross, dot, sub, Mesh};
+
+/// Topology and quality of a triangle mesh.
+///
+/// Edges are undirected vertex pairs. A *boundary* edge has one triangle, a *non-manifold* edge
+/// three or more. The mesh is *watertight* when it has triangles and neither kind of edge, and
+/// *oriented* when every edge with two triangles is traversed in opposite directions by them and
+/// no edge is traversed twice in the same direction. `euler` is `V − E + F` over the vertices
+/// that triangles use; `genus` is `(2·components − euler) / 2`, given only for watertight,
+/// oriented meshes. `components` counts groups of triangles connected through shared vertices.
+/// A triangle is *degenerate* when it repeats a vertex or has zero area; angles are measured
+/// over the others, in degrees.
+///
+/// ```
+/// use isocube::mesh::Mesh;
+/// // A tetrahedron: closed, oriented, genus 0.
+/// let mesh = Mesh {
+///     positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+///     normals: vec![],
+///     triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+/// };
+/// let r = mesh.report();
+/// assert!(r.watertight && r.oriented);
+/// assert_eq!((r.euler, r.genus), (2, Some(0)));
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshReport {
+    /// Vertices stored.
+    pub vertices: usize,
+    /// Triangles stored.
+    pub triangles: usize,
+    /// Distinct undirected edges.
+    pub edges: usize,
+    /// Edges with exactly one triangle.
+    pub boundary_edges: usize,
+    /// Edges with three or more triangles.
+    pub nonmanifold_edges: usize,
+    /// No boundary and no non-manifold edges (and at least one triangle).
+    pub watertight: bool,
+    /// Neighbouring triangles agree on orientation everywhere.
+    pub oriented: bool,
+    /// Connected components (through shared vertices).
+    pub components: usize,
+    /// `V − E + F` over used vertices.
+    pub euler: i64,
+    /// Total genus, for watertight oriented meshes.
+    pub genus: Option<i64>,
+    /// Triangles with a repeated vertex or zero area.
+    pub degenerate: usize,
+    /// Smallest angle of a non-degenerate triangle, in degrees (NaN without any).
+    pub min_angle: f64,
+    /// Largest angle of a non-degenerate triangle, in degrees (NaN without any).
+    pub max_angle: f64,
+}
+
+impl MeshReport {
+    /// Measures a mesh. `O(F log F)`.
+    pub fn of(mesh: &Mesh) -> MeshReport {
+        let nv = mesh.positions.len();
+        // Directed edges keyed by their undirected pair; the low bit says which way round.
+        let mut keys: Vec<u64> = Vec::with_capacity(mesh.triangles.len() * 3);
+        let mut used = vec![false; nv];
+        for t in &mesh.triangles {
+            for i in 0..3 {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                used[a as usize] = true;
+                if a == b {
+                    continue;
+                }
+                let (lo, hi, dir) = if a < b { (a, b, 0) } else { (b, a, 1) };
+                keys.push((u64::from(lo) << 33) | (u64::from(hi) << 1) | dir);
+            }
+        }
+        keys.sort_unstable();
+        let (mut edges, mut boundary, mut nonmanifold) = (0, 0, 0);
+        let mut oriented = true;
+        let mut i = 0;
+        while i < keys.len() {
+            let pair = keys[i] >> 1;
+            let mut j = i;
+            while j < keys.len() && keys[j] >> 1 == pair {
+                j += 1;
+            }
+            let count = j - i;
+            let forward = keys[i..j].iter().filter(|k| *k & 1 == 0).count();
+            edges += 1;
+            match count {
+                1 => boundary += 1,
+                2 => oriented &= forward == 1,
+                _ => nonmanifold += 1,
+            }
+            if forward > 1 || count - forward > 1 {
+                oriented = false;
+            }
+            i = j;
+        }
+
+        let mut uf = UnionFind::new(nv);
+        for t in &mesh.triangles {
+            uf.union(t[0] as usize, t[1] as usize);
+            uf.union(t[0] as usize, t[2] as usize);
+        }
+        let used_count = used.iter().filter(|&&u| u).count();
+        let components = (0..nv).filter(|&v| used[v] && uf.find(v) == v).count();
+        let euler = used_count as i64 - edges as i64 + mesh.triangles.len() as i64;
+        let watertight = !mesh.triangles.is_empty() && boundary == 0 && nonmanifold == 0;
+        let genus = (watertight && oriented).then(|| (2 * components as i64 - euler) / 2);
+
+        let mut degenerate = 0;
+        let (mut min_angle, mut max_angle) = (f64::INFINITY, f64::NEG_INFINITY);
+        for t in &mesh.triangles {
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                degenerate += 1;
+                continue;
+            }
+            let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
+            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            if dot(n, n) == 0.0 {
+                degenerate += 1;
+                continue;
+            }
+            for k in 0..3 {
+                let a = sub(p[(k + 1) % 3], p[k]);
+                let b = sub(p[(k + 2) % 3], p[k]);
+                let c = cross(a, b);
+                let angle = dot(c, c).sqrt().atan2(dot(a, b)).to_degrees();
+                min_angle = min_angle.min(angle);
+                max_angle = max_angle.max(angle);
+            }
+        }
+        if min_angle > max_angle {
+            min_angle = f64::NAN;
+            max_angle = f64::NAN;
+        }
+        MeshReport {
+            vertices: nv,
+            triangles: mesh.triangles.len(),
+            edges,
+            boundary_edges: boundary,
+            nonmanifold_edges: nonmanifold,
+            watertight,
+            oriented,
+            components,
+            euler,
+            genus,
+            degenerate,
+            min_angle,
+            max_angle,
+        }
+    }
+
+    /// Watertight and consistently oriented: a closed orientable surface.
+    pub fn is_closed_manifold(&self) -> bool {
+        self.watertight && self.oriented
+    }
+}
+
+struct UnionFind {
+    parent: Vec<u32>,
+}
+
+impl UnionFind {
+    fn new(n: usize) -> UnionFind {
+        UnionFind {
+            parent: (0..n as u32).collect(),
+        }
+    }
+
+    fn find(&mut self, mut v: usize) -> usize {
+        while self.parent[v] as usize != v {
+            let grand = self.parent[self.parent[v] as usize];
+            self.parent[v] = grand;
+            v = grand as usize;
+        }
+        v
+    }
+
+    fn union(&mut self, a: usize, b: usize) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            // Keep the smaller index as root so results do not depend on union order.
+            let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+            self.parent[hi] = lo as u32;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> Mesh {
+        Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            normals: vec![],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+        }
+    }
+
+    #[test]
+    fn open_mesh_has_boundary() {
+        let mut m = tetra();
+        m.triangles.pop();
+        let r = m.report();
+        assert_eq!(r.boundary_edges, 3);
+        assert!(!r.watertight && r.oriented);
+        assert_eq!(r.genus, None);
+        assert_eq!(r.euler, 1);
+    }
+
+    #[test]
+    fn misoriented_and_nonmanifold_are_detected() {
+        let mut m = tetra();
+        m.triangles[0] = [0, 1, 2];
+        assert!(!m.report().oriented);
+        let mut m = tetra();
+        m.triangles.push([0, 1, 2]);
+        let r = m.report();
+        assert_eq!(r.nonmanifold_edges, 3);
+        assert!(!r.watertight);
+    }
+
+    #[test]
+    fn degenerate_and_angles() {
+        let m = Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            normals: vec![],
+            triangles: vec![[0, 1, 2], [0, 1, 3], [1, 1, 3]],
+        };
+        let r = m.report();
+        assert_eq!(r.degenerate, 2);
+        assert!((r.min_angle - 45.0).abs() < 1e-9 && (r.max_angle - 90.0).abs() < 1e-9);
+        assert_eq!(r.components, 1);
+    }
+
+    #[test]
+    fn two_components() {
+        let mut m = tetra();
+        let off = m.positions.len() as u32;
+        m.positions
+            .extend(tetra().positions.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+        m.triangles
+            .extend(tetra().triangles.iter().map(|t| t.map(|v| v + off)));
+        let r = m.report();
+        assert_eq!((r.components, r.euler, r.genus), (2, 4, Some(0)));
+    }
+}
