@@ -34,4 +34,11 @@
 pub mod cube;
 pub mod extract;
 pub mod field;
+#[cfg(feature = "io")]
+pub mod io;
 pub mod mesh;
+
+/// The README's Rust examples, compiled and run as doctests so they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;

@@ -324,8 +324,8 @@ impl CaseTable {
                 // Decision on the representative's face f is the configuration's decision on
                 // face g(f), inverted under flip (joined above ↔ joined below).
                 let mut rep_decisions = 0u8;
-                for f in 0..6 {
-                    let bit = decisions >> face_map[f] & 1;
+                for (f, &image) in face_map.iter().enumerate() {
+                    let bit = decisions >> image & 1;
                     rep_decisions |= (bit ^ u8::from(t.flip)) << f;
                 }
                 let rep_polygons = derive_polygons(rep, rep_decisions & ambiguous_faces(rep));

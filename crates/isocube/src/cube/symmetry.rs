@@ -305,9 +305,9 @@ mod tests {
             let vm = t.vertex_map();
             let em = t.edge_map();
             let fm = t.face_map();
-            for e in 0..12 {
+            for (e, &image) in em.iter().enumerate() {
                 let [a, b] = super::super::EDGES[e];
-                let [c, d] = super::super::EDGES[usize::from(em[e])];
+                let [c, d] = super::super::EDGES[usize::from(image)];
                 let mut x = [vm[usize::from(a)], vm[usize::from(b)]];
                 let mut y = [c, d];
                 x.sort_unstable();

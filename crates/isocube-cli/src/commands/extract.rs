@@ -1,0 +1,95 @@
+//! `isocube extract VOLUME -o MESH [--level L]`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args as ClapArgs;
+use isocube::extract::{extract_into, ExtractOptions};
+use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
+use isocube::mesh::Mesh;
+
+use crate::progress::Progress;
+use crate::volume::VolumeArgs;
+use crate::Failure;
+
+#[derive(Debug, ClapArgs)]
+pub(crate) struct Args {
+    #[command(flatten)]
+    volume: VolumeArgs,
+    /// Output mesh: .ply (binary unless --ascii), .obj or .stl.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// The iso-value. Values equal to it count as above.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    level: f32,
+    /// Orient normals and winding toward decreasing values (default: toward increasing).
+    #[arg(long)]
+    flip: bool,
+    /// Do not compute or write vertex normals.
+    #[arg(long)]
+    no_normals: bool,
+    /// Write ASCII PLY.
+    #[arg(long)]
+    ascii: bool,
+}
+
+pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
+    if MeshFormat::from_path(&args.output).is_none() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: unknown mesh extension (expected .ply, .obj or .stl)",
+            args.output.display()
+        )));
+    }
+    if args.volume.is_file(&args.output) {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: the output would overwrite the input volume",
+            args.output.display()
+        )));
+    }
+    let grid = args.volume.load()?;
+    let options = ExtractOptions::default()
+        .with_level(args.level)
+        .with_flip(args.flip)
+        .with_normals(!args.no_normals);
+    let started = Instant::now();
+    let mut mesh = Mesh::new();
+    let mut progress = Progress::new("extracting", quiet);
+    let stats = extract_into(&grid, &options, &mut mesh, &mut |d, t| {
+        progress.update(d, t)
+    })
+    .map_err(Failure::input)?;
+    progress.finish();
+    let elapsed = started.elapsed();
+    write_mesh(
+        &args.output,
+        &mesh,
+        &MeshWriteOptions {
+            ascii: args.ascii,
+            normals: !args.no_normals,
+        },
+    )
+    .map_err(|e| crate::io_failure(e, false))?;
+    if !quiet {
+        let r = mesh.report();
+        eprintln!(
+            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} of {} cells active{})",
+            args.output.display(),
+            r.vertices,
+            r.triangles,
+            if r.watertight && r.oriented {
+                "watertight".to_string()
+            } else {
+                format!("{} boundary edges", r.boundary_edges)
+            },
+            elapsed.as_secs_f64() * 1e3,
+            stats.active_cells,
+            stats.cells,
+            if stats.skipped_cells > 0 {
+                format!(", {} skipped for NaN/Inf values", stats.skipped_cells)
+            } else {
+                String::new()
+            }
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,140 @@
+//! The `isocube` command line: argument parsing, progress, files. Algorithms live in the
+//! `isocube` library; this crate turns arguments into library options in one place per
+//! subcommand and reports results.
+//!
+//! Exit codes: 0 success, 2 bad arguments or bad input (malformed, unsupported or missing
+//! files), 1 any other failure (for example an output that cannot be written).
+
+use std::ffi::OsString;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod commands;
+mod progress;
+mod volume;
+
+/// Scalar fields to triangle meshes that are correct, good and fast.
+#[derive(Debug, Parser)]
+#[command(name = "isocube", version, about, long_about = None)]
+pub struct Cli {
+    /// No progress bar and no summary on stderr.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Extract an isosurface from a volume and write it as a mesh.
+    Extract(commands::extract::Args),
+    /// Report a mesh's topology and triangle quality.
+    Info(commands::info::Args),
+    /// Print the symmetry-derived configuration tables as TSV.
+    Tables(commands::tables::Args),
+    /// Extract the built-in samples and print a summary table.
+    Demo(commands::demo::Args),
+}
+
+/// An error with the exit code it should produce.
+#[derive(Debug)]
+pub struct Failure {
+    /// 2 for bad input or arguments, 1 otherwise.
+    pub code: u8,
+    /// What went wrong, with context.
+    pub error: anyhow::Error,
+}
+
+impl Failure {
+    /// Bad input: exit code 2.
+    pub fn input(error: impl Into<anyhow::Error>) -> Failure {
+        Failure {
+            code: 2,
+            error: error.into(),
+        }
+    }
+
+    /// Any other failure: exit code 1.
+    pub fn other(error: impl Into<anyhow::Error>) -> Failure {
+        Failure {
+            code: 1,
+            error: error.into(),
+        }
+    }
+}
+
+/// Classifies a library I/O error: OS errors on output are failures, everything else is bad
+/// input.
+pub(crate) fn io_failure(e: isocube::io::IoError, reading: bool) -> Failure {
+    match e {
+        isocube::io::IoError::Os { .. } if !reading => Failure::other(e),
+        _ => Failure::input(e),
+    }
+}
+
+/// Runs the command line and returns the process exit code.
+pub fn run<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    match dispatch(&cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("error: {:#}", f.error);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+fn dispatch(cli: &Cli) -> Result<(), Failure> {
+    match &cli.command {
+        Command::Extract(a) => commands::extract::run(a, cli.quiet),
+        Command::Info(a) => commands::info::run(a),
+        Command::Tables(a) => commands::tables::run(a),
+        Command::Demo(a) => commands::demo::run(a, cli.quiet),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn command_definitions_are_valid() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn sample_command_lines_parse() {
+        for line in [
+            "isocube extract sample:sphere:10 -o s.ply",
+            "isocube extract v.raw --dims 4,5,6 --type u16 --endian big --spacing 1,1,2 -o m.obj --level 100",
+            "isocube extract v.npy --axes zyx -o m.stl --flip",
+            "isocube info m.ply --json",
+            "isocube tables --ternary --group rotations",
+            "isocube demo --out d --size 32",
+            "isocube --quiet demo",
+        ] {
+            let args: Vec<&str> = line.split_whitespace().collect();
+            Cli::try_parse_from(args).unwrap_or_else(|e| panic!("{line}: {e}"));
+        }
+        for bad in [
+            "isocube tables --binary --ternary",
+            "isocube extract",
+            "isocube tables --group odd",
+        ] {
+            let args: Vec<&str> = bad.split_whitespace().collect();
+            assert!(Cli::try_parse_from(args).is_err(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,122 @@
+//! The VOLUME argument: `sample:NAME:N[:SEED]` or a file, with the raw-layout flags.
+
+use std::path::Path;
+
+use clap::Args;
+use isocube::field::{Grid, SampleSpec};
+use isocube::io::{read_volume, Endian, NpyAxes, RawOptions, ScalarType, VolumeOptions};
+
+use crate::Failure;
+
+/// How to read the volume.
+#[derive(Debug, Args)]
+pub(crate) struct VolumeArgs {
+    /// `sample:NAME:N` (a built-in sample on N points per axis; noise takes `:SEED` too), or a
+    /// file: .npy, .nrrd, .nhdr, or raw (with --dims and --type).
+    pub volume: String,
+    /// Raw files: points along x, y, z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_dims)]
+    pub dims: Option<[usize; 3]>,
+    /// Raw files: value type (u8, i8, u16, i16, u32, i32, u64, i64, f32, f64).
+    #[arg(long = "type", value_name = "TYPE")]
+    pub scalar: Option<ScalarType>,
+    /// Raw files: byte order (little or big).
+    #[arg(long, default_value = "little")]
+    pub endian: Endian,
+    /// Raw files: bytes to skip before the data.
+    #[arg(long, default_value_t = 0)]
+    pub header_bytes: u64,
+    /// Grid spacing (overrides the file's).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_triple)]
+    pub spacing: Option<[f64; 3]>,
+    /// Grid origin (overrides the file's).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_triple)]
+    pub origin: Option<[f64; 3]>,
+    /// .npy files: array axes are x,y,z (`xyz`, default) or z,y,x (`zyx`).
+    #[arg(long, default_value = "xyz")]
+    pub axes: NpyAxes,
+}
+
+impl VolumeArgs {
+    /// Whether the volume argument is this file path.
+    pub(crate) fn is_file(&self, path: &Path) -> bool {
+        if SampleSpec::is_sample(&self.volume) {
+            return false;
+        }
+        match (
+            std::fs::canonicalize(&self.volume),
+            std::fs::canonicalize(path),
+        ) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => Path::new(&self.volume) == path,
+        }
+    }
+
+    pub(crate) fn load(&self) -> Result<Grid, Failure> {
+        if SampleSpec::is_sample(&self.volume) {
+            let spec: SampleSpec = self
+                .volume
+                .parse()
+                .map_err(|e: String| Failure::input(anyhow::anyhow!(e)))?;
+            let mut grid = spec.grid();
+            if let Some(s) = self.spacing {
+                grid = grid.with_spacing(s).map_err(Failure::input)?;
+            }
+            if let Some(o) = self.origin {
+                grid = grid.with_origin(o).map_err(Failure::input)?;
+            }
+            return Ok(grid);
+        }
+        let raw = match (self.dims, self.scalar) {
+            (Some(dims), Some(scalar)) => Some(RawOptions {
+                endian: self.endian,
+                header_bytes: self.header_bytes,
+                ..RawOptions::new(dims, scalar)
+            }),
+            (None, None) => None,
+            _ => {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "raw volumes need both --dims and --type"
+                )))
+            }
+        };
+        let options = VolumeOptions {
+            raw,
+            npy_axes: self.axes,
+            spacing: self.spacing,
+            origin: self.origin,
+        };
+        read_volume(Path::new(&self.volume), &options)
+            .map_err(|e| crate::io_failure(e, true))
+            .map_err(|f| Failure {
+                error: f.error.context("cannot read the volume"),
+                ..f
+            })
+    }
+}
+
+fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("'{t}' is not a whole number"))
+        })
+        .collect::<Result<_, _>>()?;
+    <[usize; 3]>::try_from(v).map_err(|_| format!("'{s}' needs three numbers X,Y,Z"))
+}
+
+fn parse_triple(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("'{t}' is not a finite number"))
+        })
+        .collect::<Result<_, _>>()?;
+    <[f64; 3]>::try_from(v).map_err(|_| format!("'{s}' needs three numbers X,Y,Z"))
+}

@@ -1,0 +1,239 @@
+//! Runs the real `isocube` binary in temporary directories.
+
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn isocube(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_isocube"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+fn ok(dir: &Path, args: &[&str]) -> String {
+    let out = isocube(dir, args);
+    assert!(
+        out.status.success(),
+        "isocube {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn info(dir: &Path, mesh: &str) -> serde_json::Value {
+    serde_json::from_str(&ok(dir, &["info", mesh, "--json"])).unwrap()
+}
+
+/// Checks the TSV of `tables` against its own definition: for every configuration, the value at
+/// vertex i equals the representative's value at perm[i], flipped when `flipped` is 1.
+fn check_tables(kind: &str, group: &str, classes: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    let text = ok(dir.path(), &["tables", kind, "--group", group]);
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "config\trepresentative\tclass\torbit_size\tflip_class\tperm\tflipped\treversed"
+    );
+    let base: usize = if kind == "--binary" { 2 } else { 3 };
+    let digits = |mut c: usize| {
+        let mut d = [0usize; 8];
+        for x in &mut d {
+            *x = c % base;
+            c /= base;
+        }
+        d
+    };
+    let mut seen = HashSet::new();
+    let mut orbit: HashMap<usize, usize> = HashMap::new();
+    let mut rows = 0;
+    for line in lines {
+        let f: Vec<&str> = line.split('\t').collect();
+        assert_eq!(f.len(), 8);
+        let config: usize = f[0].parse().unwrap();
+        let rep: usize = f[1].parse().unwrap();
+        let class: usize = f[2].parse().unwrap();
+        let perm: Vec<usize> = f[5].bytes().map(|b| usize::from(b - b'0')).collect();
+        let flipped = f[6] == "1";
+        assert_eq!(config, rows);
+        assert!(rep <= config && (1..=classes).contains(&class));
+        let (own, r) = (digits(config), digits(rep));
+        for i in 0..8 {
+            let v = r[perm[i]];
+            assert_eq!(own[i], if flipped { base - 1 - v } else { v });
+        }
+        seen.insert(class);
+        *orbit.entry(class).or_default() += 1;
+        assert_eq!(orbit.len(), seen.len());
+        rows += 1;
+    }
+    assert_eq!(rows, base.pow(8));
+    assert_eq!(seen.len(), classes, "{kind} {group}");
+}
+
+#[test]
+fn tables_rows_satisfy_their_definition() {
+    check_tables("--binary", "rotations", 23);
+    check_tables("--binary", "rotations+flip", 15);
+    check_tables("--binary", "all", 14);
+    check_tables("--ternary", "rotations", 333);
+    check_tables("--ternary", "rotations+flip", 183);
+}
+
+#[test]
+fn extract_sphere_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    ok(
+        dir.path(),
+        &["extract", "sample:sphere:10", "-o", "s.ply", "--quiet"],
+    );
+    let r = info(dir.path(), "s.ply");
+    assert_eq!(r["triangles"], 524);
+    assert_eq!(r["watertight"], true);
+    assert_eq!(r["oriented"], true);
+    assert_eq!(r["euler"], 2);
+    assert_eq!(r["genus"], 0);
+    for ext in ["obj", "stl"] {
+        let name = format!("s.{ext}");
+        ok(dir.path(), &["extract", "sample:sphere:10", "-o", &name]);
+        let r = info(dir.path(), &name);
+        assert_eq!(r["triangles"], 524);
+        assert_eq!(r["watertight"], true);
+    }
+    let table = ok(dir.path(), &["info", "s.ply"]);
+    assert!(table.contains("watertight         yes"));
+}
+
+#[test]
+fn extract_raw_big_endian_with_level() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 6×5×4 u16 ramp along z: values 0, 100, 200, 300; the level 150 cuts between z=1 and 2.
+    let mut bytes = Vec::new();
+    for z in 0..4u16 {
+        for _ in 0..5 * 6 {
+            bytes.extend_from_slice(&(z * 100).to_be_bytes());
+        }
+    }
+    std::fs::write(dir.path().join("ramp.raw"), bytes).unwrap();
+    ok(
+        dir.path(),
+        &[
+            "extract",
+            "ramp.raw",
+            "--dims",
+            "6,5,4",
+            "--type",
+            "u16",
+            "--endian",
+            "big",
+            "--spacing",
+            "1,1,2",
+            "--level",
+            "150",
+            "-o",
+            "ramp.obj",
+        ],
+    );
+    let text = std::fs::read_to_string(dir.path().join("ramp.obj")).unwrap();
+    let zs: HashSet<String> = text
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| l.split(' ').nth(3).unwrap().to_string())
+        .collect();
+    assert_eq!(zs.into_iter().collect::<Vec<_>>(), vec!["3".to_string()]);
+    let r = info(dir.path(), "ramp.obj");
+    assert_eq!(r["triangles"], 2 * 5 * 4);
+    assert_eq!(r["euler"], 1);
+}
+
+#[test]
+fn bad_input_exits_2_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("short.raw"), [0u8; 10]).unwrap();
+    std::fs::write(
+        dir.path().join("in.ply"),
+        b"ply\nformat ascii 1.0\nend_header\n",
+    )
+    .unwrap();
+    let cases: [&[&str]; 7] = [
+        &["extract", "missing.npy", "-o", "out.ply"],
+        &[
+            "extract",
+            "short.raw",
+            "--dims",
+            "4,4,4",
+            "--type",
+            "u8",
+            "-o",
+            "out.ply",
+        ],
+        &["extract", "short.raw", "-o", "out.ply"],
+        &["extract", "sample:sphere:10", "-o", "out.xyz"],
+        &["extract", "sample:nothing:10", "-o", "out.ply"],
+        &[
+            "extract", "in.ply", "--dims", "2,2,2", "--type", "u8", "-o", "in.ply",
+        ],
+        &["info", "missing.ply"],
+    ];
+    for args in cases {
+        let out = isocube(dir.path(), args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.starts_with("error:"), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(!dir.path().join("out.ply").exists() && !dir.path().join("out.xyz").exists());
+    }
+    // The input was not touched.
+    assert_eq!(
+        std::fs::read(dir.path().join("in.ply")).unwrap(),
+        b"ply\nformat ascii 1.0\nend_header\n"
+    );
+}
+
+#[test]
+fn demo_writes_every_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = ok(
+        dir.path(),
+        &["demo", "--out", "d", "--size", "24", "--quiet"],
+    );
+    assert_eq!(out.lines().count(), 1 + 9);
+    let files = std::fs::read_dir(dir.path().join("d")).unwrap().count();
+    assert_eq!(files, 9);
+    assert!(out.lines().nth(1).unwrap().starts_with("sphere"));
+}
+
+/// Every `isocube …` line in the README's shell examples runs successfully, in order, in one
+/// temporary directory.
+#[test]
+fn readme_examples_run() {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../README.md"))
+            .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut in_block = false;
+    let mut ran = 0;
+    for line in readme.lines() {
+        if line.starts_with("```") {
+            in_block = line.trim() == "```sh";
+            continue;
+        }
+        if !in_block {
+            continue;
+        }
+        let Some(rest) = line.trim().strip_prefix("isocube ") else {
+            continue;
+        };
+        let command = rest.split(" #").next().unwrap();
+        let args: Vec<&str> = command.split_whitespace().collect();
+        let out = isocube(dir.path(), &args);
+        assert!(
+            out.status.success(),
+            "README line failed: {line}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        ran += 1;
+    }
+    assert!(ran >= 5, "only {ran} README examples found");
+}

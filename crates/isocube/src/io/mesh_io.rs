@@ -1,0 +1,844 @@
+//! Mesh files: PLY, OBJ and STL, chosen by extension.
+
+use std::collections::HashMap;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use super::{read_file, IoError, Position};
+use crate::mesh::Mesh;
+
+/// A mesh file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Stanford PLY.
+    Ply,
+    /// Wavefront OBJ.
+    Obj,
+    /// STL (written binary).
+    Stl,
+}
+
+impl MeshFormat {
+    /// The format a path's extension names (case-insensitive).
+    pub fn from_path(path: &Path) -> Option<MeshFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "ply" => Some(MeshFormat::Ply),
+            "obj" => Some(MeshFormat::Obj),
+            "stl" => Some(MeshFormat::Stl),
+            _ => None,
+        }
+    }
+}
+
+/// How to write a mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshWriteOptions {
+    /// ASCII PLY instead of binary little-endian (PLY only).
+    pub ascii: bool,
+    /// Write vertex normals when the mesh has them (PLY and OBJ; STL stores face normals).
+    pub normals: bool,
+}
+
+impl Default for MeshWriteOptions {
+    fn default() -> Self {
+        MeshWriteOptions {
+            ascii: false,
+            normals: true,
+        }
+    }
+}
+
+fn unknown_format(path: &Path) -> IoError {
+    IoError::unsupported(
+        path,
+        Position::File,
+        "unknown mesh extension (expected .ply, .obj or .stl)",
+    )
+}
+
+/// Writes a mesh atomically, in the format its extension names: the bytes go to a temporary
+/// file beside the target, are synced to disk and the file is renamed over the target. On any
+/// error the target is untouched and the temporary file removed.
+pub fn write_mesh(path: &Path, mesh: &Mesh, options: &MeshWriteOptions) -> Result<(), IoError> {
+    let format = MeshFormat::from_path(path).ok_or_else(|| unknown_format(path))?;
+    mesh.validate().map_err(|reason| {
+        IoError::format(path, Position::File, format!("invalid mesh: {reason}"))
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("mesh");
+    let tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| IoError::os(path, e))?;
+    {
+        let mut w = BufWriter::new(tmp.as_file());
+        write_mesh_to(&mut w, format, mesh, options).map_err(|e| IoError::os(path, e))?;
+        w.flush().map_err(|e| IoError::os(path, e))?;
+    }
+    tmp.as_file().sync_all().map_err(|e| IoError::os(path, e))?;
+    tmp.persist(path).map_err(|e| IoError::os(path, e.error))?;
+    Ok(())
+}
+
+/// Writes a mesh in a format to any writer.
+pub fn write_mesh_to(
+    w: &mut impl Write,
+    format: MeshFormat,
+    mesh: &Mesh,
+    options: &MeshWriteOptions,
+) -> std::io::Result<()> {
+    let normals = options.normals && !mesh.normals.is_empty();
+    match format {
+        MeshFormat::Ply => write_ply(w, mesh, normals, options.ascii),
+        MeshFormat::Obj => write_obj(w, mesh, normals),
+        MeshFormat::Stl => write_stl(w, mesh),
+    }
+}
+
+fn write_ply(w: &mut impl Write, mesh: &Mesh, normals: bool, ascii: bool) -> std::io::Result<()> {
+    let format = if ascii {
+        "ascii"
+    } else {
+        "binary_little_endian"
+    };
+    writeln!(w, "ply\nformat {format} 1.0\ncomment isocube")?;
+    writeln!(w, "element vertex {}", mesh.positions.len())?;
+    writeln!(w, "property float x\nproperty float y\nproperty float z")?;
+    if normals {
+        writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
+    }
+    writeln!(w, "element face {}", mesh.triangles.len())?;
+    writeln!(w, "property list uchar uint vertex_indices\nend_header")?;
+    for (i, p) in mesh.positions.iter().enumerate() {
+        let n = if normals { Some(mesh.normals[i]) } else { None };
+        if ascii {
+            write!(w, "{} {} {}", p[0], p[1], p[2])?;
+            if let Some(n) = n {
+                write!(w, " {} {} {}", n[0], n[1], n[2])?;
+            }
+            writeln!(w)?;
+        } else {
+            for c in p.iter().chain(n.iter().flatten()) {
+                w.write_all(&c.to_le_bytes())?;
+            }
+        }
+    }
+    for t in &mesh.triangles {
+        if ascii {
+            writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
+        } else {
+            w.write_all(&[3])?;
+            for v in t {
+                w.write_all(&v.to_le_bytes())?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn write_obj(w: &mut impl Write, mesh: &Mesh, normals: bool) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "# isocube: {} vertices, {} triangles",
+        mesh.positions.len(),
+        mesh.triangles.len()
+    )?;
+    for p in &mesh.positions {
+        writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+    }
+    if normals {
+        for n in &mesh.normals {
+            writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;
+        }
+    }
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|v| v + 1);
+        if normals {
+            writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+        } else {
+            writeln!(w, "f {a} {b} {c}")?;
+        }
+    }
+    Ok(())
+}
+
+fn write_stl(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<()> {
+    let mut header = [b' '; 80];
+    header[..7].copy_from_slice(b"isocube");
+    w.write_all(&header)?;
+    let count = u32::try_from(mesh.triangles.len())
+        .map_err(|_| std::io::Error::other("more than 2^32 triangles do not fit in STL"))?;
+    w.write_all(&count.to_le_bytes())?;
+    for t in &mesh.triangles {
+        let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
+        let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
+        let len = crate::mesh::dot(n, n).sqrt();
+        let n = if len > 0.0 {
+            n.map(|c| (c / len) as f32)
+        } else {
+            [0.0; 3]
+        };
+        for c in n {
+            w.write_all(&c.to_le_bytes())?;
+        }
+        for v in t {
+            for c in mesh.positions[*v as usize] {
+                w.write_all(&c.to_le_bytes())?;
+            }
+        }
+        w.write_all(&[0, 0])?;
+    }
+    Ok(())
+}
+
+/// Reads a mesh in the format its extension names. Polygons are fan-triangulated; STL
+/// triangles are welded by exact position.
+pub fn read_mesh(path: &Path) -> Result<Mesh, IoError> {
+    let format = MeshFormat::from_path(path).ok_or_else(|| unknown_format(path))?;
+    let bytes = read_file(path)?;
+    let mesh = match format {
+        MeshFormat::Ply => read_ply(path, &bytes)?,
+        MeshFormat::Obj => read_obj(path, &bytes)?,
+        MeshFormat::Stl => read_stl(path, &bytes)?,
+    };
+    Ok(mesh)
+}
+
+fn check_coordinate(path: &Path, pos: impl Fn() -> Position, c: f64) -> Result<f32, IoError> {
+    if c.is_finite() && c.abs() <= f64::from(f32::MAX) {
+        Ok(c as f32)
+    } else {
+        Err(IoError::format(
+            path,
+            pos(),
+            format!("coordinate {c} is not a finite number"),
+        ))
+    }
+}
+
+fn push_polygon(
+    path: &Path,
+    pos: impl Fn() -> Position,
+    mesh: &mut Mesh,
+    polygon: &[i64],
+    vertex_count: usize,
+) -> Result<(), IoError> {
+    if polygon.len() < 3 {
+        return Err(IoError::format(
+            path,
+            pos(),
+            format!(
+                "a face needs 3 or more vertices, this one has {}",
+                polygon.len()
+            ),
+        ));
+    }
+    for &v in polygon {
+        if v < 0 || v as u64 >= vertex_count as u64 {
+            return Err(IoError::format(
+                path,
+                pos(),
+                format!("vertex index {v} is outside 0..{vertex_count}"),
+            ));
+        }
+    }
+    for i in 1..polygon.len() - 1 {
+        mesh.triangles
+            .push([polygon[0] as u32, polygon[i] as u32, polygon[i + 1] as u32]);
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PlyType {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl PlyType {
+    fn parse(s: &str) -> Option<PlyType> {
+        Some(match s {
+            "char" | "int8" => PlyType::I8,
+            "uchar" | "uint8" => PlyType::U8,
+            "short" | "int16" => PlyType::I16,
+            "ushort" | "uint16" => PlyType::U16,
+            "int" | "int32" => PlyType::I32,
+            "uint" | "uint32" => PlyType::U32,
+            "float" | "float32" => PlyType::F32,
+            "double" | "float64" => PlyType::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            PlyType::I8 | PlyType::U8 => 1,
+            PlyType::I16 | PlyType::U16 => 2,
+            PlyType::I32 | PlyType::U32 | PlyType::F32 => 4,
+            PlyType::F64 => 8,
+        }
+    }
+
+    fn decode(self, b: &[u8], big: bool) -> f64 {
+        macro_rules! get {
+            ($t:ty) => {{
+                let a: [u8; std::mem::size_of::<$t>()] = b.try_into().expect("width");
+                if big {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }
+            }};
+        }
+        match self {
+            PlyType::I8 => f64::from(b[0] as i8),
+            PlyType::U8 => f64::from(b[0]),
+            PlyType::I16 => f64::from(get!(i16)),
+            PlyType::U16 => f64::from(get!(u16)),
+            PlyType::I32 => f64::from(get!(i32)),
+            PlyType::U32 => f64::from(get!(u32)),
+            PlyType::F32 => f64::from(get!(f32)),
+            PlyType::F64 => get!(f64),
+        }
+    }
+}
+
+struct PlyProperty {
+    name: String,
+    /// `Some(count type)` for a list property.
+    list: Option<PlyType>,
+    ty: PlyType,
+}
+
+struct PlyElement {
+    name: String,
+    count: usize,
+    properties: Vec<PlyProperty>,
+}
+
+fn read_ply(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
+    let end = find(bytes, b"end_header").ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::File,
+            "no 'end_header' line: not a PLY file or a truncated header",
+        )
+    })?;
+    let mut data_start = end + b"end_header".len();
+    if bytes.get(data_start) == Some(&b'\r') {
+        data_start += 1;
+    }
+    if bytes.get(data_start) == Some(&b'\n') {
+        data_start += 1;
+    }
+    let header = std::str::from_utf8(&bytes[..end]).map_err(|e| {
+        IoError::format(
+            path,
+            Position::Byte(e.valid_up_to() as u64),
+            "header is not text",
+        )
+    })?;
+    let mut lines = header.lines().enumerate();
+    match lines.next() {
+        Some((_, l)) if l.trim() == "ply" => {}
+        _ => {
+            return Err(IoError::format(
+                path,
+                Position::Line(1),
+                "not a PLY file (first line is not 'ply')",
+            ))
+        }
+    }
+    let mut format = None;
+    let mut elements: Vec<PlyElement> = Vec::new();
+    for (n, line) in lines {
+        let pos = || Position::Line(n + 1);
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            [] | ["comment", ..] | ["obj_info", ..] => {}
+            ["format", f, _] => {
+                format = Some(match *f {
+                    "ascii" => 0,
+                    "binary_little_endian" => 1,
+                    "binary_big_endian" => 2,
+                    _ => return Err(IoError::unsupported(path, pos(), format!("format '{f}'"))),
+                })
+            }
+            ["element", name, count] => elements.push(PlyElement {
+                name: name.to_string(),
+                count: count.parse().map_err(|_| {
+                    IoError::format(path, pos(), format!("'{count}' is not an element count"))
+                })?,
+                properties: Vec::new(),
+            }),
+            ["property", "list", count_ty, ty, name] => {
+                let e = elements
+                    .last_mut()
+                    .ok_or_else(|| IoError::format(path, pos(), "property before any element"))?;
+                let ct =
+                    PlyType::parse(count_ty).filter(|t| !matches!(t, PlyType::F32 | PlyType::F64));
+                e.properties.push(PlyProperty {
+                    name: name.to_string(),
+                    list: Some(ct.ok_or_else(|| {
+                        IoError::format(path, pos(), format!("list count type '{count_ty}'"))
+                    })?),
+                    ty: PlyType::parse(ty)
+                        .ok_or_else(|| IoError::format(path, pos(), format!("type '{ty}'")))?,
+                });
+            }
+            ["property", ty, name] => {
+                let e = elements
+                    .last_mut()
+                    .ok_or_else(|| IoError::format(path, pos(), "property before any element"))?;
+                e.properties.push(PlyProperty {
+                    name: name.to_string(),
+                    list: None,
+                    ty: PlyType::parse(ty)
+                        .ok_or_else(|| IoError::format(path, pos(), format!("type '{ty}'")))?,
+                });
+            }
+            _ => {
+                return Err(IoError::format(
+                    path,
+                    pos(),
+                    format!("unexpected header line '{line}'"),
+                ))
+            }
+        }
+    }
+    let format =
+        format.ok_or_else(|| IoError::format(path, Position::Field("format".into()), "missing"))?;
+    let mut mesh = Mesh::new();
+    let vertex_count = elements
+        .iter()
+        .find(|e| e.name == "vertex")
+        .map_or(0, |e| e.count);
+    // Guard against absurd counts before allocating: each vertex takes at least 3 bytes.
+    if vertex_count > bytes.len() {
+        return Err(IoError::format(
+            path,
+            Position::Field("element vertex".into()),
+            format!(
+                "{vertex_count} vertices cannot fit in {} bytes",
+                bytes.len()
+            ),
+        ));
+    }
+    let mut reader = PlyData {
+        path,
+        bytes,
+        at: data_start,
+        format,
+        tokens: None,
+    };
+    if format == 0 {
+        reader.tokens = Some(ascii_tokens(&bytes[data_start..]));
+    }
+    for e in &elements {
+        let is_vertex = e.name == "vertex";
+        let is_face = e.name == "face";
+        let xyz = ["x", "y", "z"].map(|n| {
+            e.properties
+                .iter()
+                .position(|p| p.name == n && p.list.is_none())
+        });
+        let nxyz = ["nx", "ny", "nz"].map(|n| {
+            e.properties
+                .iter()
+                .position(|p| p.name == n && p.list.is_none())
+        });
+        if is_vertex && xyz.iter().any(Option::is_none) {
+            return Err(IoError::format(
+                path,
+                Position::Field("element vertex".into()),
+                "needs x, y and z properties",
+            ));
+        }
+        let has_normals = is_vertex && nxyz.iter().all(Option::is_some);
+        let face_list = e.properties.iter().position(|p| {
+            (p.name == "vertex_indices" || p.name == "vertex_index") && p.list.is_some()
+        });
+        if is_face && face_list.is_none() {
+            return Err(IoError::format(
+                path,
+                Position::Field("element face".into()),
+                "needs a vertex_indices list",
+            ));
+        }
+        let mut scalars = vec![0.0f64; e.properties.len()];
+        let mut polygon: Vec<i64> = Vec::new();
+        for _ in 0..e.count {
+            for (pi, p) in e.properties.iter().enumerate() {
+                match p.list {
+                    None => scalars[pi] = reader.scalar(p.ty)?,
+                    Some(ct) => {
+                        let n = reader.scalar(ct)?;
+                        if !(0.0..=1_000_000.0).contains(&n) {
+                            return Err(reader.error(format!("list length {n}")));
+                        }
+                        let keep = is_face && Some(pi) == face_list;
+                        if keep {
+                            polygon.clear();
+                        }
+                        for _ in 0..n as usize {
+                            let v = reader.scalar(p.ty)?;
+                            if keep {
+                                polygon.push(v as i64);
+                            }
+                        }
+                    }
+                }
+            }
+            if is_vertex {
+                let pos = reader.position();
+                let c = xyz.map(|i| scalars[i.expect("checked")]);
+                mesh.positions.push([
+                    check_coordinate(path, || pos.clone(), c[0])?,
+                    check_coordinate(path, || pos.clone(), c[1])?,
+                    check_coordinate(path, || pos.clone(), c[2])?,
+                ]);
+                if has_normals {
+                    mesh.normals
+                        .push(nxyz.map(|i| scalars[i.expect("checked")] as f32));
+                }
+            } else if is_face {
+                let pos = reader.position();
+                push_polygon(path, || pos.clone(), &mut mesh, &polygon, vertex_count)?;
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+struct PlyData<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    at: usize,
+    format: u8,
+    /// ASCII tokens with their line numbers (relative to the data start).
+    tokens: Option<std::vec::IntoIter<(usize, &'a str)>>,
+}
+
+impl PlyData<'_> {
+    fn position(&self) -> Position {
+        if self.format == 0 {
+            Position::File
+        } else {
+            Position::Byte(self.at as u64)
+        }
+    }
+
+    fn error(&self, reason: String) -> IoError {
+        IoError::format(self.path, self.position(), reason)
+    }
+
+    fn scalar(&mut self, ty: PlyType) -> Result<f64, IoError> {
+        if let Some(tokens) = &mut self.tokens {
+            let (line, tok) = tokens.next().ok_or_else(|| {
+                IoError::format(
+                    self.path,
+                    Position::File,
+                    "the data ends before the header's element counts are reached",
+                )
+            })?;
+            return tok.parse::<f64>().map_err(|_| {
+                IoError::format(
+                    self.path,
+                    Position::Field(format!("data line {line}")),
+                    format!("'{tok}' is not a number"),
+                )
+            });
+        }
+        let n = ty.size();
+        let b = self.bytes.get(self.at..self.at + n).ok_or_else(|| {
+            IoError::format(
+                self.path,
+                Position::Byte(self.at as u64),
+                "the data ends before the header's element counts are reached",
+            )
+        })?;
+        self.at += n;
+        Ok(ty.decode(b, self.format == 2))
+    }
+}
+
+fn ascii_tokens(data: &[u8]) -> std::vec::IntoIter<(usize, &str)> {
+    let text = match std::str::from_utf8(data) {
+        Ok(t) => t,
+        Err(e) => std::str::from_utf8(&data[..e.valid_up_to()]).unwrap_or(""),
+    };
+    text.lines()
+        .enumerate()
+        .flat_map(|(n, l)| l.split_whitespace().map(move |t| (n + 1, t)))
+        .collect::<Vec<_>>()
+        .into_iter()
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+fn read_obj(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let line = bytes[..e.valid_up_to()]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1;
+        IoError::format(path, Position::Line(line), "not valid UTF-8 text")
+    })?;
+    let mut mesh = Mesh::new();
+    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let pos = || Position::Line(n + 1);
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let c: Vec<f64> = words
+                    .take(3)
+                    .map(|w| {
+                        w.parse::<f64>().map_err(|_| {
+                            IoError::format(path, pos(), format!("'{w}' is not a number"))
+                        })
+                    })
+                    .collect::<Result<_, _>>()?;
+                if c.len() < 3 {
+                    return Err(IoError::format(
+                        path,
+                        pos(),
+                        "a vertex needs three coordinates",
+                    ));
+                }
+                mesh.positions.push([
+                    check_coordinate(path, pos, c[0])?,
+                    check_coordinate(path, pos, c[1])?,
+                    check_coordinate(path, pos, c[2])?,
+                ]);
+            }
+            Some("f") => {
+                let count = mesh.positions.len() as i64;
+                let polygon: Vec<i64> = words
+                    .map(|w| {
+                        let first = w.split('/').next().unwrap_or("");
+                        let i: i64 = first.parse().map_err(|_| {
+                            IoError::format(path, pos(), format!("'{w}' is not a vertex reference"))
+                        })?;
+                        match i {
+                            0 => Err(IoError::format(
+                                path,
+                                pos(),
+                                "vertex index 0 (OBJ counts from 1)",
+                            )),
+                            i if i < 0 => Ok(count + i),
+                            i => Ok(i - 1),
+                        }
+                    })
+                    .collect::<Result<_, _>>()?;
+                faces.push((n + 1, polygon));
+            }
+            _ => {}
+        }
+    }
+    let count = mesh.positions.len();
+    for (line, polygon) in faces {
+        push_polygon(path, || Position::Line(line), &mut mesh, &polygon, count)?;
+    }
+    Ok(mesh)
+}
+
+fn read_stl(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
+    let binary_size = |n: u32| 84 + 50 * n as u64;
+    let is_binary = bytes.len() >= 84
+        && binary_size(u32::from_le_bytes([
+            bytes[80], bytes[81], bytes[82], bytes[83],
+        ])) == bytes.len() as u64;
+    let mut triangles: Vec<[[f32; 3]; 3]> = Vec::new();
+    if is_binary {
+        for (t, rec) in bytes[84..].chunks_exact(50).enumerate() {
+            let mut tri = [[0.0f32; 3]; 3];
+            for (v, corner) in tri.iter_mut().enumerate() {
+                for (a, c) in corner.iter_mut().enumerate() {
+                    let o = 12 + 12 * v + 4 * a;
+                    let x = f32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]);
+                    *c = check_coordinate(
+                        path,
+                        || Position::Byte((84 + 50 * t + o) as u64),
+                        f64::from(x),
+                    )?;
+                }
+            }
+            triangles.push(tri);
+        }
+    } else if bytes.starts_with(b"solid") {
+        let text = std::str::from_utf8(bytes).map_err(|e| {
+            IoError::format(
+                path,
+                Position::Byte(e.valid_up_to() as u64),
+                "ASCII STL is not valid text",
+            )
+        })?;
+        let mut corners: Vec<[f32; 3]> = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let pos = || Position::Line(n + 1);
+            let mut words = line.split_whitespace();
+            match words.next() {
+                Some("vertex") => {
+                    let c: Vec<f64> = words
+                        .map(|w| {
+                            w.parse::<f64>().map_err(|_| {
+                                IoError::format(path, pos(), format!("'{w}' is not a number"))
+                            })
+                        })
+                        .collect::<Result<_, _>>()?;
+                    if c.len() != 3 {
+                        return Err(IoError::format(
+                            path,
+                            pos(),
+                            "a vertex needs three coordinates",
+                        ));
+                    }
+                    corners.push([
+                        check_coordinate(path, pos, c[0])?,
+                        check_coordinate(path, pos, c[1])?,
+                        check_coordinate(path, pos, c[2])?,
+                    ]);
+                }
+                Some("endloop") => {
+                    if corners.len() != 3 {
+                        return Err(IoError::format(
+                            path,
+                            pos(),
+                            format!("a facet needs 3 vertices, this one has {}", corners.len()),
+                        ));
+                    }
+                    triangles.push([corners[0], corners[1], corners[2]]);
+                    corners.clear();
+                }
+                _ => {}
+            }
+        }
+    } else {
+        return Err(IoError::format(
+            path,
+            Position::File,
+            format!("neither binary STL (size {} does not match the triangle count) nor ASCII STL (no 'solid')", bytes.len()),
+        ));
+    }
+    // Weld corners with bit-identical coordinates (−0 and +0 are the same point).
+    let mut mesh = Mesh::new();
+    let mut index: HashMap<[u32; 3], u32> = HashMap::new();
+    for tri in triangles {
+        let ids = tri.map(|p| {
+            let key = p.map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+            *index.entry(key).or_insert_with(|| {
+                mesh.positions.push(p);
+                (mesh.positions.len() - 1) as u32
+            })
+        });
+        mesh.triangles.push(ids);
+    }
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extract::{extract, ExtractOptions};
+    use crate::field::Sample;
+
+    fn torus() -> Mesh {
+        extract(&Sample::Torus.grid(20), &ExtractOptions::default())
+            .unwrap()
+            .0
+    }
+
+    #[test]
+    fn round_trip_every_format() {
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = torus();
+        for (name, ascii) in [
+            ("a.ply", false),
+            ("b.ply", true),
+            ("c.obj", false),
+            ("d.stl", false),
+        ] {
+            let p = dir.path().join(name);
+            write_mesh(
+                &p,
+                &mesh,
+                &MeshWriteOptions {
+                    ascii,
+                    normals: true,
+                },
+            )
+            .unwrap();
+            let back = read_mesh(&p).unwrap();
+            assert_eq!(back.triangles.len(), mesh.triangles.len(), "{name}");
+            assert_eq!(back.positions.len(), mesh.positions.len(), "{name}");
+            if name.ends_with("stl") {
+                assert_eq!(back.report().euler, mesh.report().euler);
+                assert!(back.report().watertight);
+            } else {
+                assert_eq!(back.positions, mesh.positions, "{name}");
+                assert_eq!(back.triangles, mesh.triangles, "{name}");
+            }
+            if name.ends_with("ply") {
+                assert_eq!(back.normals, mesh.normals);
+            }
+        }
+        // No temporary files left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 4, "{names:?}");
+    }
+
+    #[test]
+    fn failed_write_leaves_target_untouched() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("keep.ply");
+        std::fs::write(&p, b"precious").unwrap();
+        let mut bad = torus();
+        bad.triangles.push([0, 1, u32::MAX]);
+        assert!(write_mesh(&p, &bad, &MeshWriteOptions::default()).is_err());
+        assert_eq!(std::fs::read(&p).unwrap(), b"precious");
+        let missing = dir.path().join("no/such/dir/m.ply");
+        assert!(matches!(
+            write_mesh(&missing, &torus(), &MeshWriteOptions::default()),
+            Err(IoError::Os { .. })
+        ));
+    }
+
+    #[test]
+    fn malformed_meshes_are_rejected() {
+        let dir = tempfile::tempdir().unwrap();
+        let cases: [(&str, &[u8], &str); 8] = [
+            ("a.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "outside 0..3"),
+            ("b.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0\n", "ends before"),
+            ("c.ply", b"plx\n", "end_header"),
+            ("d.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00", "ends before"),
+            ("e.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "line 4"),
+            ("f.obj", b"v 0 0 nan\n", "not a finite"),
+            ("g.stl", b"garbage that is not an stl", "neither binary"),
+            ("h.obj", b"v 0 0 0\nf 1 x 2\n", "'x' is not a vertex reference"),
+        ];
+        for (name, bytes, needle) in cases {
+            let p = dir.path().join(name);
+            std::fs::write(&p, bytes).unwrap();
+            let err = read_mesh(&p).unwrap_err().to_string();
+            assert!(err.contains(needle) && err.contains(name), "{name}: {err}");
+        }
+    }
+}

@@ -1,0 +1,489 @@
+//! NRRD volumes: attached (`.nrrd`) and detached (`.nhdr` + data file) headers, raw, gzip and
+//! ASCII encodings, 3-D scalar data.
+//!
+//! Spacing comes from `spacings` or from the lengths of the `space directions` vectors (axis-
+//! aligned directions are expected; the orientation of oblique ones is not applied), the origin
+//! from `space origin`.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use super::raw::{decode_all, Endian, ScalarType};
+use super::{read_file, IoError, Position};
+use crate::field::Grid;
+
+/// Reads an NRRD file (attached or detached header).
+pub fn read_nrrd(path: &Path) -> Result<Grid, IoError> {
+    let bytes = read_file(path)?;
+    let header = Header::parse(path, &bytes)?;
+    let dims = header.dims;
+    let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
+    let (data_path, data): (PathBuf, Vec<u8>) = match &header.data_file {
+        Some(name) => {
+            let p = path
+                .parent()
+                .map(|d| d.join(name))
+                .unwrap_or_else(|| PathBuf::from(name));
+            let d = read_file(&p)?;
+            (p, d)
+        }
+        None => (path.to_path_buf(), bytes[header.data_offset..].to_vec()),
+    };
+    let data = if header.line_skip > 0 {
+        let mut at = 0;
+        for _ in 0..header.line_skip {
+            at += data[at..].iter().position(|&b| b == b'\n').ok_or_else(|| {
+                IoError::format(&data_path, Position::File, "fewer lines than 'line skip'")
+            })? + 1;
+        }
+        data[at..].to_vec()
+    } else {
+        data
+    };
+    let data = match header.encoding {
+        Encoding::Raw => data,
+        Encoding::Gzip => {
+            let mut out = Vec::new();
+            flate2::read::MultiGzDecoder::new(&data[..])
+                .read_to_end(&mut out)
+                .map_err(|e| {
+                    IoError::format(&data_path, Position::File, format!("gzip data: {e}"))
+                })?;
+            out
+        }
+        Encoding::Ascii => return ascii_grid(&data_path, &data, &header, count),
+    };
+    let size = header.scalar.size();
+    let need = count * size;
+    let data: &[u8] = match header.byte_skip {
+        -1 if data.len() >= need => &data[data.len() - need..],
+        skip if skip >= 0 && (skip as usize) <= data.len() => &data[skip as usize..],
+        _ => {
+            return Err(IoError::format(
+                &data_path,
+                Position::File,
+                format!("byte skip {} runs past the data", header.byte_skip),
+            ))
+        }
+    };
+    if data.len() < need {
+        return Err(IoError::format(
+            &data_path,
+            Position::Byte(data.len() as u64),
+            format!(
+                "{dims:?} {} values need {need} bytes, the data has {}",
+                header.scalar,
+                data.len()
+            ),
+        ));
+    }
+    let values = decode_all(&data[..need], header.scalar, header.endian);
+    finish(path, dims, values, &header)
+}
+
+fn ascii_grid(path: &Path, data: &[u8], header: &Header, count: usize) -> Result<Grid, IoError> {
+    let text = std::str::from_utf8(data)
+        .map_err(|e| IoError::format(path, Position::Byte(e.valid_up_to() as u64), "not text"))?;
+    let mut values = Vec::with_capacity(count);
+    for (n, line) in text.lines().enumerate() {
+        for tok in line
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|t| !t.is_empty())
+        {
+            let v = header.scalar.parse_text(tok).ok_or_else(|| {
+                IoError::format(
+                    path,
+                    Position::Line(n + 1),
+                    format!("'{tok}' is not a {}", header.scalar),
+                )
+            })?;
+            values.push(v as f32);
+        }
+    }
+    if values.len() < count {
+        return Err(IoError::format(
+            path,
+            Position::File,
+            format!(
+                "{:?} needs {count} values, found {}",
+                header.dims,
+                values.len()
+            ),
+        ));
+    }
+    values.truncate(count);
+    finish(path, header.dims, values, header)
+}
+
+fn finish(path: &Path, dims: [usize; 3], values: Vec<f32>, h: &Header) -> Result<Grid, IoError> {
+    Grid::new(dims, values)
+        .and_then(|g| g.with_spacing(h.spacing))
+        .and_then(|g| g.with_origin(h.origin))
+        .map_err(|e| IoError::grid(path, e))
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Encoding {
+    Raw,
+    Gzip,
+    Ascii,
+}
+
+struct Header {
+    dims: [usize; 3],
+    scalar: ScalarType,
+    endian: Endian,
+    encoding: Encoding,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    data_file: Option<String>,
+    line_skip: usize,
+    byte_skip: i64,
+    data_offset: usize,
+}
+
+impl Header {
+    fn parse(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
+        if !bytes.starts_with(b"NRRD000") {
+            return Err(IoError::format(
+                path,
+                Position::Line(1),
+                "not an NRRD file (missing the NRRD000x magic)",
+            ));
+        }
+        let mut dims = None;
+        let mut dimension = None;
+        let mut scalar = None;
+        let mut endian = None;
+        let mut encoding = None;
+        let mut spacing = None;
+        let mut directions = None;
+        let mut origin = [0.0; 3];
+        let mut data_file = None;
+        let mut line_skip = 0;
+        let mut byte_skip = 0i64;
+        let mut at = 0usize;
+        let mut line_no = 0;
+        let data_offset = loop {
+            let Some(len) = bytes[at..].iter().position(|&b| b == b'\n') else {
+                // A detached header may end without a blank line.
+                if data_file.is_some() {
+                    break bytes.len();
+                }
+                return Err(IoError::format(
+                    path,
+                    Position::Line(line_no + 1),
+                    "header ends before the blank line that starts the data",
+                ));
+            };
+            line_no += 1;
+            let line = std::str::from_utf8(&bytes[at..at + len])
+                .map_err(|_| {
+                    IoError::format(path, Position::Line(line_no), "header line is not text")
+                })?
+                .trim_end_matches('\r');
+            at += len + 1;
+            if line_no == 1 || line.starts_with('#') {
+                continue;
+            }
+            if line.is_empty() {
+                break at;
+            }
+            if line.contains(":=") {
+                continue; // key/value pairs carry no geometry
+            }
+            let Some((key, value)) = line.split_once(": ") else {
+                return Err(IoError::format(
+                    path,
+                    Position::Line(line_no),
+                    format!("expected 'field: value', got '{line}'"),
+                ));
+            };
+            let value = value.trim();
+            let pos = || Position::Line(line_no);
+            let numbers = |v: &str| -> Result<Vec<f64>, IoError> {
+                v.split_whitespace()
+                    .map(|t| {
+                        t.parse::<f64>().map_err(|_| {
+                            IoError::format(
+                                path,
+                                pos(),
+                                format!("'{t}' is not a number in '{key}'"),
+                            )
+                        })
+                    })
+                    .collect()
+            };
+            match key {
+                "dimension" => {
+                    dimension =
+                        Some(value.parse::<usize>().map_err(|_| {
+                            IoError::format(path, pos(), "dimension is not a number")
+                        })?);
+                }
+                "type" => {
+                    scalar = Some(parse_type(value).ok_or_else(|| {
+                        IoError::unsupported(path, pos(), format!("type '{value}'"))
+                    })?);
+                }
+                "sizes" => {
+                    let s: Vec<usize> = value
+                        .split_whitespace()
+                        .map(|t| {
+                            t.parse().map_err(|_| {
+                                IoError::format(path, pos(), format!("'{t}' is not a size"))
+                            })
+                        })
+                        .collect::<Result<_, _>>()?;
+                    if s.len() != 3 {
+                        return Err(IoError::unsupported(
+                            path,
+                            pos(),
+                            format!("{} axes (3-D scalar volumes are read)", s.len()),
+                        ));
+                    }
+                    dims = Some([s[0], s[1], s[2]]);
+                }
+                "endian" => {
+                    endian = Some(match value {
+                        "little" => Endian::Little,
+                        "big" => Endian::Big,
+                        _ => return Err(IoError::format(path, pos(), format!("endian '{value}'"))),
+                    })
+                }
+                "encoding" => {
+                    encoding = Some(match value {
+                        "raw" => Encoding::Raw,
+                        "gzip" | "gz" => Encoding::Gzip,
+                        "ascii" | "text" | "txt" => Encoding::Ascii,
+                        _ => {
+                            return Err(IoError::unsupported(
+                                path,
+                                pos(),
+                                format!("encoding '{value}'"),
+                            ))
+                        }
+                    })
+                }
+                "spacings" => {
+                    let s = numbers(value)?;
+                    if s.len() != 3 {
+                        return Err(IoError::format(path, pos(), "spacings needs 3 numbers"));
+                    }
+                    spacing = Some([s[0], s[1], s[2]]);
+                }
+                "space directions" => {
+                    let vectors: Vec<Vec<f64>> = value
+                        .split(')')
+                        .map(|p| p.trim().trim_start_matches('('))
+                        .filter(|p| !p.is_empty())
+                        .map(|p| numbers(&p.replace(',', " ")))
+                        .collect::<Result<_, _>>()?;
+                    if vectors.len() != 3 || vectors.iter().any(|v| v.len() != 3) {
+                        return Err(IoError::format(
+                            path,
+                            pos(),
+                            "space directions needs three 3-vectors",
+                        ));
+                    }
+                    directions = Some(
+                        [0, 1, 2].map(|a| vectors[a].iter().map(|c| c * c).sum::<f64>().sqrt()),
+                    );
+                }
+                "space origin" => {
+                    let o = numbers(
+                        &value
+                            .trim_matches(|c| c == '(' || c == ')')
+                            .replace(',', " "),
+                    )?;
+                    if o.len() != 3 {
+                        return Err(IoError::format(path, pos(), "space origin needs 3 numbers"));
+                    }
+                    origin = [o[0], o[1], o[2]];
+                }
+                "data file" | "datafile" => {
+                    if value.starts_with("LIST") || value.split_whitespace().count() > 1 {
+                        return Err(IoError::unsupported(path, pos(), "multi-file data"));
+                    }
+                    data_file = Some(value.to_string());
+                }
+                "line skip" | "lineskip" => {
+                    line_skip = value
+                        .parse()
+                        .map_err(|_| IoError::format(path, pos(), "line skip is not a number"))?;
+                }
+                "byte skip" | "byteskip" => {
+                    byte_skip = value
+                        .parse()
+                        .map_err(|_| IoError::format(path, pos(), "byte skip is not a number"))?;
+                    if byte_skip < -1 {
+                        return Err(IoError::format(path, pos(), "byte skip must be -1 or more"));
+                    }
+                }
+                _ => {}
+            }
+        };
+        let field = |name: &str| Position::Field(name.into());
+        if let Some(d) = dimension {
+            if d != 3 {
+                return Err(IoError::unsupported(
+                    path,
+                    field("dimension"),
+                    format!("dimension {d} (3-D volumes are read)"),
+                ));
+            }
+        }
+        let scalar = scalar.ok_or_else(|| IoError::format(path, field("type"), "missing"))?;
+        let encoding =
+            encoding.ok_or_else(|| IoError::format(path, field("encoding"), "missing"))?;
+        let endian = match endian {
+            Some(e) => e,
+            None if scalar.size() == 1 || encoding == Encoding::Ascii => Endian::Little,
+            None => {
+                return Err(IoError::format(
+                    path,
+                    field("endian"),
+                    "missing (needed for multi-byte types)",
+                ))
+            }
+        };
+        Ok(Header {
+            dims: dims.ok_or_else(|| IoError::format(path, field("sizes"), "missing"))?,
+            scalar,
+            endian,
+            encoding,
+            spacing: spacing.or(directions).unwrap_or([1.0; 3]),
+            origin,
+            data_file,
+            line_skip,
+            byte_skip,
+            data_offset,
+        })
+    }
+}
+
+fn parse_type(t: &str) -> Option<ScalarType> {
+    Some(match t {
+        "signed char" | "int8" | "int8_t" => ScalarType::I8,
+        "uchar" | "unsigned char" | "uint8" | "uint8_t" => ScalarType::U8,
+        "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => {
+            ScalarType::I16
+        }
+        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => {
+            ScalarType::U16
+        }
+        "int" | "signed int" | "int32" | "int32_t" => ScalarType::I32,
+        "uint" | "unsigned int" | "uint32" | "uint32_t" => ScalarType::U32,
+        "longlong"
+        | "long long"
+        | "long long int"
+        | "signed long long"
+        | "signed long long int"
+        | "int64"
+        | "int64_t" => ScalarType::I64,
+        "ulonglong" | "unsigned long long" | "unsigned long long int" | "uint64" | "uint64_t" => {
+            ScalarType::U64
+        }
+        "float" => ScalarType::F32,
+        "double" => ScalarType::F64,
+        _ => return None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    fn header(encoding: &str, extra: &str) -> String {
+        format!(
+            "NRRD0004\n# written by the test\ntype: short\ndimension: 3\nsizes: 3 2 2\nendian: big\nencoding: {encoding}\nspace dimension: 3\nspace directions: (0.5,0,0) (0,0.25,0) (0,0,2)\nspace origin: (1,2,3)\n{extra}"
+        )
+    }
+
+    fn values() -> Vec<i16> {
+        (0..12).map(|v| v * 3 - 10).collect()
+    }
+
+    fn check(g: &Grid) {
+        assert_eq!(g.dims(), [3, 2, 2]);
+        assert_eq!(g.spacing(), [0.5, 0.25, 2.0]);
+        assert_eq!(g.origin(), [1.0, 2.0, 3.0]);
+        let expect: Vec<f32> = values().iter().map(|&v| f32::from(v)).collect();
+        assert_eq!(g.values(), &expect[..]);
+    }
+
+    #[test]
+    fn attached_raw_gzip_and_ascii() {
+        let dir = tempfile::tempdir().unwrap();
+        let raw: Vec<u8> = values().iter().flat_map(|v| v.to_be_bytes()).collect();
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        gz.write_all(&raw).unwrap();
+        let gz = gz.finish().unwrap();
+        let ascii: String = values().iter().map(|v| format!("{v}\n")).collect();
+        for (enc, data) in [
+            ("raw", raw.clone()),
+            ("gzip", gz.clone()),
+            ("ascii", ascii.into_bytes()),
+        ] {
+            let p = dir.path().join(format!("{enc}.nrrd"));
+            let mut bytes = header(enc, "\n").into_bytes();
+            bytes.extend_from_slice(&data);
+            std::fs::write(&p, bytes).unwrap();
+            check(&read_nrrd(&p).unwrap_or_else(|e| panic!("{enc}: {e}")));
+        }
+        // Detached header with the data beside it.
+        std::fs::write(dir.path().join("vol.raw.gz"), &gz).unwrap();
+        let p = dir.path().join("vol.nhdr");
+        std::fs::write(&p, header("gzip", "data file: vol.raw.gz\n")).unwrap();
+        check(&read_nrrd(&p).unwrap());
+    }
+
+    #[test]
+    fn malformed_headers_name_the_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let raw: Vec<u8> = values().iter().flat_map(|v| v.to_be_bytes()).collect();
+        let cases = [
+            ("magic", "NRRX0004\n\n".to_string(), "magic"),
+            (
+                "type",
+                header("raw", "\n").replace("type: short", "type: complex"),
+                "type 'complex'",
+            ),
+            (
+                "sizes",
+                header("raw", "\n").replace("sizes: 3 2 2", "sizes: 3 2"),
+                "2 axes",
+            ),
+            (
+                "endian",
+                header("raw", "\n").replace("endian: big\n", ""),
+                "endian",
+            ),
+            ("noblank", header("raw", ""), "blank line"),
+            (
+                "number",
+                header("raw", "\n").replace("(0.5,0,0)", "(x,0,0)"),
+                "'x' is not a number",
+            ),
+        ];
+        for (name, text, needle) in cases {
+            let p = dir.path().join(format!("{name}.nrrd"));
+            let mut bytes = text.into_bytes();
+            bytes.extend_from_slice(&raw);
+            std::fs::write(&p, bytes).unwrap();
+            let err = read_nrrd(&p).unwrap_err().to_string();
+            assert!(err.contains(needle), "{name}: {err}");
+        }
+        let p = dir.path().join("short.nrrd");
+        let mut bytes = header("raw", "\n").into_bytes();
+        bytes.extend_from_slice(&raw[..10]);
+        std::fs::write(&p, bytes).unwrap();
+        let err = read_nrrd(&p).unwrap_err().to_string();
+        assert!(err.contains("need 24 bytes"), "{err}");
+        let p = dir.path().join("missing.nhdr");
+        std::fs::write(&p, header("raw", "data file: nowhere.raw\n")).unwrap();
+        let err = read_nrrd(&p).unwrap_err().to_string();
+        assert!(err.contains("nowhere.raw"), "{err}");
+    }
+}
