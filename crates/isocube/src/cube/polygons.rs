@@ -28,6 +28,7 @@
 //! triangles; [`safe_triangulation`] allows such diagonals only across positive faces and picks
 //! a fan apex, or another triangulation with the same `n − 2` triangles, within that rule.
 
+use std::collections::HashMap;
 use std::sync::OnceLock;
 
 use super::config::{ClassTable, ConfigKind, Group};
@@ -303,6 +304,16 @@ impl CaseTable {
 
     fn build_binary() -> CaseTable {
         let classes = ClassTable::get(ConfigKind::Binary, Group::All);
+        // The only polygons derived from face signs: those of the 14 class representatives,
+        // for every decision pattern of their ambiguous faces.
+        let representative_polygons: HashMap<(u8, FaceDecisions), Vec<Vec<Corner>>> = classes
+            .representatives()
+            .iter()
+            .flat_map(|&rep| {
+                let rep = rep as u8;
+                decision_patterns(rep).map(move |d| ((rep, d), derive_polygons(rep, d)))
+            })
+            .collect();
         let mut table = CaseTable {
             ambiguous: [0; 256],
             first_variant: [0; 257],
@@ -328,8 +339,8 @@ impl CaseTable {
                     let bit = decisions >> image & 1;
                     rep_decisions |= (bit ^ u8::from(t.flip)) << f;
                 }
-                let rep_polygons = derive_polygons(rep, rep_decisions & ambiguous_faces(rep));
-                let polygons = transform_polygons(&rep_polygons, t);
+                let key = (rep, rep_decisions & ambiguous_faces(rep));
+                let polygons = transform_polygons(&representative_polygons[&key], t);
                 table.push_variant(&polygons);
             }
         }
