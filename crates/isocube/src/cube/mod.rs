@@ -23,16 +23,21 @@
 //! A *binary configuration* is the index `Σ 2^i` over the vertices whose value is at or above the
 //! level (256 of them); a *ternary configuration* is `Σ d_i·3^i` with `d = 0` below, `1` equal (zero)
 //! and `2` above (6561 of them). [`symmetry`] generates the 24 rotations, the mirror and the sign
-//! flip; [`config`] sorts configurations into classes under them; [`polygons`] derives the surface
-//! polygons of every configuration from its class representative.
+//! flip; [`config`] sorts configurations into classes under them; [`polygons`] derives the loops a
+//! configuration's surface leaves on the cube's faces; [`table`] turns them into patches (disks and
+//! tunnels) for every configuration, from its class representative; [`triangulate`] splits
+//! patches into triangles.
 
 pub mod config;
 pub mod polygons;
 pub mod symmetry;
+pub mod table;
+pub mod triangulate;
 
 pub use config::{ClassTable, ConfigEntry, ConfigKind, Group};
-pub use polygons::{CaseTable, Corner, FaceDecisions};
+pub use polygons::{Corner, FaceDecisions, Regions};
 pub use symmetry::{Rotation, Transform};
+pub use table::{CaseTable, CellTriangles, Topology, TunnelRegions};
 
 /// Number of cube vertices.
 pub const VERTEX_COUNT: usize = 8;

@@ -39,11 +39,11 @@ mod weld;
 
 use thiserror::Error;
 
-use crate::cube::{CaseTable, Corner};
+use crate::cube::{CaseTable, Corner, Topology};
 use crate::field::Grid;
 use crate::mesh::Mesh;
 
-use classify::{cell_config, face_decisions};
+use classify::{cell_config, face_decisions, interior_links};
 use place::Placer;
 use weld::EdgeCache;
 
@@ -56,6 +56,8 @@ pub struct ExtractOptions {
     pub flip: bool,
     /// Compute vertex normals from the field gradient.
     pub normals: bool,
+    /// The surface inside each cell: the trilinear interpolant's (MC33, default) or classic.
+    pub topology: Topology,
 }
 
 impl Default for ExtractOptions {
@@ -64,6 +66,7 @@ impl Default for ExtractOptions {
             level: 0.0,
             flip: false,
             normals: true,
+            topology: Topology::Mc33,
         }
     }
 }
@@ -86,6 +89,12 @@ impl ExtractOptions {
         self.normals = normals;
         self
     }
+
+    /// Sets the topology.
+    pub fn with_topology(mut self, topology: Topology) -> Self {
+        self.topology = topology;
+        self
+    }
 }
 
 /// Counts from one extraction.
@@ -97,8 +106,10 @@ pub struct ExtractStats {
     pub active_cells: usize,
     /// Cells skipped for a NaN or infinite value.
     pub skipped_cells: usize,
-    /// Cells that needed an interior vertex.
+    /// Vertices placed inside cells (split loops and tunnels that need them).
     pub interior_vertices: usize,
+    /// Cells where the interior test opened a tunnel (MC33 only).
+    pub tunnels: usize,
 }
 
 /// Why extraction failed.
@@ -163,23 +174,38 @@ pub fn extract_into(
                 }
                 stats.active_cells += 1;
                 let decisions = face_decisions(&v, level, table.ambiguous_faces(config));
-                let mut interior = u32::MAX;
-                for tri in table.triangles(config, decisions) {
+                let tunnel = if options.topology == Topology::Mc33
+                    && table.has_tunnel_candidates(config, decisions)
+                {
+                    choose_tunnel(table, config, decisions, &v, level)
+                } else {
+                    None
+                };
+                stats.tunnels += usize::from(tunnel.is_some());
+                let cell = table.cell_triangles(config, decisions, options.topology, tunnel);
+                let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
+                for tri in cell.triangles {
                     let mut ids = [0u32; 3];
                     for (slot, &corner) in ids.iter_mut().zip(tri) {
-                        *slot = if corner == Corner::INTERIOR {
-                            if interior == u32::MAX {
-                                let polygon = table
-                                    .interior_polygon(config, decisions)
-                                    .expect("tables mark the polygon of an interior point");
-                                interior =
-                                    place_interior(polygon, &mut cache, &placer, mesh, [i, j, k])?;
+                        *slot = if let Some(e) = corner.as_edge() {
+                            cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?
+                        } else {
+                            let p = usize::from(
+                                corner
+                                    .as_interior()
+                                    .expect("binary cells have edge and interior corners"),
+                            );
+                            if interior[p] == u32::MAX {
+                                interior[p] = place_interior(
+                                    cell.interior_support(p),
+                                    &mut cache,
+                                    &placer,
+                                    mesh,
+                                    [i, j, k],
+                                )?;
                                 stats.interior_vertices += 1;
                             }
-                            interior
-                        } else {
-                            let e = corner.as_edge().expect("binary polygons have edge corners");
-                            cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?
+                            interior[p]
                         };
                     }
                     if options.flip {
@@ -193,6 +219,29 @@ pub fn extract_into(
         progress(k + 1, nz - 1);
     }
     Ok(stats)
+}
+
+/// The tunnel the interior opens, as an index into the table's candidates for this cell.
+fn choose_tunnel(
+    table: &CaseTable,
+    config: u8,
+    decisions: u8,
+    v: &[f32; 8],
+    level: f32,
+) -> Option<usize> {
+    let links = interior_links(v, level);
+    let mut found = None;
+    for (p, q) in links {
+        let joined = table.tunnel_candidates(config, decisions).position(|t| {
+            let (a, b) = (t.first, t.second);
+            (a >> p & 1 == 1 && b >> q & 1 == 1) || (a >> q & 1 == 1 && b >> p & 1 == 1)
+        });
+        if joined.is_some() {
+            found = joined;
+            break;
+        }
+    }
+    found
 }
 
 fn place_interior(

@@ -187,6 +187,54 @@ impl Grid {
         self.dims.iter().map(|d| d - 1).product()
     }
 
+    /// The same trilinear field sampled `k` times finer along each axis: `(n − 1)·k + 1` points
+    /// per axis, spacing divided by `k`, values interpolated trilinearly within each cell (so the
+    /// original points keep their values). Used to find the true topology of the trilinear
+    /// interpolant, and to upsample coarse data.
+    ///
+    /// ```
+    /// use isocube::field::Grid;
+    /// let g = Grid::new([2, 2, 2], vec![0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0]).unwrap();
+    /// let fine = g.upsample(4);
+    /// assert_eq!(fine.dims(), [5, 5, 5]);
+    /// assert_eq!(fine.value(1, 3, 2), 0.25);
+    /// ```
+    pub fn upsample(&self, k: usize) -> Grid {
+        let k = k.max(1);
+        let dims = self.dims.map(|n| (n - 1) * k + 1);
+        let mut values = Vec::with_capacity(dims.iter().product());
+        let split = |i: usize, n: usize| -> (usize, f64) {
+            let cell = (i / k).min(n - 2);
+            (cell, (i - cell * k) as f64 / k as f64)
+        };
+        for z in 0..dims[2] {
+            let (ck, tz) = split(z, self.dims[2]);
+            for y in 0..dims[1] {
+                let (cj, ty) = split(y, self.dims[1]);
+                for x in 0..dims[0] {
+                    let (ci, tx) = split(x, self.dims[0]);
+                    let v = |di: usize, dj: usize, dk: usize| {
+                        f64::from(self.value(ci + di, cj + dj, ck + dk))
+                    };
+                    // Exact at both ends, so grid points keep their values bit for bit.
+                    let lerp = |a: f64, b: f64, t: f64| a * (1.0 - t) + b * t;
+                    let x00 = lerp(v(0, 0, 0), v(1, 0, 0), tx);
+                    let x10 = lerp(v(0, 1, 0), v(1, 1, 0), tx);
+                    let x01 = lerp(v(0, 0, 1), v(1, 0, 1), tx);
+                    let x11 = lerp(v(0, 1, 1), v(1, 1, 1), tx);
+                    let value = lerp(lerp(x00, x10, ty), lerp(x01, x11, ty), tz);
+                    values.push(value as f32);
+                }
+            }
+        }
+        Grid {
+            dims,
+            spacing: self.spacing.map(|h| h / k as f64),
+            origin: self.origin,
+            values,
+        }
+    }
+
     /// Smallest and largest finite value, if any value is finite.
     pub fn finite_range(&self) -> Option<(f32, f32)> {
         self.values
