@@ -120,6 +120,7 @@ mod tests {
             "isocube extract sample:sphere:10 -o s.ply",
             "isocube extract v.raw --dims 4,5,6 --type u16 --endian big --spacing 1,1,2 -o m.obj --level 100",
             "isocube extract v.npy --axes zyx -o m.stl --flip",
+            "isocube extract sample:gyroid:40 -o g.ply --topology classic",
             "isocube info m.ply --json",
             "isocube tables --ternary --group rotations",
             "isocube demo --out d --size 32",

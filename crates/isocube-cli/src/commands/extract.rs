@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args as ClapArgs;
+use isocube::cube::Topology;
 use isocube::extract::{extract_into, ExtractOptions};
 use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
 use isocube::mesh::Mesh;
@@ -25,6 +26,10 @@ pub(crate) struct Args {
     /// Orient normals and winding toward decreasing values (default: toward increasing).
     #[arg(long)]
     flip: bool,
+    /// Surface inside each cell: `mc33` follows the trilinear interpolant (tunnels included);
+    /// `classic` is face-consistent Marching Cubes without the interior test.
+    #[arg(long, default_value = "mc33")]
+    topology: Topology,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -50,7 +55,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     let options = ExtractOptions::default()
         .with_level(args.level)
         .with_flip(args.flip)
-        .with_normals(!args.no_normals);
+        .with_normals(!args.no_normals)
+        .with_topology(args.topology);
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
@@ -72,7 +78,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if !quiet {
         let r = mesh.report();
         eprintln!(
-            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} of {} cells active{})",
+            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} of {} cells active, {} tunnels{})",
             args.output.display(),
             r.vertices,
             r.triangles,
@@ -84,6 +90,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             elapsed.as_secs_f64() * 1e3,
             stats.active_cells,
             stats.cells,
+            stats.tunnels,
             if stats.skipped_cells > 0 {
                 format!(", {} skipped for NaN/Inf values", stats.skipped_cells)
             } else {

@@ -1,4 +1,4 @@
-//! Marching Cubes extraction: field → classify → cell polygons → vertex placement → triangulate
+//! Marching Cubes extraction: field → classify → cell patches → vertex placement → triangulate
 //! → weld.
 //!
 //! # Contract
@@ -12,9 +12,24 @@
 //! - Cells with a NaN or infinite value produce no surface; they are counted in
 //!   [`ExtractStats::skipped_cells`], and the mesh has boundary edges only around them.
 //!
+//! # Topology
+//! [`Topology::Mc33`] (the default) gives each cell the topology of the trilinear interpolant:
+//! besides the faces, the cell's interior is tested for tunnels, where the interpolant joins two
+//! same-sign regions of the cell's boundary through the inside (cases 4, 6, 7, 10, 12 and 13 of
+//! Chernyaev's Marching Cubes 33). The test sweeps the cell with z-slices: on each slice the
+//! interpolant is bilinear, and two diagonal slice corners share a region exactly when the other
+//! two have the other sign and the slice's saddle lies on their side — a quadratic condition in
+//! the slice height, checked exactly (see `classify::interior_links`). Ties follow the same rule
+//! as values and face saddles: a saddle exactly at the level counts as above. Loops of seven or
+//! more corners are split around an interior vertex, as MC33 does, so the patch passes through the
+//! middle of the cell. [`Topology::Classic`] keeps the face-consistent surface without the interior
+//! test. All 33 configurations of MC33 occur and are checked against refinement of the trilinear
+//! field in the test suite.
+//!
 //! # Output guarantees
-//! - One vertex per grid edge the surface crosses (plus one interior vertex in the rare cells
-//!   whose polygon cannot be split without a diagonal the neighbour might share).
+//! - One vertex per grid edge the surface crosses, plus interior vertices in the few cells whose
+//!   patches need them (split loops and some tunnels, at most three per cell), each at the
+//!   centroid of a set of the cell's crossings.
 //! - Normals point toward increasing values, as does the right-hand winding of every triangle;
 //!   [`ExtractOptions::flip`] reverses both. Vertex normals come from the field's gradient
 //!   (central differences, interpolated along the edge).
@@ -219,6 +234,51 @@ pub fn extract_into(
         progress(k + 1, nz - 1);
     }
     Ok(stats)
+}
+
+/// How one cell is classified: its configuration, the decisions on its ambiguous faces and, under
+/// MC33, the tunnel its interior opens.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CellCase {
+    /// Binary configuration (bit `i` set: vertex `i` at or above the level).
+    pub config: u8,
+    /// Bit `f` set: the above corners of ambiguous face `f` are joined.
+    pub decisions: u8,
+    /// The same-sign regions the interior joins, if any (always `None` for classic).
+    pub tunnel: Option<crate::cube::TunnelRegions>,
+}
+
+/// Classifies one cell from its eight values in cube vertex order (see [`crate::cube`]): what the
+/// extractor decides for it. Useful to find which Marching Cubes 33 case a cell falls in.
+///
+/// ```
+/// use isocube::cube::Topology;
+/// use isocube::extract::classify_cell;
+/// // Case 4 (vertices 0 and 6 above) with strong corners: the interpolant opens a tunnel.
+/// let mut v = [-0.1f32; 8];
+/// v[0] = 1.0;
+/// v[6] = 1.0;
+/// let case = classify_cell(&v, 0.0, Topology::Mc33);
+/// assert_eq!(case.config, 0b0100_0001);
+/// assert!(case.tunnel.is_some());
+/// assert!(classify_cell(&v, 0.0, Topology::Classic).tunnel.is_none());
+/// ```
+pub fn classify_cell(values: &[f32; 8], level: f32, topology: Topology) -> CellCase {
+    let table = CaseTable::binary();
+    let config = cell_config(values, level);
+    let decisions = face_decisions(values, level, table.ambiguous_faces(config));
+    let tunnel = match topology {
+        Topology::Mc33 if table.has_tunnel_candidates(config, decisions) => {
+            choose_tunnel(table, config, decisions, values, level)
+                .and_then(|k| table.tunnel_candidates(config, decisions).nth(k))
+        }
+        _ => None,
+    };
+    CellCase {
+        config,
+        decisions,
+        tunnel,
+    }
 }
 
 /// The tunnel the interior opens, as an index into the table's candidates for this cell.

@@ -1,6 +1,7 @@
 use proptest::prelude::*;
 
 use super::*;
+use crate::cube::Topology;
 use crate::field::Sample;
 use crate::mesh::MeshReport;
 
@@ -178,14 +179,15 @@ proptest! {
     /// consistently oriented.
     #[test]
     fn random_tied_grids_are_closed_manifolds(grid in closed_grid()) {
-        let (mesh, _) = run(&grid, 0.0);
-        mesh.validate().unwrap();
-        let r = mesh.report();
-        if mesh.triangle_count() > 0 {
-            assert_closed_manifold(&r);
+        for topology in [Topology::Mc33, Topology::Classic] {
+            let (mesh, _) = extract(&grid, &ExtractOptions::default().with_topology(topology)).unwrap();
+            mesh.validate().unwrap();
+            let r = mesh.report();
+            if mesh.triangle_count() > 0 {
+                assert_closed_manifold(&r);
+            }
+            prop_assert!(mesh.positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
         }
-        // Every vertex lies on a grid edge crossing or is an interior point.
-        prop_assert!(mesh.positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
     }
 }
 
@@ -231,4 +233,48 @@ proptest! {
             }
         }
     }
+}
+
+/// Where no cell opens a tunnel, MC33 and classic Marching Cubes agree on the topology.
+#[test]
+fn mc33_and_classic_agree_without_tunnels_on_the_samples() {
+    for sample in Sample::ALL {
+        for n in [40, 64] {
+            let grid = sample.grid(n);
+            let (mc33, stats) = extract(&grid, &ExtractOptions::default()).unwrap();
+            let (classic, _) = extract(
+                &grid,
+                &ExtractOptions::default().with_topology(Topology::Classic),
+            )
+            .unwrap();
+            let (a, b) = (mc33.report(), classic.report());
+            if stats.tunnels == 0 {
+                assert_eq!(
+                    (a.components, a.euler),
+                    (b.components, b.euler),
+                    "{sample} at {n}"
+                );
+            }
+            assert!(a.oriented && a.nonmanifold_edges == 0, "{sample} at {n}");
+        }
+    }
+}
+
+/// A single case 4 cell with strong corners: MC33 joins them by a tunnel, classic does not.
+#[test]
+fn mc33_opens_the_case_4_tunnel() {
+    // Grid order (x fastest): vertices 0 (0,0,0) and 6 (1,1,1) above.
+    let values = vec![1.0, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, 1.0];
+    let grid = Grid::new([2, 2, 2], values).unwrap();
+    let (mc33, stats) = extract(&grid, &ExtractOptions::default()).unwrap();
+    let (classic, _) = extract(
+        &grid,
+        &ExtractOptions::default().with_topology(Topology::Classic),
+    )
+    .unwrap();
+    assert_eq!(stats.tunnels, 1);
+    let (a, b) = (mc33.report(), classic.report());
+    assert_eq!((a.components, a.euler), (1, 0));
+    assert_eq!((b.components, b.euler), (2, 2));
+    assert!(a.oriented && a.nonmanifold_edges == 0);
 }

@@ -1,0 +1,45 @@
+//! Extraction throughput: MC33 against classic Marching Cubes on the built-in samples.
+//!
+//! `cargo bench -p isocube --bench extract` (add `-- --quick` for a short run). Each case is
+//! labelled `topology/sample/N` and reports cells per second; the output mesh is reused between
+//! iterations so allocation is not timed.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use isocube::cube::Topology;
+use isocube::extract::{extract_into, ExtractOptions};
+use isocube::field::Sample;
+use isocube::mesh::Mesh;
+
+fn topologies(c: &mut Criterion) {
+    let mut group = c.benchmark_group("extract");
+    group.sample_size(20);
+    for sample in [
+        Sample::Sphere,
+        Sample::Torus,
+        Sample::Tangle,
+        Sample::Gyroid,
+        Sample::SchwarzP,
+        Sample::Noise { seed: 1 },
+    ] {
+        let n = 128;
+        let grid = sample.grid(n);
+        group.throughput(Throughput::Elements(grid.cell_count() as u64));
+        for topology in [Topology::Classic, Topology::Mc33] {
+            let options = ExtractOptions::default().with_topology(topology);
+            let mut mesh = Mesh::new();
+            // Warm the output buffers and the case table.
+            extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).unwrap();
+            group.bench_with_input(
+                BenchmarkId::new(topology.name(), format!("{sample}/{n}")),
+                &grid,
+                |b, grid| {
+                    b.iter(|| extract_into(grid, &options, &mut mesh, &mut |_, _| {}).unwrap())
+                },
+            );
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, topologies);
+criterion_main!(benches);
