@@ -237,3 +237,32 @@ fn readme_examples_run() {
     }
     assert!(ran >= 5, "only {ran} README examples found");
 }
+
+#[test]
+fn topology_option_changes_a_tunnel_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    // One cell, f32, x fastest: vertices (0,0,0) and (1,1,1) strongly above, the rest weakly
+    // below: the trilinear interpolant joins them by a tunnel.
+    let values: [f32; 8] = [1.0, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, 1.0];
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(dir.path().join("cell.raw"), bytes).unwrap();
+    let common = ["extract", "cell.raw", "--dims", "2,2,2", "--type", "f32"];
+    let mut mc33 = common.to_vec();
+    mc33.extend(["-o", "mc33.ply"]);
+    ok(dir.path(), &mc33);
+    let mut classic = common.to_vec();
+    classic.extend(["-o", "classic.ply", "--topology", "classic"]);
+    ok(dir.path(), &classic);
+    let (a, b) = (
+        info(dir.path(), "mc33.ply"),
+        info(dir.path(), "classic.ply"),
+    );
+    assert_eq!(
+        (a["components"].as_u64(), a["euler"].as_i64()),
+        (Some(1), Some(0))
+    );
+    assert_eq!(
+        (b["components"].as_u64(), b["euler"].as_i64()),
+        (Some(2), Some(2))
+    );
+}
