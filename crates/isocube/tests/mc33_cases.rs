@@ -34,8 +34,35 @@ fn map_mask(t: Transform, m: u8) -> u8 {
         .fold(0, |acc, v| acc | 1 << map[v])
 }
 
+/// An orbit of cells: (configuration, decisions on its ambiguous faces, joined region masks).
+type Key = (u8, u8, (u8, u8));
+
+/// A documented configuration: name, key, components, Euler characteristic.
+struct Documented {
+    name: &'static str,
+    key: Key,
+    components: usize,
+    euler: i64,
+}
+
+const fn doc(
+    name: &'static str,
+    config: u8,
+    decisions: u8,
+    tunnel: (u8, u8),
+    components: usize,
+    euler: i64,
+) -> Documented {
+    Documented {
+        name,
+        key: (config, decisions, tunnel),
+        components,
+        euler,
+    }
+}
+
 /// The orbit key: the smallest (config, decisions, tunnel masks) over rotations and flip.
-fn key(config: u8, decisions: u8, tunnel: Option<(u8, u8)>) -> (u8, u8, (u8, u8)) {
+fn key(config: u8, decisions: u8, tunnel: Option<(u8, u8)>) -> Key {
     Group::RotationsFlip
         .transforms()
         .map(|t| {
@@ -44,8 +71,8 @@ fn key(config: u8, decisions: u8, tunnel: Option<(u8, u8)>) -> (u8, u8, (u8, u8)
                 as u8;
             let fm = t.face_map();
             let mut d = 0u8;
-            for f in 0..6 {
-                d |= ((decisions >> f & 1) ^ u8::from(t.flip)) << fm[f];
+            for (f, &image) in fm.iter().enumerate() {
+                d |= ((decisions >> f & 1) ^ u8::from(t.flip)) << image;
             }
             let tunnel = tunnel.map_or((0, 0), |(a, b)| {
                 let (a, b) = (map_mask(t, a), map_mask(t, b));
@@ -99,47 +126,47 @@ fn topology(values: &[f32; 8], topology: Topology, k: usize) -> (usize, i64) {
 /// The documented table: name (Chernyaev's numbering, subcases in order of faces joined and
 /// then tunnel), orbit key (configuration, ambiguous-face decisions, joined regions), and the
 /// components and Euler characteristic of the cell's surface (a disk counts 1, a tunnel 0).
-const CONFIGURATIONS: [(&str, u8, u8, (u8, u8), usize, i64); 33] = [
-    ("0", 0, 0b000000, (0, 0), 0, 0),
-    ("1", 1, 0b000000, (0, 0), 1, 1),
-    ("2", 3, 0b000000, (0, 0), 1, 1),
-    ("3.1", 5, 0b000000, (0, 0), 2, 2),
-    ("3.2", 5, 0b010000, (0, 0), 1, 1),
-    ("4.1.1", 20, 0b000000, (0, 0), 2, 2),
-    ("4.1.2", 20, 0b000000, (4, 16), 1, 0),
-    ("5", 7, 0b000000, (0, 0), 1, 1),
-    ("6.1.1", 21, 0b000000, (0, 0), 2, 2),
-    ("6.1.2", 21, 0b000000, (4, 17), 1, 0),
-    ("6.2", 21, 0b010000, (0, 0), 1, 1),
-    ("7.1", 26, 0b000000, (0, 0), 3, 3),
-    ("7.2", 26, 0b000001, (0, 0), 2, 2),
-    ("7.3", 26, 0b001001, (0, 0), 1, 1),
-    ("7.4.1", 26, 0b011001, (0, 0), 2, 2),
-    ("7.4.2", 26, 0b011001, (1, 228), 1, 0),
-    ("8", 15, 0b000000, (0, 0), 1, 1),
-    ("9", 27, 0b000000, (0, 0), 1, 1),
-    ("10.1.1", 60, 0b000000, (0, 0), 2, 2),
-    ("10.1.2", 60, 0b000000, (12, 48), 1, 0),
-    ("10.2", 60, 0b000010, (0, 0), 1, 1),
-    ("11", 23, 0b000000, (0, 0), 1, 1),
-    ("12.1.1", 30, 0b000000, (0, 0), 2, 2),
-    ("12.1.2", 30, 0b000000, (14, 16), 1, 0),
-    ("12.2", 30, 0b000001, (0, 0), 1, 1),
-    ("12.3", 30, 0b001000, (0, 0), 1, 1),
-    ("13.1", 90, 0b000000, (0, 0), 4, 4),
-    ("13.2", 90, 0b000001, (0, 0), 3, 3),
-    ("13.3", 90, 0b000011, (0, 0), 2, 2),
-    ("13.4", 90, 0b010011, (0, 0), 1, 1),
-    ("13.5.1", 90, 0b010110, (0, 0), 3, 3),
-    ("13.5.2", 90, 0b010110, (4, 161), 2, 1),
-    ("14", 29, 0b000000, (0, 0), 1, 1),
+const CONFIGURATIONS: [Documented; 33] = [
+    doc("0", 0, 0b000000, (0, 0), 0, 0),
+    doc("1", 1, 0b000000, (0, 0), 1, 1),
+    doc("2", 3, 0b000000, (0, 0), 1, 1),
+    doc("3.1", 5, 0b000000, (0, 0), 2, 2),
+    doc("3.2", 5, 0b010000, (0, 0), 1, 1),
+    doc("4.1.1", 20, 0b000000, (0, 0), 2, 2),
+    doc("4.1.2", 20, 0b000000, (4, 16), 1, 0),
+    doc("5", 7, 0b000000, (0, 0), 1, 1),
+    doc("6.1.1", 21, 0b000000, (0, 0), 2, 2),
+    doc("6.1.2", 21, 0b000000, (4, 17), 1, 0),
+    doc("6.2", 21, 0b010000, (0, 0), 1, 1),
+    doc("7.1", 26, 0b000000, (0, 0), 3, 3),
+    doc("7.2", 26, 0b000001, (0, 0), 2, 2),
+    doc("7.3", 26, 0b001001, (0, 0), 1, 1),
+    doc("7.4.1", 26, 0b011001, (0, 0), 2, 2),
+    doc("7.4.2", 26, 0b011001, (1, 228), 1, 0),
+    doc("8", 15, 0b000000, (0, 0), 1, 1),
+    doc("9", 27, 0b000000, (0, 0), 1, 1),
+    doc("10.1.1", 60, 0b000000, (0, 0), 2, 2),
+    doc("10.1.2", 60, 0b000000, (12, 48), 1, 0),
+    doc("10.2", 60, 0b000010, (0, 0), 1, 1),
+    doc("11", 23, 0b000000, (0, 0), 1, 1),
+    doc("12.1.1", 30, 0b000000, (0, 0), 2, 2),
+    doc("12.1.2", 30, 0b000000, (14, 16), 1, 0),
+    doc("12.2", 30, 0b000001, (0, 0), 1, 1),
+    doc("12.3", 30, 0b001000, (0, 0), 1, 1),
+    doc("13.1", 90, 0b000000, (0, 0), 4, 4),
+    doc("13.2", 90, 0b000001, (0, 0), 3, 3),
+    doc("13.3", 90, 0b000011, (0, 0), 2, 2),
+    doc("13.4", 90, 0b010011, (0, 0), 1, 1),
+    doc("13.5.1", 90, 0b010110, (0, 0), 3, 3),
+    doc("13.5.2", 90, 0b010110, (4, 161), 2, 1),
+    doc("14", 29, 0b000000, (0, 0), 1, 1),
 ];
 
 #[test]
 fn the_33_configurations() {
     let mut rng = Rng(33);
     // Up to four instances of every orbit met.
-    let mut found: BTreeMap<(u8, u8, (u8, u8)), Vec<[f32; 8]>> = BTreeMap::new();
+    let mut found: BTreeMap<Key, Vec<[f32; 8]>> = BTreeMap::new();
     let powers = [0.25f32, 0.5, 1.0, 2.0, 4.0];
     for _ in 0..200_000 {
         let config = (rng.next() % 256) as u8;
@@ -165,16 +192,19 @@ fn the_33_configurations() {
         }
     }
     // Exactly the 33 documented configurations occur.
-    let documented: BTreeMap<(u8, u8, (u8, u8)), (&str, usize, i64)> = CONFIGURATIONS
-        .iter()
-        .map(|&(name, c, d, t, comps, euler)| ((c, d, t), (name, comps, euler)))
-        .collect();
+    let documented: BTreeMap<Key, &Documented> =
+        CONFIGURATIONS.iter().map(|d| (d.key, d)).collect();
     assert_eq!(documented.len(), 33);
     let keys: Vec<_> = found.keys().copied().collect();
     let expected: Vec<_> = documented.keys().copied().collect();
     assert_eq!(keys, expected, "the orbits met are not the documented 33");
     for (k, instances) in &found {
-        let (name, comps, euler) = documented[k];
+        let Documented {
+            name,
+            components: comps,
+            euler,
+            ..
+        } = *documented[k];
         assert_eq!(
             case_number(k.0).to_string(),
             name.split('.').next().unwrap(),
