@@ -12,20 +12,9 @@ use isocube::cube::{ClassTable, ConfigKind, Group, Topology, Transform};
 use isocube::extract::{classify_cell, extract, ExtractOptions};
 use isocube::field::Grid;
 
-struct Rng(u64);
+mod common;
 
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-
-    fn unit(&mut self) -> f32 {
-        ((self.next() >> 40) as f32 + 1.0) / (1u64 << 24) as f32
-    }
-}
+use common::{Rng, GRID_INDEX};
 
 fn map_mask(t: Transform, m: u8) -> u8 {
     let map = t.vertex_map();
@@ -114,9 +103,7 @@ fn case_number(config: u8) -> u8 {
 }
 
 fn topology(values: &[f32; 8], topology: Topology, k: usize) -> (usize, i64) {
-    // Cube vertex order to grid order (x fastest).
-    let grid_order = [0usize, 1, 3, 2, 4, 5, 7, 6];
-    let grid = Grid::new([2, 2, 2], grid_order.iter().map(|&v| values[v]).collect()).unwrap();
+    let grid = Grid::new([2, 2, 2], GRID_INDEX.iter().map(|&v| values[v]).collect()).unwrap();
     let grid = grid.upsample(k);
     let (mesh, _) = extract(&grid, &ExtractOptions::default().with_topology(topology)).unwrap();
     let r = mesh.report();

@@ -11,26 +11,9 @@ use isocube::extract::{extract, ExtractOptions};
 use isocube::field::Grid;
 use isocube::mesh::MeshReport;
 
-/// A small deterministic generator (xorshift64*), so failures reproduce.
-struct Rng(u64);
+mod common;
 
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-
-    /// Uniform in (0, 1].
-    fn unit(&mut self) -> f32 {
-        ((self.next() >> 40) as f32 + 1.0) / (1u64 << 24) as f32
-    }
-
-    fn signed(&mut self) -> f32 {
-        self.unit() * 2.0 - 1.0
-    }
-}
+use common::{Rng, GRID_INDEX};
 
 /// `ISOCUBE_ORACLE_SCALE=N` multiplies the trial counts (for long campaigns in release builds).
 fn scale() -> usize {
@@ -94,12 +77,10 @@ fn random_cell(rng: &mut Rng, ambiguous: &[u8]) -> Vec<f32> {
     let powers = [0.25f32, 0.5, 1.0, 2.0, 4.0, 8.0];
     let above_power = powers[(rng.next() % 6) as usize];
     let below_power = powers[(rng.next() % 6) as usize];
-    // Grid order (x fastest) to cube vertex numbering.
-    const CUBE_VERTEX: [usize; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
     (0..8)
         .map(|g| {
             let m = rng.unit();
-            if config >> CUBE_VERTEX[g] & 1 == 1 {
+            if config >> GRID_INDEX[g] & 1 == 1 {
                 m.powf(above_power)
             } else {
                 -m.powf(below_power)
