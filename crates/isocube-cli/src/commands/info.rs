@@ -52,6 +52,8 @@ pub(crate) fn to_json(r: &MeshReport) -> serde_json::Value {
         "degenerate": r.degenerate,
         "min_angle": angle(r.min_angle),
         "max_angle": angle(r.max_angle),
+        "area": r.area,
+        "volume": r.volume,
     })
 }
 
@@ -78,6 +80,8 @@ fn to_table(r: &MeshReport) -> String {
         ("degenerate", r.degenerate.to_string()),
         ("min_angle", deg(r.min_angle)),
         ("max_angle", deg(r.max_angle)),
+        ("area", format!("{:.6}", r.area)),
+        ("volume", r.volume.map_or("-".into(), |v| format!("{v:.6}"))),
     ];
     rows.iter().map(|(k, v)| format!("{k:<18} {v}\n")).collect()
 }

@@ -36,6 +36,13 @@ fn normals_and_winding_point_toward_increasing_values() {
     let (mesh, _) = run(&grid, 0.0);
     // The sphere field increases outward: positive enclosed volume, outward normals.
     let v = signed_volume(&mesh);
+    assert!((mesh.report().volume.unwrap() - v).abs() < 1e-9);
+    let area = mesh.report().area;
+    let exact_area = 4.0 * std::f64::consts::PI * 0.8f64.powi(2);
+    assert!(
+        (area - exact_area).abs() < 0.03 * exact_area,
+        "area {area} vs {exact_area}"
+    );
     let exact = 4.0 / 3.0 * std::f64::consts::PI * 0.8f64.powi(3);
     assert!((v - exact).abs() < 0.03 * exact, "volume {v} vs {exact}");
     for (p, n) in mesh.positions.iter().zip(&mesh.normals) {

@@ -9,7 +9,8 @@ use super::{cross, dot, sub, Mesh};
 /// that triangles use; `genus` is `(2·components − euler) / 2`, given only for watertight,
 /// oriented meshes. `components` counts groups of triangles connected through shared vertices.
 /// A triangle is *degenerate* when it repeats a vertex or has zero area; angles are measured
-/// over the others, in degrees.
+/// over the others, in degrees. `area` is the total surface area; `volume` is the enclosed
+/// volume (positive when the triangles face outward), given only for watertight, oriented meshes.
 ///
 /// ```
 /// use isocube::mesh::Mesh;
@@ -51,6 +52,10 @@ pub struct MeshReport {
     pub min_angle: f64,
     /// Largest angle of a non-degenerate triangle, in degrees (NaN without any).
     pub max_angle: f64,
+    /// Total surface area.
+    pub area: f64,
+    /// Enclosed volume, for watertight oriented meshes (negative when triangles face inward).
+    pub volume: Option<f64>,
 }
 
 impl MeshReport {
@@ -108,6 +113,11 @@ impl MeshReport {
 
         let mut degenerate = 0;
         let (mut min_angle, mut max_angle) = (f64::INFINITY, f64::NEG_INFINITY);
+        let (mut area, mut volume) = (0.0, 0.0);
+        // Volumes of tetrahedra to a point near the mesh keep the sum well conditioned.
+        let centre = mesh.bounds().map_or([0.0; 3], |(lo, hi)| {
+            [0, 1, 2].map(|a| (f64::from(lo[a]) + f64::from(hi[a])) / 2.0)
+        });
         for t in &mesh.triangles {
             if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
                 degenerate += 1;
@@ -115,6 +125,11 @@ impl MeshReport {
             }
             let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
             let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            area += dot(n, n).sqrt() / 2.0;
+            volume += dot(
+                sub(p[0], centre),
+                cross(sub(p[1], centre), sub(p[2], centre)),
+            ) / 6.0;
             if dot(n, n) == 0.0 {
                 degenerate += 1;
                 continue;
@@ -146,6 +161,8 @@ impl MeshReport {
             degenerate,
             min_angle,
             max_angle,
+            area,
+            volume: (watertight && oriented).then_some(volume),
         }
     }
 
