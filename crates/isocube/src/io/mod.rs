@@ -2,7 +2,7 @@
 //!
 //! Volumes: raw binary ([`RawOptions`]), NumPy `.npy` ([`NpyAxes`]) and NRRD (attached `.nrrd`
 //! or detached `.nhdr` headers; raw, gzip or ASCII encodings). Every reader returns a
-//! [`Grid`](crate::field::Grid) with `f32` values (integers above 2^24 lose precision),
+//! [`Grid`] with `f32` values (integers above 2^24 lose precision),
 //! `x` fastest.
 //!
 //! Meshes: PLY (binary little-endian by default, ASCII on request), OBJ and binary STL, chosen by
