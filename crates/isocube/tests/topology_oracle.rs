@@ -41,7 +41,7 @@ fn refined(grid: &Grid, k: usize) -> (usize, i64) {
 
 /// The truth where k = 16 and 32 agree. A feature thinner than 1/32 of a cell (values within
 /// about 1e-8 of the level beside values of order 1) can fool both alike; so when MC33 disagrees
-/// with them, finer refinements are asked in turn (k = 128, 256, … up to `max_k`) and the first
+/// with them, finer refinements are asked in turn (k = 64, 128, … up to `max_k`) and the first
 /// two consecutive ones that agree are the truth. Returns the truth and whether the finer
 /// refinements were needed.
 fn truth(grid: &Grid, mc33: (usize, i64), max_k: usize) -> Option<((usize, i64), bool)> {
@@ -52,7 +52,7 @@ fn truth(grid: &Grid, mc33: (usize, i64), max_k: usize) -> Option<((usize, i64),
     if a == mc33 {
         return Some((a, false));
     }
-    let mut k = 128;
+    let mut k = 64;
     let mut previous = refined(grid, k);
     while k < max_k {
         k *= 2;
@@ -161,7 +161,7 @@ fn mc33_matches_the_refined_truth_on_random_closed_grids() {
             r.watertight && r.oriented && r.nonmanifold_edges == 0,
             "trial {trial}: {r:?}"
         );
-        let Some((expected, finer)) = truth(&grid, (r.components, r.euler), 256) else {
+        let Some((expected, finer)) = truth(&grid, (r.components, r.euler), 128) else {
             continue;
         };
         stable += 1;
