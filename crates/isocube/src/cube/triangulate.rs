@@ -116,87 +116,7 @@ fn centroid(corners: &[Corner]) -> [f64; 3] {
 /// length (between edge midpoints) is chosen, ties broken by search order, so the result is
 /// deterministic. Returns `None` if no band exists.
 pub fn band(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3]>> {
-    band_by(l1, l2, &midpoint)
-}
-
-/// [`band`] with the stand-in position of each corner given.
-fn band_by(
-    l1: &[Corner],
-    l2: &[Corner],
-    position: &dyn Fn(Corner) -> [f64; 3],
-) -> Option<Vec<[Corner; 3]>> {
-    let distance = |a: Corner, b: Corner| {
-        let (p, q) = (position(a), position(b));
-        (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt()
-    };
-    let (n1, n2) = (l1.len(), l2.len());
-    let mut best: Option<(f64, Vec<[Corner; 3]>)> = None;
-    // Rotate both loops over every start rung. To keep every rung distinct, the path across the
-    // (n1+1)×(n2+1) grid of rungs starts by advancing along the first loop and ends by advancing
-    // along the second; every band has such a start rung.
-    for r in 0..n1 {
-        for s in 0..n2 {
-            let a = |i: usize| l1[(r + i) % n1];
-            // The second loop is walked backwards.
-            let c = |m: usize| l2[(s + n2 * 2 - m) % n2];
-            if !may_join(a(0), c(0)) {
-                continue;
-            }
-            // cost[i][m]: cheapest path from (0,0) to (i,m); came[i][m]: true if by an L1 step.
-            let inf = f64::INFINITY;
-            let mut cost = vec![vec![inf; n2 + 1]; n1 + 1];
-            let mut came = vec![vec![false; n2 + 1]; n1 + 1];
-            cost[0][0] = 0.0;
-            for i in 0..=n1 {
-                for m in 0..=n2 {
-                    if (i, m) == (0, 0) {
-                        continue;
-                    }
-                    let final_state = (i, m) == (n1, n2);
-                    if !final_state && !may_join(a(i), c(m)) {
-                        continue;
-                    }
-                    // The first step advances L1, so no state (0, m > 0); the last step
-                    // advances L2, so the final state is entered from (n1, n2 − 1).
-                    // (n1, 0) is the start rung again.
-                    if i == 0 || (i, m) == (n1, 0) {
-                        continue;
-                    }
-                    let rung = if final_state {
-                        0.0
-                    } else {
-                        distance(a(i), c(m))
-                    };
-                    let via_l1 = if final_state { inf } else { cost[i - 1][m] };
-                    let via_l2 = if m > 0 { cost[i][m - 1] } else { inf };
-                    if via_l1 <= via_l2 && via_l1 < inf {
-                        cost[i][m] = via_l1 + rung;
-                        came[i][m] = true;
-                    } else if via_l2 < inf {
-                        cost[i][m] = via_l2 + rung;
-                    }
-                }
-            }
-            let total = cost[n1][n2];
-            if total == inf || best.as_ref().is_some_and(|(b, _)| *b <= total) {
-                continue;
-            }
-            let mut triangles = Vec::with_capacity(n1 + n2);
-            let (mut i, mut m) = (n1, n2);
-            while (i, m) != (0, 0) {
-                if came[i][m] {
-                    triangles.push([a(i - 1), a(i), c(m)]);
-                    i -= 1;
-                } else {
-                    triangles.push([c(m), c(m - 1), a(i)]);
-                    m -= 1;
-                }
-            }
-            triangles.reverse();
-            best = Some((total, triangles));
-        }
-    }
-    best.map(|(_, t)| t)
+    band_search(l1, l2, &midpoint, false)
 }
 
 /// Triangulates a tunnel through an interior point ([`Corner::INTERIOR`]) when no plain
@@ -206,15 +126,31 @@ fn band_by(
 /// Chooses the shortest total rung length, with the point at the cell centre. `n1 + n2 + 2`
 /// triangles.
 pub fn band_with_interior(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3]>> {
+    band_search(l1, l2, &midpoint, true)
+}
+
+/// The search behind [`band`] and [`band_with_interior`]: the cheapest monotone path across the
+/// (n1+1)×(n2+1) grid of rungs, for every start rung. Each step advances one loop and adds a
+/// triangle. With `through_interior`, the path passes once through a stretch where rungs go via
+/// the interior point (phase 1), entered and left at direct rungs (phases 0 and 2).
+///
+/// To keep every rung distinct, the path starts by advancing along the first loop and ends by
+/// advancing along the second, and (n1, 0) — the start rung again — is never visited; every band
+/// has a start rung that allows this. Inside the stretch no loop may wrap round to its start
+/// corner, or the point would meet that corner twice.
+fn band_search(
+    l1: &[Corner],
+    l2: &[Corner],
+    position: &dyn Fn(Corner) -> [f64; 3],
+    through_interior: bool,
+) -> Option<Vec<[Corner; 3]>> {
     let (n1, n2) = (l1.len(), l2.len());
-    let centre = [0.5; 3];
-    let to_centre = |c: Corner| {
-        let p = midpoint(c);
-        (0..3)
-            .map(|i| (p[i] - centre[i]).powi(2))
-            .sum::<f64>()
-            .sqrt()
+    let distance = |a: Corner, b: Corner| {
+        let (p, q) = (position(a), position(b));
+        (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt()
     };
+    let phases = if through_interior { 3 } else { 1 };
+    let last = phases - 1;
     let x = Corner::INTERIOR;
     let mut best: Option<(f64, Vec<[Corner; 3]>)> = None;
     // Phases: 0 before the interior stretch, 1 inside it (rungs pass through the point), 2 after.
@@ -228,8 +164,8 @@ pub fn band_with_interior(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3
             let inf = f64::INFINITY;
             // cost[phase][i][m] and the step that reached it: 0 L1 advance, 1 L2 advance,
             // 2 phase change at the same rung.
-            let mut cost = vec![vec![vec![inf; n2 + 1]; n1 + 1]; 3];
-            let mut step = vec![vec![vec![u8::MAX; n2 + 1]; n1 + 1]; 3];
+            let mut cost = vec![vec![vec![inf; n2 + 1]; n1 + 1]; phases];
+            let mut step = vec![vec![vec![u8::MAX; n2 + 1]; n1 + 1]; phases];
             cost[0][0][0] = 0.0;
             for i in 0..=n1 {
                 for m in 0..=n2 {
@@ -241,8 +177,12 @@ pub fn band_with_interior(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3
                     } else {
                         distance(a(i), c(m))
                     };
-                    let via = to_centre(a(i)) + to_centre(c(m));
-                    for phase in 0..3 {
+                    let via = if through_interior {
+                        distance(a(i), x) + distance(x, c(m))
+                    } else {
+                        0.0
+                    };
+                    for phase in 0..phases {
                         if (i, m) == (0, 0) && phase == 0 {
                             continue;
                         }
@@ -280,12 +220,12 @@ pub fn band_with_interior(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3
                     }
                 }
             }
-            let total = cost[2][n1][n2];
+            let total = cost[last][n1][n2];
             if total == inf || best.as_ref().is_some_and(|(b, _)| *b <= total) {
                 continue;
             }
             let mut triangles = Vec::with_capacity(n1 + n2 + 2);
-            let (mut i, mut m, mut phase) = (n1, n2, 2usize);
+            let (mut i, mut m, mut phase) = (n1, n2, last);
             while (i, m, phase) != (0, 0, 0) {
                 match step[phase][i][m] {
                     0 => {
@@ -351,8 +291,10 @@ pub fn band_through_ring(l1: &[Corner], l2: &[Corner]) -> (Vec<[Corner; 3]>, Vec
     // must run the other way.
     let reversed: Vec<Corner> = ring.iter().rev().copied().collect();
     let mut triangles =
-        band_by(l1, &reversed, &position).expect("interior rungs are always admissible");
-    triangles.extend(band_by(&ring, l2, &position).expect("interior rungs are always admissible"));
+        band_search(l1, &reversed, &position, false).expect("interior rungs are always admissible");
+    triangles.extend(
+        band_search(&ring, l2, &position, false).expect("interior rungs are always admissible"),
+    );
     (triangles, supports)
 }
 
