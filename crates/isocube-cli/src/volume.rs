@@ -95,28 +95,27 @@ impl VolumeArgs {
     }
 }
 
-fn parse_dims(s: &str) -> Result<[usize; 3], String> {
-    let v: Vec<usize> = s
+/// Three comma-separated values `X,Y,Z`, each checked by `one`.
+fn parse_three<T>(s: &str, one: impl Fn(&str) -> Result<T, String>) -> Result<[T; 3], String> {
+    let v: Vec<T> = s
         .split(',')
-        .map(|t| {
-            t.trim()
-                .parse::<usize>()
-                .map_err(|_| format!("'{t}' is not a whole number"))
-        })
+        .map(|t| one(t.trim()))
         .collect::<Result<_, _>>()?;
-    <[usize; 3]>::try_from(v).map_err(|_| format!("'{s}' needs three numbers X,Y,Z"))
+    <[T; 3]>::try_from(v).map_err(|_| format!("'{s}' needs three numbers X,Y,Z"))
+}
+
+fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    parse_three(s, |t| {
+        t.parse()
+            .map_err(|_| format!("'{t}' is not a whole number"))
+    })
 }
 
 fn parse_triple(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|t| {
-            t.trim()
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| format!("'{t}' is not a finite number"))
-        })
-        .collect::<Result<_, _>>()?;
-    <[f64; 3]>::try_from(v).map_err(|_| format!("'{s}' needs three numbers X,Y,Z"))
+    parse_three(s, |t| {
+        t.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{t}' is not a finite number"))
+    })
 }
