@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{extract_into, ExtractOptions};
+use isocube::extract::{extract_into, ExtractOptions, Method, Snapping};
 use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
 use isocube::mesh::Mesh;
 
@@ -30,6 +30,17 @@ pub(crate) struct Args {
     /// `classic` is face-consistent Marching Cubes without the interior test.
     #[arg(long, default_value = "mc33")]
     topology: Topology,
+    /// `mc`: binary Marching Cubes. `ternary`: grid points on or near the level become surface
+    /// vertices (no degenerate or needle triangles), with the same topology as `mc`.
+    #[arg(long, default_value = "mc", value_parser = ["mc", "ternary"])]
+    method: String,
+    /// Ternary: values within this distance of the level count as zero (on the surface).
+    #[arg(long, default_value_t = 0.0)]
+    zero_threshold: f32,
+    /// Ternary: snap a grid point onto the surface when a crossing on one of its edges lies
+    /// within this fraction of the edge (0 to 0.5).
+    #[arg(long, default_value_t = 0.3)]
+    snap: f32,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -56,7 +67,14 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         .with_level(args.level)
         .with_flip(args.flip)
         .with_normals(!args.no_normals)
-        .with_topology(args.topology);
+        .with_topology(args.topology)
+        .with_method(match args.method.as_str() {
+            "ternary" => Method::Ternary(Snapping {
+                zero_threshold: args.zero_threshold,
+                snap: args.snap,
+            }),
+            _ => Method::MarchingCubes,
+        });
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
@@ -78,7 +96,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if !quiet {
         let r = mesh.report();
         eprintln!(
-            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} of {} cells active, {} tunnels{})",
+            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} of {} cells active, {} tunnels{}{})",
             args.output.display(),
             r.vertices,
             r.triangles,
@@ -93,6 +111,14 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             stats.tunnels,
             if stats.skipped_cells > 0 {
                 format!(", {} skipped for NaN/Inf values", stats.skipped_cells)
+            } else {
+                String::new()
+            },
+            if let Method::Ternary(_) = options.method {
+                format!(
+                    ", {} points snapped, {} kept off to keep the topology",
+                    stats.snapped_points, stats.refused_points
+                )
             } else {
                 String::new()
             }

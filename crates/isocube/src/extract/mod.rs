@@ -50,7 +50,10 @@
 
 mod classify;
 mod place;
+mod ternary;
 mod weld;
+
+pub use ternary::{Snapping, MIN_OFFSET};
 
 use thiserror::Error;
 
@@ -73,6 +76,30 @@ pub struct ExtractOptions {
     pub normals: bool,
     /// The surface inside each cell: the trilinear interpolant's (MC33, default) or classic.
     pub topology: Topology,
+    /// Plain (binary) Marching Cubes, or ternary with zero points on the surface.
+    pub method: Method,
+}
+
+/// Which Marching Cubes: binary (values at or above the level versus below) or ternary.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Method {
+    /// Every grid point is above or below the level; the surface crosses grid edges.
+    #[default]
+    MarchingCubes,
+    /// Grid points on or near the level are surface vertices (Tokunaga's extended Marching
+    /// Cubes with Raman and Wenger's snapping), with the topology of [`Method::MarchingCubes`]
+    /// kept: see [`Snapping`] and the module documentation of `ternary`.
+    Ternary(Snapping),
+}
+
+impl Method {
+    /// The name used on the command line: `mc` or `ternary`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::MarchingCubes => "mc",
+            Method::Ternary(_) => "ternary",
+        }
+    }
 }
 
 impl Default for ExtractOptions {
@@ -82,6 +109,7 @@ impl Default for ExtractOptions {
             flip: false,
             normals: true,
             topology: Topology::Mc33,
+            method: Method::MarchingCubes,
         }
     }
 }
@@ -110,6 +138,12 @@ impl ExtractOptions {
         self.topology = topology;
         self
     }
+
+    /// Sets the method.
+    pub fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
 }
 
 /// Counts from one extraction.
@@ -125,6 +159,11 @@ pub struct ExtractStats {
     pub interior_vertices: usize,
     /// Cells where the interior test opened a tunnel (MC33 only).
     pub tunnels: usize,
+    /// Ternary: grid points made surface vertices.
+    pub snapped_points: usize,
+    /// Ternary: candidate points left off the surface because snapping them would have changed
+    /// the topology or made a degenerate triangle.
+    pub refused_points: usize,
 }
 
 /// Why extraction failed.
@@ -134,6 +173,16 @@ pub enum ExtractError {
     /// The level is NaN or infinite.
     #[error("the level {0} is not a finite number")]
     Level(f32),
+    /// An option is out of its range.
+    #[error("the {name} must be {range}, not {value}")]
+    Option {
+        /// The option.
+        name: &'static str,
+        /// Its valid range.
+        range: &'static str,
+        /// The value given.
+        value: f32,
+    },
     /// The mesh would need more than `u32::MAX` vertices.
     #[error("the mesh would have more than {} vertices", u32::MAX)]
     TooManyVertices,
@@ -161,6 +210,17 @@ pub fn extract_into(
         return Err(ExtractError::Level(options.level));
     }
     mesh.clear();
+    if let Method::Ternary(snapping) = options.method {
+        snapping.validate()?;
+        let mut stats = ExtractStats {
+            cells: grid.cell_count(),
+            ..ExtractStats::default()
+        };
+        let mut ternary = ternary::Ternary::new(grid, options);
+        (stats.snapped_points, stats.refused_points) = ternary.choose_zeros(snapping);
+        ternary.mesh(options, mesh, &mut stats, progress)?;
+        return Ok(stats);
+    }
     let table = CaseTable::binary();
     let [nx, ny, nz] = grid.dims();
     let level = options.level;

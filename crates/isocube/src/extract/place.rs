@@ -41,23 +41,56 @@ impl<'a> Placer<'a> {
         let v1 = f64::from(self.grid.value(p1[0], p1[1], p1[2]));
         // One end is at or above the level and the other below, so v1 ≠ v0.
         let t = ((self.level - v0) / (v1 - v0)).clamp(0.0, 1.0);
+        self.vertex_on_edge(p0, axis, t, mesh)
+    }
+
+    /// The position at fraction `t` along the grid edge from `p0` along `axis`.
+    pub(super) fn edge_point(&self, p0: [usize; 3], axis: usize, t: f64) -> [f32; 3] {
         let mut x = self.grid.point(p0[0], p0[1], p0[2]);
         x[axis] += t * self.grid.spacing()[axis];
-        let id = u32::try_from(mesh.positions.len()).map_err(|_| ExtractError::TooManyVertices)?;
-        if id == u32::MAX {
-            return Err(ExtractError::TooManyVertices);
-        }
-        mesh.positions.push(x.map(|c| c as f32));
+        x.map(|c| c as f32)
+    }
+
+    /// Creates the vertex at fraction `t` along the grid edge from `p0` along `axis`.
+    pub(super) fn vertex_on_edge(
+        &self,
+        p0: [usize; 3],
+        axis: usize,
+        t: f64,
+        mesh: &mut Mesh,
+    ) -> Result<u32, ExtractError> {
+        let id = next_id(mesh)?;
+        mesh.positions.push(self.edge_point(p0, axis, t));
         if self.normals {
+            let mut p1 = p0;
+            p1[axis] += 1;
             let g0 = self.gradient(p0);
             let g1 = self.gradient(p1);
             let mut g = [0, 1, 2].map(|d| g0[d] + t * (g1[d] - g0[d]));
             if g.iter().all(|&c| c == 0.0) {
                 // A flat spot: the edge itself, toward its higher end, is the best guess.
+                let v0 = f64::from(self.grid.value(p0[0], p0[1], p0[2]));
+                let v1 = f64::from(self.grid.value(p1[0], p1[1], p1[2]));
                 g = [0.0; 3];
-                g[axis] = (v1 - v0).signum();
+                g[axis] = if v1 >= v0 { 1.0 } else { -1.0 };
             }
             mesh.normals.push(self.unit(g));
+        }
+        Ok(id)
+    }
+
+    /// Creates a vertex on grid point `p` (a snapped vertex of ternary extraction).
+    pub(super) fn point_vertex(&self, p: [usize; 3], mesh: &mut Mesh) -> Result<u32, ExtractError> {
+        let id = next_id(mesh)?;
+        mesh.positions
+            .push(self.grid.point(p[0], p[1], p[2]).map(|c| c as f32));
+        if self.normals {
+            let g = self.gradient(p);
+            mesh.normals.push(if g.iter().all(|&c| c == 0.0) {
+                [0.0; 3]
+            } else {
+                self.unit(g)
+            });
         }
         Ok(id)
     }
@@ -68,7 +101,7 @@ impl<'a> Placer<'a> {
         ids: &[u32],
         mesh: &mut Mesh,
     ) -> Result<u32, ExtractError> {
-        let id = u32::try_from(mesh.positions.len()).map_err(|_| ExtractError::TooManyVertices)?;
+        let id = next_id(mesh)?;
         let n = ids.len() as f64;
         let mut p = [0.0f64; 3];
         let mut g = [0.0f64; 3];
@@ -127,5 +160,12 @@ impl<'a> Placer<'a> {
                 (None, None) => 0.0,
             }
         })
+    }
+}
+
+fn next_id(mesh: &Mesh) -> Result<u32, ExtractError> {
+    match u32::try_from(mesh.positions.len()) {
+        Ok(id) if id != u32::MAX => Ok(id),
+        _ => Err(ExtractError::TooManyVertices),
     }
 }

@@ -1,0 +1,732 @@
+//! Ternary (extended) Marching Cubes: grid points on or near the level become surface vertices.
+//!
+//! # Model
+//! A *zero* grid point is one the surface passes through. Extraction is Marching Cubes on the
+//! field `g` that equals the input except at zero points, where it equals the level exactly;
+//! every crossing on an edge that ends at a zero point is that point (the limit of the
+//! crossing as the value reaches the level). Triangles that lose a corner this way vanish. So a
+//! ternary cell's polygons are the binary polygons of `g` (zero counts as above, the library's
+//! tie rule) with crossings collapsed onto zero corners, which is what
+//! [`crate::cube::TernaryTable`] lists for all 6561 configurations. Face consistency is inherited
+//! from the binary table: both cells sharing a face collapse the same segments the same way.
+//!
+//! # Choosing zero points, keeping the topology
+//! Candidates are points with `|value − level| ≤ zero_threshold` (Tokunaga's ε) and points that a
+//! crossing on one of their six edges lies within `snap` of, as a fraction of the edge (Raman and
+//! Wenger's SnapMC distance `D`). Each candidate is accepted only if making it zero leaves the
+//! mesh a manifold with the same topology: the eight cells around the point are meshed before and
+//! after, and the change is accepted when, in the after-patch,
+//! - every edge inside the 2×2×2 block of cells is used by 0 or 2 triangles with opposite
+//!   directions (once on the grid boundary), and edges on the block's boundary faces are used
+//!   exactly as before, so the rest of the mesh still fits;
+//! - every vertex's triangles form one fan (a disk, or a half-disk on the grid boundary), and
+//!   vertices on the block's boundary keep their fans' ends;
+//! - the triangles form components with the same Euler characteristics and the same boundary
+//!   edges and vertices as before, and no triangle repeats or has zero area.
+//!
+//! The outside of the block does not change, so each accepted step keeps the global mesh a
+//! manifold with the same components and Euler characteristic; starting from MC33, so does the
+//! result. Points are decided in eight passes by coordinate parity: points of one parity class
+//! are two apart, their blocks share no cell, so the decisions of a pass do not depend on each
+//! other's order. Refused points keep their sign; their crossings are kept at least
+//! [`MIN_OFFSET`] of an edge away from the grid point so that no triangle collapses to zero area.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
+use crate::field::Grid;
+use crate::mesh::Mesh;
+
+use super::classify::{cell_config, face_decisions};
+use super::place::Placer;
+use super::{choose_tunnel, ExtractError, ExtractOptions, ExtractStats};
+
+/// The smallest distance, as a fraction of the edge, between a crossing that was not snapped and
+/// the ends of its edge.
+pub const MIN_OFFSET: f64 = 1e-3;
+
+/// How ternary extraction picks the grid points the surface passes through.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Snapping {
+    /// Values with `|value − level| ≤ zero_threshold` count as zero (the extended-MC paper's ε).
+    pub zero_threshold: f32,
+    /// A grid point is snapped when a crossing on one of its edges lies within this fraction of
+    /// the edge (SnapMC's `D`, `0 ≤ snap ≤ 0.5`).
+    pub snap: f32,
+}
+
+impl Default for Snapping {
+    /// `zero_threshold` 0 (exact ties only) and `snap` 0.3.
+    fn default() -> Self {
+        Snapping {
+            zero_threshold: 0.0,
+            snap: 0.3,
+        }
+    }
+}
+
+impl Snapping {
+    pub(super) fn validate(&self) -> Result<(), ExtractError> {
+        if !(self.zero_threshold >= 0.0 && self.zero_threshold.is_finite()) {
+            return Err(ExtractError::Option {
+                name: "zero threshold",
+                range: "a finite number ≥ 0",
+                value: self.zero_threshold,
+            });
+        }
+        if !(0.0..=0.5).contains(&self.snap) {
+            return Err(ExtractError::Option {
+                name: "snap distance",
+                range: "between 0 and 0.5",
+                value: self.snap,
+            });
+        }
+        Ok(())
+    }
+}
+
+// Keys name patch vertices independently of cells: a crossing by its grid edge, a zero point by
+// its index, an interior point by its cell and number.
+type Key = u64;
+const TAG_SHIFT: u32 = 62;
+const EDGE: u64 = 0;
+const POINT: u64 = 1;
+const INTERIOR: u64 = 2;
+const PAYLOAD: u64 = (1 << TAG_SHIFT) - 1;
+
+fn tag(k: Key) -> u64 {
+    k >> TAG_SHIFT
+}
+
+/// Patch triangles plus, for each interior point used, the keys it is the centroid of.
+#[derive(Default)]
+struct Patch {
+    triangles: Vec<[Key; 3]>,
+    interiors: Vec<(Key, Vec<Key>)>,
+}
+
+impl Patch {
+    fn clear(&mut self) {
+        self.triangles.clear();
+        self.interiors.clear();
+    }
+}
+
+pub(super) struct Ternary<'a> {
+    grid: &'a Grid,
+    level: f32,
+    topology: Topology,
+    /// The field with zero points set to the level.
+    g: Vec<f32>,
+    zero: Vec<bool>,
+    offsets: [usize; 8],
+    strides: [usize; 3],
+}
+
+impl<'a> Ternary<'a> {
+    pub(super) fn new(grid: &'a Grid, options: &ExtractOptions) -> Ternary<'a> {
+        let [nx, ny, _] = grid.dims();
+        let (sy, sz) = (nx, nx * ny);
+        Ternary {
+            grid,
+            level: options.level,
+            topology: options.topology,
+            g: grid.values().to_vec(),
+            zero: vec![false; grid.values().len()],
+            offsets: [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz],
+            strides: [1, sy, sz],
+        }
+    }
+
+    fn coords(&self, p: usize) -> [usize; 3] {
+        let [nx, ny, _] = self.grid.dims();
+        [p % nx, p / nx % ny, p / (nx * ny)]
+    }
+
+    /// Decides the zero points. Returns (snapped, refused) counts.
+    pub(super) fn choose_zeros(&mut self, snapping: Snapping) -> (usize, usize) {
+        let values = self.grid.values();
+        let level = f64::from(self.level);
+        let dims = self.grid.dims();
+        let mut classes: [Vec<usize>; 8] = Default::default();
+        for (p, &v) in values.iter().enumerate() {
+            if !v.is_finite() {
+                continue;
+            }
+            let v = f64::from(v);
+            let mut candidate = (v - level).abs() <= f64::from(snapping.zero_threshold);
+            let c = self.coords(p);
+            if !candidate && snapping.snap > 0.0 {
+                'edges: for (axis, &stride) in self.strides.iter().enumerate() {
+                    for forward in [false, true] {
+                        let q = if forward {
+                            if c[axis] + 1 >= dims[axis] {
+                                continue;
+                            }
+                            p + stride
+                        } else {
+                            if c[axis] == 0 {
+                                continue;
+                            }
+                            p - stride
+                        };
+                        let w = f64::from(values[q]);
+                        if !w.is_finite() || (v >= level) == (w >= level) {
+                            continue;
+                        }
+                        let t = (level - v) / (w - v);
+                        if t <= f64::from(snapping.snap) {
+                            candidate = true;
+                            break 'edges;
+                        }
+                    }
+                }
+            }
+            if candidate {
+                classes[c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2].push(p);
+            }
+        }
+        let (mut snapped, mut refused) = (0, 0);
+        let mut before = Patch::default();
+        let mut after = Patch::default();
+        for class in &classes {
+            for &p in class {
+                if self.zero_keeps_topology(p, &mut before, &mut after) {
+                    self.zero[p] = true;
+                    self.g[p] = self.level;
+                    snapped += 1;
+                } else {
+                    refused += 1;
+                }
+            }
+        }
+        (snapped, refused)
+    }
+
+    fn value(&self, p: usize, over: Option<usize>) -> f32 {
+        if over == Some(p) {
+            self.level
+        } else {
+            self.g[p]
+        }
+    }
+
+    fn is_zero(&self, p: usize, over: Option<usize>) -> bool {
+        over == Some(p) || self.zero[p]
+    }
+
+    /// Appends the triangles of cell `cell` (its first grid point) to `patch`, with point `over`
+    /// treated as zero.
+    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch) {
+        let pts = self.offsets.map(|o| base + o);
+        let v = pts.map(|p| self.value(p, over));
+        if v.iter().any(|x| !x.is_finite()) {
+            return;
+        }
+        let config = cell_config(&v, self.level);
+        if config == 0 || config == 255 {
+            return;
+        }
+        let table = CaseTable::binary();
+        let decisions = face_decisions(&v, self.level, table.ambiguous_faces(config));
+        let tunnel = if self.topology == Topology::Mc33
+            && table.has_tunnel_candidates(config, decisions)
+        {
+            choose_tunnel(table, config, decisions, &v, self.level)
+        } else {
+            None
+        };
+        let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
+        let key = |c: Corner| -> Key {
+            if let Some(e) = c.as_edge() {
+                let [a, b] = EDGES[usize::from(e)].map(|x| pts[usize::from(x)]);
+                if self.is_zero(a, over) {
+                    POINT << TAG_SHIFT | a as u64
+                } else if self.is_zero(b, over) {
+                    POINT << TAG_SHIFT | b as u64
+                } else {
+                    EDGE << TAG_SHIFT | (a * 3 + usize::from(EDGE_AXIS[usize::from(e)])) as u64
+                }
+            } else {
+                let k = c.as_interior().expect("binary cells have edge and interior corners");
+                INTERIOR << TAG_SHIFT | (base * 4 + usize::from(k)) as u64
+            }
+        };
+        let mut used = [false; Corner::MAX_INTERIOR];
+        for t in cell.triangles {
+            let k = t.map(key);
+            if k[0] == k[1] || k[1] == k[2] || k[0] == k[2] {
+                continue;
+            }
+            for c in t {
+                if let Some(i) = c.as_interior() {
+                    used[usize::from(i)] = true;
+                }
+            }
+            patch.triangles.push(k);
+        }
+        for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
+            let support = cell.interior_support(i).iter().map(|&c| key(c)).collect();
+            patch
+                .interiors
+                .push((key(Corner::interior(i as u8)), support));
+        }
+    }
+
+    /// The cells around grid point `p`, by their first grid point.
+    fn star(&self, p: usize) -> impl Iterator<Item = usize> + '_ {
+        let c = self.coords(p);
+        let dims = self.grid.dims();
+        let range = move |a: usize| c[a].saturating_sub(1)..c[a].min(dims[a] - 2) + 1;
+        range(2).flat_map(move |k| {
+            range(1).flat_map(move |j| {
+                range(0).map(move |i| i * self.strides[0] + j * self.strides[1] + k * self.strides[2])
+            })
+        })
+    }
+
+    /// Doubled grid coordinates of a key: points even, crossings odd along their edge, interior
+    /// points odd along every axis.
+    fn key_coords(&self, k: Key) -> [usize; 3] {
+        let payload = (k & PAYLOAD) as usize;
+        match tag(k) {
+            POINT => self.coords(payload).map(|c| 2 * c),
+            EDGE => {
+                let mut c = self.coords(payload / 3).map(|c| 2 * c);
+                c[payload % 3] += 1;
+                c
+            }
+            _ => self.coords(payload / 4).map(|c| 2 * c + 1),
+        }
+    }
+
+    fn zero_keeps_topology(&self, p: usize, before: &mut Patch, after: &mut Patch) -> bool {
+        before.clear();
+        after.clear();
+        for cell in self.star(p) {
+            self.emit(cell, None, before);
+            self.emit(cell, Some(p), after);
+        }
+        let c = self.coords(p);
+        let dims = self.grid.dims();
+        // The block's boundary planes (doubled coordinates): frozen where cells lie beyond them,
+        // open on the grid boundary.
+        let mut frozen = Vec::with_capacity(6);
+        let mut open = Vec::with_capacity(6);
+        for a in 0..3 {
+            for plane in [c[a].saturating_sub(1), (c[a] + 1).min(dims[a] - 1)] {
+                if plane > 0 && plane < dims[a] - 1 {
+                    frozen.push((a, 2 * plane));
+                } else {
+                    open.push((a, 2 * plane));
+                }
+            }
+        }
+        let on = |planes: &[(usize, usize)], keys: &[Key]| {
+            planes.iter().any(|&(a, x)| {
+                keys.iter().all(|&k| self.key_coords(k)[a] == x)
+            })
+        };
+        let check = Check {
+            frozen: &|keys: &[Key]| on(&frozen, keys),
+            open: &|keys: &[Key]| on(&open, keys),
+        };
+        check.accepts(&before.triangles, &after.triangles) && self.no_zero_area(before, after)
+    }
+
+    fn no_zero_area(&self, before: &Patch, after: &Patch) -> bool {
+        let old: Vec<[Key; 3]> = canonical_triangles(&before.triangles);
+        after.triangles.iter().all(|t| {
+            if old.binary_search(&canonical(*t)).is_ok() {
+                return true;
+            }
+            let p = t.map(|k| self.position(k, after).map(f64::from));
+            let n = crate::mesh::cross(
+                crate::mesh::sub(p[1], p[0]),
+                crate::mesh::sub(p[2], p[0]),
+            );
+            crate::mesh::dot(n, n) > 0.0
+        })
+    }
+
+    fn edge_t(&self, a: usize, axis: usize) -> f64 {
+        let v0 = f64::from(self.g[a]);
+        let v1 = f64::from(self.g[a + self.strides[axis]]);
+        ((f64::from(self.level) - v0) / (v1 - v0)).clamp(MIN_OFFSET, 1.0 - MIN_OFFSET)
+    }
+
+    fn position(&self, k: Key, patch: &Patch) -> [f32; 3] {
+        let payload = (k & PAYLOAD) as usize;
+        match tag(k) {
+            POINT => {
+                let c = self.coords(payload);
+                self.grid.point(c[0], c[1], c[2]).map(|x| x as f32)
+            }
+            EDGE => {
+                let (a, axis) = (payload / 3, payload % 3);
+                let t = self.edge_t(a, axis);
+                let mut x = {
+                    let c = self.coords(a);
+                    self.grid.point(c[0], c[1], c[2])
+                };
+                x[axis] += t * self.grid.spacing()[axis];
+                x.map(|c| c as f32)
+            }
+            _ => {
+                let support = &patch
+                    .interiors
+                    .iter()
+                    .find(|(key, _)| *key == k)
+                    .expect("interior points come with their support")
+                    .1;
+                let n = support.len() as f64;
+                let mut x = [0.0f64; 3];
+                for &s in support {
+                    let q = self.position(s, patch);
+                    for d in 0..3 {
+                        x[d] += f64::from(q[d]) / n;
+                    }
+                }
+                x.map(|c| c as f32)
+            }
+        }
+    }
+
+    /// Meshes the whole grid with the chosen zero points.
+    pub(super) fn mesh(
+        &self,
+        options: &ExtractOptions,
+        mesh: &mut Mesh,
+        stats: &mut ExtractStats,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<(), ExtractError> {
+        let placer = Placer::new(self.grid, options);
+        let [nx, ny, nz] = self.grid.dims();
+        let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
+        let mut patch = Patch::default();
+        for k in 0..nz - 1 {
+            for j in 0..ny - 1 {
+                for i in 0..nx - 1 {
+                    let base = self.grid.index(i, j, k);
+                    let pts = self.offsets.map(|o| base + o);
+                    if pts.iter().any(|&p| !self.g[p].is_finite()) {
+                        stats.skipped_cells += 1;
+                        continue;
+                    }
+                    patch.clear();
+                    self.emit(base, None, &mut patch);
+                    if patch.triangles.is_empty() {
+                        continue;
+                    }
+                    stats.active_cells += 1;
+                    for t in &patch.triangles {
+                        let mut tri = [0u32; 3];
+                        for (slot, &key) in tri.iter_mut().zip(t) {
+                            *slot = self.vertex(key, &patch, &placer, &mut ids, mesh, stats)?;
+                        }
+                        if options.flip {
+                            tri.swap(1, 2);
+                        }
+                        mesh.triangles.push(tri);
+                    }
+                }
+            }
+            progress(k + 1, nz - 1);
+        }
+        Ok(())
+    }
+
+    fn vertex(
+        &self,
+        key: Key,
+        patch: &Patch,
+        placer: &Placer,
+        ids: &mut HashMap<Key, u32, BuildHasherDefault<KeyHasher>>,
+        mesh: &mut Mesh,
+        stats: &mut ExtractStats,
+    ) -> Result<u32, ExtractError> {
+        if let Some(&id) = ids.get(&key) {
+            return Ok(id);
+        }
+        let payload = (key & PAYLOAD) as usize;
+        let id = match tag(key) {
+            POINT => placer.point_vertex(self.coords(payload), mesh)?,
+            EDGE => {
+                let (a, axis) = (payload / 3, payload % 3);
+                placer.vertex_on_edge(self.coords(a), axis, self.edge_t(a, axis), mesh)?
+            }
+            _ => {
+                let support = &patch
+                    .interiors
+                    .iter()
+                    .find(|(k, _)| *k == key)
+                    .expect("interior points come with their support")
+                    .1;
+                let mut corner_ids = Vec::with_capacity(support.len());
+                for &s in support {
+                    corner_ids.push(self.vertex(s, patch, placer, ids, mesh, stats)?);
+                }
+                stats.interior_vertices += 1;
+                placer.centroid_vertex(&corner_ids, mesh)?
+            }
+        };
+        ids.insert(key, id);
+        Ok(id)
+    }
+}
+
+/// A multiplicative hash: keys are already well spread integers.
+#[derive(Default)]
+pub(super) struct KeyHasher(u64);
+
+impl Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        }
+    }
+
+    fn write_u64(&mut self, k: u64) {
+        self.0 = (k ^ k >> 29).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
+
+/// Rotates a triangle to start at its smallest key (orientation kept).
+fn canonical(t: [Key; 3]) -> [Key; 3] {
+    let i = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
+    [t[i], t[(i + 1) % 3], t[(i + 2) % 3]]
+}
+
+fn canonical_triangles(ts: &[[Key; 3]]) -> Vec<[Key; 3]> {
+    let mut v: Vec<[Key; 3]> = ts.iter().map(|&t| canonical(t)).collect();
+    v.sort_unstable();
+    v
+}
+
+/// The acceptance test for replacing a block's patch `before` by `after` (see the module docs).
+struct Check<'c> {
+    /// Whether all the keys lie on one boundary face of the block with cells beyond it.
+    frozen: &'c dyn Fn(&[Key]) -> bool,
+    /// Whether all the keys lie on one face of the grid's boundary.
+    open: &'c dyn Fn(&[Key]) -> bool,
+}
+
+impl Check<'_> {
+    fn accepts(&self, before: &[[Key; 3]], after: &[[Key; 3]]) -> bool {
+        let old = canonical_triangles(before);
+        let new = canonical_triangles(after);
+        if old == new {
+            return true;
+        }
+        // No triangle twice, in either orientation.
+        let mut sets: Vec<[Key; 3]> = after
+            .iter()
+            .map(|t| {
+                let mut s = *t;
+                s.sort_unstable();
+                s
+            })
+            .collect();
+        sets.sort_unstable();
+        if sets.windows(2).any(|w| w[0] == w[1]) {
+            return false;
+        }
+        self.edges_fit(&old, &new) && self.fans_fit(&old, &new) && self.components_fit(&old, &new)
+    }
+
+    fn edges_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
+        // (low, high, forward, in_new)
+        let mut uses: Vec<(Key, Key, bool, bool)> = Vec::with_capacity(3 * (old.len() + new.len()));
+        for (list, is_new) in [(old, false), (new, true)] {
+            for t in list {
+                for i in 0..3 {
+                    let (a, b) = (t[i], t[(i + 1) % 3]);
+                    uses.push((a.min(b), a.max(b), a < b, is_new));
+                }
+            }
+        }
+        uses.sort_unstable();
+        for group in uses.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            let count = |is_new: bool, forward: bool| {
+                group
+                    .iter()
+                    .filter(|u| u.3 == is_new && u.2 == forward)
+                    .count()
+            };
+            let (nf, nb) = (count(true, true), count(true, false));
+            let keys = [group[0].0, group[0].1];
+            if (self.frozen)(&keys) {
+                if (nf, nb) != (count(false, true), count(false, false)) {
+                    return false;
+                }
+            } else {
+                let ok = matches!((nf, nb), (0, 0) | (1, 1))
+                    || (nf + nb == 1 && (self.open)(&keys));
+                if !ok {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    fn fans_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
+        let mut vertices: Vec<Key> = new.iter().flatten().copied().collect();
+        vertices.extend(old.iter().flatten().filter(|&&k| (self.frozen)(&[k])));
+        vertices.sort_unstable();
+        vertices.dedup();
+        for &u in &vertices {
+            let after = fan(new, u);
+            if (self.frozen)(&[u]) {
+                if after.is_none() || after != fan(old, u) {
+                    return false;
+                }
+            } else {
+                match after {
+                    Some((paths, cycles)) => {
+                        let one_disk = cycles == 1 && paths.is_empty();
+                        let one_half_disk = cycles == 0 && paths.len() == 1 && (self.open)(&[u]);
+                        if !(one_disk || one_half_disk || (cycles == 0 && paths.is_empty())) {
+                            return false;
+                        }
+                    }
+                    None => return false,
+                }
+            }
+        }
+        true
+    }
+
+    fn components_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
+        self.component_signatures(old) == self.component_signatures(new)
+    }
+
+    /// Per edge-connected component: Euler characteristic and the frozen edges and vertices.
+    #[allow(clippy::type_complexity)]
+    fn component_signatures(&self, ts: &[[Key; 3]]) -> Vec<(i64, Vec<(Key, Key)>, Vec<Key>)> {
+        let mut parent: Vec<usize> = (0..ts.len()).collect();
+        fn find(parent: &mut [usize], mut x: usize) -> usize {
+            while parent[x] != x {
+                parent[x] = parent[parent[x]];
+                x = parent[x];
+            }
+            x
+        }
+        let mut edges: Vec<(Key, Key, usize)> = Vec::with_capacity(3 * ts.len());
+        for (i, t) in ts.iter().enumerate() {
+            for j in 0..3 {
+                let (a, b) = (t[j], t[(j + 1) % 3]);
+                edges.push((a.min(b), a.max(b), i));
+            }
+        }
+        edges.sort_unstable();
+        for group in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            for w in group.windows(2) {
+                let (a, b) = (find(&mut parent, w[0].2), find(&mut parent, w[1].2));
+                parent[a] = b;
+            }
+        }
+        let roots: Vec<usize> = (0..ts.len()).map(|i| find(&mut parent, i)).collect();
+        let mut out = Vec::new();
+        let mut done = vec![false; ts.len()];
+        for i in 0..ts.len() {
+            let r = roots[i];
+            if done[r] {
+                continue;
+            }
+            done[r] = true;
+            let members: Vec<usize> = (0..ts.len()).filter(|&j| roots[j] == r).collect();
+            let mut verts: Vec<Key> = members.iter().flat_map(|&j| ts[j]).collect();
+            verts.sort_unstable();
+            verts.dedup();
+            let mut es: Vec<(Key, Key)> = members
+                .iter()
+                .flat_map(|&j| {
+                    let t = ts[j];
+                    (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))
+                })
+                .collect();
+            es.sort_unstable();
+            es.dedup();
+            let euler = verts.len() as i64 - es.len() as i64 + members.len() as i64;
+            let frozen_edges = es
+                .iter()
+                .copied()
+                .filter(|&(a, b)| (self.frozen)(&[a, b]))
+                .collect();
+            let frozen_vertices = verts
+                .iter()
+                .copied()
+                .filter(|&k| (self.frozen)(&[k]))
+                .collect();
+            out.push((euler, frozen_edges, frozen_vertices));
+        }
+        out.sort();
+        out
+    }
+}
+
+/// The fan of triangles around `u`: its link's paths (start, end) and number of cycles, or `None`
+/// when the link branches (a non-manifold vertex).
+#[allow(clippy::type_complexity)]
+fn fan(ts: &[[Key; 3]], u: Key) -> Option<(Vec<(Key, Key)>, usize)> {
+    let mut link: Vec<(Key, Key)> = Vec::new();
+    for t in ts {
+        if let Some(i) = t.iter().position(|&k| k == u) {
+            link.push((t[(i + 1) % 3], t[(i + 2) % 3]));
+        }
+    }
+    if link.is_empty() {
+        return Some((Vec::new(), 0));
+    }
+    link.sort_unstable();
+    if link.windows(2).any(|w| w[0].0 == w[1].0) {
+        return None;
+    }
+    let mut targets: Vec<Key> = link.iter().map(|l| l.1).collect();
+    targets.sort_unstable();
+    if targets.windows(2).any(|w| w[0] == w[1]) {
+        return None;
+    }
+    let successor = |b: Key| link.binary_search_by_key(&b, |l| l.0).ok();
+    let mut seen = vec![false; link.len()];
+    let mut paths = Vec::new();
+    for (i, &(a, _)) in link.iter().enumerate() {
+        if targets.binary_search(&a).is_ok() {
+            continue;
+        }
+        // Nothing leads to `a`: it starts a path.
+        let mut idx = i;
+        loop {
+            seen[idx] = true;
+            match successor(link[idx].1) {
+                Some(j) => idx = j,
+                None => {
+                    paths.push((a, link[idx].1));
+                    break;
+                }
+            }
+        }
+    }
+    let mut cycles = 0;
+    for i in 0..link.len() {
+        if seen[i] {
+            continue;
+        }
+        cycles += 1;
+        let mut idx = i;
+        while !seen[idx] {
+            seen[idx] = true;
+            match successor(link[idx].1) {
+                Some(j) => idx = j,
+                None => break,
+            }
+        }
+    }
+    Some((paths, cycles))
+}
