@@ -230,13 +230,12 @@ impl<'a> Ternary<'a> {
         }
         let table = CaseTable::binary();
         let decisions = face_decisions(&v, self.level, table.ambiguous_faces(config));
-        let tunnel = if self.topology == Topology::Mc33
-            && table.has_tunnel_candidates(config, decisions)
-        {
-            choose_tunnel(table, config, decisions, &v, self.level)
-        } else {
-            None
-        };
+        let tunnel =
+            if self.topology == Topology::Mc33 && table.has_tunnel_candidates(config, decisions) {
+                choose_tunnel(table, config, decisions, &v, self.level)
+            } else {
+                None
+            };
         let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
         let key = |c: Corner| -> Key {
             if let Some(e) = c.as_edge() {
@@ -249,7 +248,9 @@ impl<'a> Ternary<'a> {
                     EDGE << TAG_SHIFT | (a * 3 + usize::from(EDGE_AXIS[usize::from(e)])) as u64
                 }
             } else {
-                let k = c.as_interior().expect("binary cells have edge and interior corners");
+                let k = c
+                    .as_interior()
+                    .expect("binary cells have edge and interior corners");
                 INTERIOR << TAG_SHIFT | (base * 4 + usize::from(k)) as u64
             }
         };
@@ -281,7 +282,8 @@ impl<'a> Ternary<'a> {
         let range = move |a: usize| c[a].saturating_sub(1)..c[a].min(dims[a] - 2) + 1;
         range(2).flat_map(move |k| {
             range(1).flat_map(move |j| {
-                range(0).map(move |i| i * self.strides[0] + j * self.strides[1] + k * self.strides[2])
+                range(0)
+                    .map(move |i| i * self.strides[0] + j * self.strides[1] + k * self.strides[2])
             })
         })
     }
@@ -324,9 +326,9 @@ impl<'a> Ternary<'a> {
             }
         }
         let on = |planes: &[(usize, usize)], keys: &[Key]| {
-            planes.iter().any(|&(a, x)| {
-                keys.iter().all(|&k| self.key_coords(k)[a] == x)
-            })
+            planes
+                .iter()
+                .any(|&(a, x)| keys.iter().all(|&k| self.key_coords(k)[a] == x))
         };
         let check = Check {
             frozen: &|keys: &[Key]| on(&frozen, keys),
@@ -342,10 +344,7 @@ impl<'a> Ternary<'a> {
                 return true;
             }
             let p = t.map(|k| self.position(k, after).map(f64::from));
-            let n = crate::mesh::cross(
-                crate::mesh::sub(p[1], p[0]),
-                crate::mesh::sub(p[2], p[0]),
-            );
+            let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
             crate::mesh::dot(n, n) > 0.0
         })
     }
@@ -561,12 +560,15 @@ impl Check<'_> {
             let (nf, nb) = (count(true, true), count(true, false));
             let keys = [group[0].0, group[0].1];
             if (self.frozen)(&keys) {
-                if (nf, nb) != (count(false, true), count(false, false)) {
+                // Outside triangles may use the edge too. If the block used it both ways, they
+                // do not, and the block may drop it; otherwise its use must stay as it was.
+                let was = (count(false, true), count(false, false));
+                if (nf, nb) != was && !(was == (1, 1) && (nf, nb) == (0, 0)) {
                     return false;
                 }
             } else {
-                let ok = matches!((nf, nb), (0, 0) | (1, 1))
-                    || (nf + nb == 1 && (self.open)(&keys));
+                let ok =
+                    matches!((nf, nb), (0, 0) | (1, 1)) || (nf + nb == 1 && (self.open)(&keys));
                 if !ok {
                     return false;
                 }
@@ -583,7 +585,19 @@ impl Check<'_> {
         for &u in &vertices {
             let after = fan(new, u);
             if (self.frozen)(&[u]) {
-                if after.is_none() || after != fan(old, u) {
+                // Path ends on frozen edges are where the fan continues outside the block and
+                // must stay; ends on the grid boundary may move along it.
+                let ends = |f: Option<(Vec<(Key, Key)>, usize)>| {
+                    f.map(|(paths, cycles)| {
+                        let end = |x: Key| if (self.frozen)(&[u, x]) { x } else { Key::MAX };
+                        let mut p: Vec<(Key, Key)> =
+                            paths.into_iter().map(|(a, b)| (end(a), end(b))).collect();
+                        p.sort_unstable();
+                        (p, cycles)
+                    })
+                };
+                let after = ends(after);
+                if after.is_none() || after != ends(fan(old, u)) {
                     return false;
                 }
             } else {
@@ -606,9 +620,9 @@ impl Check<'_> {
         self.component_signatures(old) == self.component_signatures(new)
     }
 
-    /// Per edge-connected component: Euler characteristic and the frozen edges and vertices.
+    /// Per edge-connected component: its Euler characteristic and its interface edges.
     #[allow(clippy::type_complexity)]
-    fn component_signatures(&self, ts: &[[Key; 3]]) -> Vec<(i64, Vec<(Key, Key)>, Vec<Key>)> {
+    fn component_signatures(&self, ts: &[[Key; 3]]) -> Vec<(i64, Vec<(Key, Key)>)> {
         let mut parent: Vec<usize> = (0..ts.len()).collect();
         fn find(parent: &mut [usize], mut x: usize) -> usize {
             while parent[x] != x {
@@ -654,17 +668,22 @@ impl Check<'_> {
             es.sort_unstable();
             es.dedup();
             let euler = verts.len() as i64 - es.len() as i64 + members.len() as i64;
-            let frozen_edges = es
+            // The interface with the rest of the mesh: frozen edges the component uses once.
+            let mut uses: Vec<(Key, Key)> = members
                 .iter()
-                .copied()
+                .flat_map(|&j| {
+                    let t = ts[j];
+                    (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))
+                })
                 .filter(|&(a, b)| (self.frozen)(&[a, b]))
                 .collect();
-            let frozen_vertices = verts
-                .iter()
-                .copied()
-                .filter(|&k| (self.frozen)(&[k]))
+            uses.sort_unstable();
+            let frozen_edges: Vec<(Key, Key)> = uses
+                .chunk_by(|x, y| x == y)
+                .filter(|g| g.len() == 1)
+                .map(|g| g[0])
                 .collect();
-            out.push((euler, frozen_edges, frozen_vertices));
+            out.push((euler, frozen_edges));
         }
         out.sort();
         out

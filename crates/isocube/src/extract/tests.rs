@@ -285,3 +285,246 @@ fn mc33_opens_the_case_4_tunnel() {
     assert_eq!((b.components, b.euler), (2, 2));
     assert!(a.oriented && a.nonmanifold_edges == 0);
 }
+
+mod ternary {
+    use super::*;
+    use crate::extract::{Method, Snapping, MIN_OFFSET};
+
+    fn ternary(zero_threshold: f32, snap: f32) -> ExtractOptions {
+        ExtractOptions::default().with_method(Method::Ternary(Snapping {
+            zero_threshold,
+            snap,
+        }))
+    }
+
+    /// No triangle repeats (in either orientation) and none has zero area.
+    fn assert_clean(mesh: &Mesh) {
+        let mut sets: Vec<[u32; 3]> = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let mut s = *t;
+                s.sort_unstable();
+                s
+            })
+            .collect();
+        sets.sort_unstable();
+        assert!(sets.windows(2).all(|w| w[0] != w[1]), "duplicate triangle");
+        assert_eq!(mesh.report().degenerate, 0, "degenerate triangle");
+    }
+
+    /// Every vertex is a grid point or lies on a grid edge at least `MIN_OFFSET` from its ends.
+    fn assert_on_grid_edges(grid: &Grid, mesh: &Mesh, interior: usize) {
+        let h = grid.spacing();
+        let o = grid.origin();
+        let mut off_edges = 0;
+        for p in &mesh.positions {
+            let u = [0, 1, 2].map(|a| (f64::from(p[a]) - o[a]) / h[a]);
+            let frac: Vec<f64> = u.iter().map(|x| (x - x.round()).abs()).collect();
+            let fractional = frac.iter().filter(|&&f| f > 1e-4).count();
+            match fractional {
+                0 => {}
+                1 => {
+                    let f = frac.iter().copied().fold(0.0, f64::max);
+                    assert!(f >= MIN_OFFSET * 0.99, "crossing {f} from a grid point");
+                }
+                _ => off_edges += 1,
+            }
+        }
+        assert_eq!(
+            off_edges, interior,
+            "only interior points lie off grid edges"
+        );
+    }
+
+    fn topology(mesh: &Mesh) -> (usize, i64, bool) {
+        let r = mesh.report();
+        (r.components, r.euler, r.watertight)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 10_000, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// 10 000 random small grids with many values exactly at the level: the ternary mesh is
+        /// watertight, edge-manifold, oriented, without repeated or zero-area triangles, and has
+        /// the components and Euler characteristic of the MC33 mesh.
+        #[test]
+        fn random_tied_grids(grid in closed_grid(), threshold in 0u8..3, snap in 0u8..6) {
+            let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
+            // Values are multiples of 1, 2 or 3: a threshold of 1 makes the ±1 values zero too.
+            let options = ternary(f32::from(threshold) * 0.5, f32::from(snap) * 0.1);
+            let (mesh, stats) = extract(&grid, &options).unwrap();
+            mesh.validate().unwrap();
+            prop_assert_eq!(topology(&mesh), topology(&mc33));
+            if mesh.triangle_count() > 0 {
+                assert_closed_manifold(&mesh.report());
+            }
+            assert_clean(&mesh);
+            assert_on_grid_edges(&grid, &mesh, stats.interior_vertices);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 2_000, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Open surfaces (random level, surface reaching the grid boundary): manifold, oriented,
+        /// clean, with the MC33 mesh's topology.
+        #[test]
+        fn random_open_grids(
+            dims in (2usize..7, 2usize..7, 2usize..7),
+            seed in any::<u64>(),
+            level in -4i8..4,
+            snap in 0u8..6,
+        ) {
+            let dims = [dims.0, dims.1, dims.2];
+            let n: usize = dims.iter().product();
+            let mut state = seed;
+            let values: Vec<f32> = (0..n).map(|_| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((state >> 40) % 9) as f32 / 4.0 - 1.0
+            }).collect();
+            let grid = Grid::new(dims, values).unwrap();
+            let level = f32::from(level) / 4.0;
+            let mc33 = extract(&grid, &ExtractOptions::default().with_level(level)).unwrap().0;
+            let options = ternary(0.0, f32::from(snap) * 0.1).with_level(level);
+            let (mesh, _) = extract(&grid, &options).unwrap();
+            let r = mesh.report();
+            prop_assert_eq!(r.nonmanifold_edges, 0);
+            prop_assert!(r.oriented);
+            prop_assert_eq!((r.components, r.euler), (mc33.report().components, mc33.report().euler));
+            prop_assert_eq!(r.boundary_edges > 0, mc33.report().boundary_edges > 0);
+            assert_clean(&mesh);
+        }
+    }
+
+    /// Schwarz P at 40 per axis: crossings land on or within rounding of grid points, so plain
+    /// Marching Cubes makes zero-area triangles by the thousand; ternary makes none.
+    #[test]
+    fn schwarz_p_has_no_degenerate_triangles() {
+        let grid = Sample::SchwarzP.grid(40);
+        let (mc, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+        assert!(mc.report().degenerate > 1000, "{}", mc.report().degenerate);
+        for (threshold, snap) in [(0.0, 0.0), (0.0, 0.1), (0.0, 0.3), (0.0, 0.5), (1e-3, 0.0)] {
+            let (mesh, stats) = extract(&grid, &ternary(threshold, snap)).unwrap();
+            assert_eq!(topology(&mesh), topology(&mc), "ε {threshold}, D {snap}");
+            assert_clean(&mesh);
+            assert!(mesh.report().oriented && mesh.report().nonmanifold_edges == 0);
+            if snap > 0.0 {
+                assert!(stats.snapped_points > 1000);
+            }
+        }
+    }
+
+    /// Every built-in sample at 40 and 64 per axis, with the default snapping, full snapping and a
+    /// zero threshold: same components, Euler characteristic and closedness as MC33.
+    #[test]
+    fn sample_topology_equals_mc33() {
+        for sample in Sample::ALL {
+            for n in [40, 64] {
+                let grid = sample.grid(n);
+                let (mc33, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+                let range = grid.finite_range().unwrap();
+                let eps = (range.1 - range.0) * 1e-3;
+                for snapping in [
+                    Snapping::default(),
+                    Snapping {
+                        zero_threshold: 0.0,
+                        snap: 0.5,
+                    },
+                    Snapping {
+                        zero_threshold: eps,
+                        snap: 0.0,
+                    },
+                ] {
+                    let options = ExtractOptions::default().with_method(Method::Ternary(snapping));
+                    let (mesh, stats) = extract(&grid, &options).unwrap();
+                    assert_eq!(
+                        topology(&mesh),
+                        topology(&mc33),
+                        "{sample} at {n}, {snapping:?}"
+                    );
+                    let r = mesh.report();
+                    assert!(r.oriented && r.nonmanifold_edges == 0, "{sample} at {n}");
+                    assert_clean(&mesh);
+                    assert_on_grid_edges(&grid, &mesh, stats.interior_vertices);
+                }
+            }
+        }
+    }
+
+    /// A grid point exactly at the level with every neighbour below is a single touching point;
+    /// under the tie rule MC33 makes a closed surface around it, so ternary extraction may not
+    /// snap it away: the point stays, its crossings `MIN_OFFSET` away.
+    #[test]
+    fn an_isolated_zero_keeps_its_component() {
+        let mut values = vec![-1.0f32; 27];
+        values[13] = 0.0;
+        let grid = Grid::new([3, 3, 3], values).unwrap();
+        let (mesh, stats) = extract(&grid, &ternary(0.0, 0.5)).unwrap();
+        assert_eq!(stats.snapped_points, 0);
+        assert_eq!(stats.refused_points, 1);
+        assert_eq!(topology(&mesh), (1, 2, true));
+        assert_clean(&mesh);
+    }
+
+    /// A face exactly at the level between a cell below and a cell above is the surface, emitted
+    /// once; with both sides above there is no surface at all.
+    #[test]
+    fn a_zero_face_is_emitted_once() {
+        // 2×2×3 points: z = 0 below, z = 1 at the level, z = 2 above or below.
+        for top in [1.0f32, -1.0] {
+            let mut values = vec![-1.0f32; 4];
+            values.extend([0.0; 4]);
+            values.extend([top; 4]);
+            let grid = Grid::new([2, 2, 3], values).unwrap();
+            let (mc33, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+            let (mesh, stats) = extract(&grid, &ternary(0.0, 0.0)).unwrap();
+            assert_clean(&mesh);
+            assert_eq!(topology(&mesh).0, topology(&mc33).0);
+            assert_eq!(mesh.report().euler, mc33.report().euler);
+            if top > 0.0 {
+                // The whole face is the surface: two triangles on the grid points at z = 1.
+                assert_eq!(stats.snapped_points, 4);
+                assert_eq!(mesh.triangle_count(), 2);
+                assert!(mesh.positions.iter().all(|p| p[2] == 1.0));
+            }
+        }
+        let mut values = vec![1.0f32; 4];
+        values.extend([0.0; 4]);
+        values.extend([1.0; 4]);
+        let grid = Grid::new([2, 2, 3], values).unwrap();
+        assert_eq!(
+            extract(&grid, &ternary(0.0, 0.3))
+                .unwrap()
+                .0
+                .triangle_count(),
+            0
+        );
+    }
+
+    #[test]
+    fn rejects_bad_snapping() {
+        let grid = Sample::Sphere.grid(4);
+        for (t, d) in [
+            (-1.0, 0.1),
+            (f32::NAN, 0.1),
+            (0.0, 0.6),
+            (0.0, -0.1),
+            (0.0, f32::NAN),
+        ] {
+            let err = extract(&grid, &ternary(t, d)).unwrap_err();
+            assert!(matches!(err, ExtractError::Option { .. }), "{err}");
+        }
+    }
+
+    /// Same input, same bytes: vertex order and triangles do not depend on anything but the
+    /// field.
+    #[test]
+    fn deterministic() {
+        let grid = Sample::Tangle.grid(40);
+        let a = extract(&grid, &ternary(0.0, 0.3)).unwrap().0;
+        let b = extract(&grid, &ternary(0.0, 0.3)).unwrap().0;
+        assert_eq!(a.positions, b.positions);
+        assert_eq!(a.triangles, b.triangles);
+    }
+}
