@@ -13,7 +13,10 @@
 //! - [`field`]: sampled grids and built-in implicit sample functions.
 //! - [`extract`]: watertight Marching Cubes with face ambiguities resolved by the asymptotic
 //!   decider.
+//! - [`extract`] also offers ternary Marching Cubes ([`extract::Method::Ternary`]): grid points on
+//!   or near the level become surface vertices, with MC33's topology kept.
 //! - [`mesh`]: the indexed mesh type and its topology/quality report.
+//! - [`quality`]: angle statistics and distance from the field's level set.
 //! - [`io`] (feature `io`): raw, NumPy and NRRD volumes; PLY, OBJ and STL meshes.
 //!
 //! # Quick start
@@ -37,6 +40,7 @@ pub mod field;
 #[cfg(feature = "io")]
 pub mod io;
 pub mod mesh;
+pub mod quality;
 
 /// The README's Rust examples, compiled and run as doctests so they stay true.
 #[cfg(doctest)]

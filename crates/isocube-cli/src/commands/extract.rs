@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{extract_into, ExtractOptions, Method, Snapping};
+use isocube::extract::{extract_into, ExtractOptions, Method, SnapPosition, Snapping};
 use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
 use isocube::mesh::Mesh;
 
@@ -41,6 +41,10 @@ pub(crate) struct Args {
     /// within this fraction of the edge (0 to 0.5).
     #[arg(long, default_value_t = 0.3)]
     snap: f32,
+    /// Ternary: where a snapped point's vertex goes: `crossing` (the nearest crossing on its
+    /// edges, keeping Marching Cubes' accuracy) or `grid` (the grid point itself).
+    #[arg(long, default_value = "crossing")]
+    snap_position: SnapPosition,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -72,6 +76,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             "ternary" => Method::Ternary(Snapping {
                 zero_threshold: args.zero_threshold,
                 snap: args.snap,
+                position: args.snap_position,
             }),
             _ => Method::MarchingCubes,
         });

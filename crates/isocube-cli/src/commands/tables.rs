@@ -1,9 +1,9 @@
-//! `isocube tables --binary|--ternary [--group G]`.
+//! `isocube tables --binary|--ternary [--group G] [--polygons]`.
 
 use std::io::Write;
 
 use clap::Args as ClapArgs;
-use isocube::cube::{ClassTable, ConfigKind, Group};
+use isocube::cube::{ClassTable, ConfigKind, Group, TernaryTable};
 
 use crate::Failure;
 
@@ -19,6 +19,10 @@ pub(crate) struct Args {
     /// Symmetry group: rotations, rotations+flip or all.
     #[arg(long, default_value = "rotations+flip")]
     group: Group,
+    /// List each configuration's polygons (one row per face-decision pattern) instead of its
+    /// class; classes are then those under rotations+flip.
+    #[arg(long, conflicts_with = "group")]
+    polygons: bool,
 }
 
 pub(crate) fn run(args: &Args) -> Result<(), Failure> {
@@ -27,10 +31,14 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
     } else {
         ConfigKind::Binary
     };
-    let table = ClassTable::get(kind, args.group);
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    let written = table.write_tsv(&mut out).and_then(|()| out.flush());
+    let written = match (args.polygons, kind) {
+        (true, ConfigKind::Ternary) => TernaryTable::get().write_tsv(&mut out),
+        (true, ConfigKind::Binary) => TernaryTable::get().write_binary_tsv(&mut out),
+        (false, _) => ClassTable::get(kind, args.group).write_tsv(&mut out),
+    }
+    .and_then(|()| out.flush());
     match written {
         Ok(()) => Ok(()),
         // A closed pipe (`| head`) is not a failure.

@@ -26,18 +26,21 @@
 //! flip; [`config`] sorts configurations into classes under them; [`polygons`] derives the loops a
 //! configuration's surface leaves on the cube's faces; [`table`] turns them into patches (disks and
 //! tunnels) for every configuration, from its class representative; [`triangulate`] splits
-//! patches into triangles.
+//! patches into triangles; [`ternary`] lists the polygons of the 6561 ternary configurations,
+//! built from the 183 classes under rotations and flip.
 
 pub mod config;
 pub mod polygons;
 pub mod symmetry;
 pub mod table;
+pub mod ternary;
 pub mod triangulate;
 
 pub use config::{ClassTable, ConfigEntry, ConfigKind, Group};
 pub use polygons::{Corner, FaceDecisions, Regions};
 pub use symmetry::{Rotation, Transform};
 pub use table::{CaseTable, CellTriangles, Topology, TunnelRegions};
+pub use ternary::{TernaryTable, TieRule};
 
 /// Number of cube vertices.
 pub const VERTEX_COUNT: usize = 8;

@@ -53,7 +53,7 @@ mod place;
 mod ternary;
 mod weld;
 
-pub use ternary::{Snapping, MIN_OFFSET};
+pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
 
 use thiserror::Error;
 
@@ -216,8 +216,8 @@ pub fn extract_into(
             cells: grid.cell_count(),
             ..ExtractStats::default()
         };
-        let mut ternary = ternary::Ternary::new(grid, options);
-        (stats.snapped_points, stats.refused_points) = ternary.choose_zeros(snapping);
+        let mut ternary = ternary::Ternary::new(grid, options, snapping);
+        (stats.snapped_points, stats.refused_points) = ternary.choose_zeros();
         ternary.mesh(options, mesh, &mut stats, progress)?;
         return Ok(stats);
     }

@@ -54,14 +54,53 @@ pub struct Snapping {
     /// A grid point is snapped when a crossing on one of its edges lies within this fraction of
     /// the edge (SnapMC's `D`, `0 ≤ snap ≤ 0.5`).
     pub snap: f32,
+    /// Where a snapped point's vertex goes.
+    pub position: SnapPosition,
+}
+
+/// Where the vertex of a snapped grid point is placed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SnapPosition {
+    /// On the grid point itself: every snapped vertex is a grid point.
+    GridPoint,
+    /// On the nearest crossing among the point's six edges (the grid point itself when its
+    /// value is within the zero threshold): the mesh keeps Marching Cubes' accuracy while the
+    /// short edges and needles around the point are gone.
+    #[default]
+    NearestCrossing,
+}
+
+impl SnapPosition {
+    /// The name used on the command line: `grid` or `crossing`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SnapPosition::GridPoint => "grid",
+            SnapPosition::NearestCrossing => "crossing",
+        }
+    }
+}
+
+impl std::str::FromStr for SnapPosition {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "grid" => Ok(SnapPosition::GridPoint),
+            "crossing" => Ok(SnapPosition::NearestCrossing),
+            _ => Err(format!(
+                "unknown snap position '{s}': expected grid or crossing"
+            )),
+        }
+    }
 }
 
 impl Default for Snapping {
-    /// `zero_threshold` 0 (exact ties only) and `snap` 0.3.
+    /// `zero_threshold` 0 (exact ties only), `snap` 0.3, vertices on the nearest crossing.
     fn default() -> Self {
         Snapping {
             zero_threshold: 0.0,
             snap: 0.3,
+            position: SnapPosition::default(),
         }
     }
 }
@@ -120,12 +159,13 @@ pub(super) struct Ternary<'a> {
     /// The field with zero points set to the level.
     g: Vec<f32>,
     zero: Vec<bool>,
+    snapping: Snapping,
     offsets: [usize; 8],
     strides: [usize; 3],
 }
 
 impl<'a> Ternary<'a> {
-    pub(super) fn new(grid: &'a Grid, options: &ExtractOptions) -> Ternary<'a> {
+    pub(super) fn new(grid: &'a Grid, options: &ExtractOptions, snapping: Snapping) -> Ternary<'a> {
         let [nx, ny, _] = grid.dims();
         let (sy, sz) = (nx, nx * ny);
         Ternary {
@@ -134,6 +174,7 @@ impl<'a> Ternary<'a> {
             topology: options.topology,
             g: grid.values().to_vec(),
             zero: vec![false; grid.values().len()],
+            snapping,
             offsets: [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz],
             strides: [1, sy, sz],
         }
@@ -145,60 +186,57 @@ impl<'a> Ternary<'a> {
     }
 
     /// Decides the zero points. Returns (snapped, refused) counts.
-    pub(super) fn choose_zeros(&mut self, snapping: Snapping) -> (usize, usize) {
+    pub(super) fn choose_zeros(&mut self) -> (usize, usize) {
+        let snapping = self.snapping;
         let values = self.grid.values();
         let level = f64::from(self.level);
         let dims = self.grid.dims();
-        let mut classes: [Vec<usize>; 8] = Default::default();
+        // (round, parity class, point): closest crossings first, in rounds of 1/20 of an edge.
+        let mut order: Vec<(u8, u8, usize)> = Vec::new();
         for (p, &v) in values.iter().enumerate() {
             if !v.is_finite() {
                 continue;
             }
             let v = f64::from(v);
-            let mut candidate = (v - level).abs() <= f64::from(snapping.zero_threshold);
             let c = self.coords(p);
-            if !candidate && snapping.snap > 0.0 {
-                'edges: for (axis, &stride) in self.strides.iter().enumerate() {
+            let mut nearest = if (v - level).abs() <= f64::from(snapping.zero_threshold) {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            if nearest > 0.0 && snapping.snap > 0.0 {
+                for (axis, &stride) in self.strides.iter().enumerate() {
                     for forward in [false, true] {
-                        let q = if forward {
-                            if c[axis] + 1 >= dims[axis] {
-                                continue;
-                            }
-                            p + stride
-                        } else {
-                            if c[axis] == 0 {
-                                continue;
-                            }
-                            p - stride
+                        let q = match forward {
+                            true if c[axis] + 1 < dims[axis] => p + stride,
+                            false if c[axis] > 0 => p - stride,
+                            _ => continue,
                         };
                         let w = f64::from(values[q]);
                         if !w.is_finite() || (v >= level) == (w >= level) {
                             continue;
                         }
-                        let t = (level - v) / (w - v);
-                        if t <= f64::from(snapping.snap) {
-                            candidate = true;
-                            break 'edges;
-                        }
+                        nearest = nearest.min((level - v) / (w - v));
                     }
                 }
             }
-            if candidate {
-                classes[c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2].push(p);
+            if nearest <= f64::from(snapping.snap) {
+                let round = (nearest * 20.0).floor().min(10.0) as u8;
+                let class = (c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2) as u8;
+                order.push((round, class, p));
             }
         }
+        order.sort_unstable();
         let (mut snapped, mut refused) = (0, 0);
         let mut before = Patch::default();
         let mut after = Patch::default();
-        for class in &classes {
-            for &p in class {
-                if self.zero_keeps_topology(p, &mut before, &mut after) {
-                    self.zero[p] = true;
-                    self.g[p] = self.level;
-                    snapped += 1;
-                } else {
-                    refused += 1;
-                }
+        for &(_, _, p) in &order {
+            if self.zero_keeps_topology(p, &mut before, &mut after) {
+                self.zero[p] = true;
+                self.g[p] = self.level;
+                snapped += 1;
+            } else {
+                refused += 1;
             }
         }
         (snapped, refused)
@@ -254,6 +292,7 @@ impl<'a> Ternary<'a> {
                 INTERIOR << TAG_SHIFT | (base * 4 + usize::from(k)) as u64
             }
         };
+        let first = patch.triangles.len();
         let mut used = [false; Corner::MAX_INTERIOR];
         for t in cell.triangles {
             let k = t.map(key);
@@ -272,6 +311,91 @@ impl<'a> Ternary<'a> {
             patch
                 .interiors
                 .push((key(Corner::interior(i as u8)), support));
+        }
+        self.improve_cell(base, first, patch);
+    }
+
+    /// Flips diagonals between the cell's triangles `first..` where that raises the smaller of the
+    /// two triangles' smallest angles. Only diagonals strictly inside the cell (endpoints sharing
+    /// no face of the cell) are created, so no other cell can ever use the same edge, and a flip
+    /// is taken only when both new triangles face the same way as the pair they replace.
+    fn improve_cell(&self, base: usize, first: usize, patch: &mut Patch) {
+        let n = patch.triangles.len() - first;
+        if n < 2 {
+            return;
+        }
+        let cell = self.coords(base).map(|c| 2 * c);
+        let faces = |k: Key| {
+            let c = self.key_coords(k);
+            let mut mask = 0u8;
+            for a in 0..3 {
+                if c[a] == cell[a] {
+                    mask |= 1 << a;
+                } else if c[a] == cell[a] + 2 {
+                    mask |= 1 << (a + 3);
+                }
+            }
+            mask
+        };
+        let interiors = &patch.interiors;
+        let pos = |k: Key| self.position(k, interiors).map(f64::from);
+        let min_angle = |t: [Key; 3]| -> (f64, [f64; 3]) {
+            let p = t.map(pos);
+            let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
+            let mut worst = f64::INFINITY;
+            for k in 0..3 {
+                let a = crate::mesh::sub(p[(k + 1) % 3], p[k]);
+                let b = crate::mesh::sub(p[(k + 2) % 3], p[k]);
+                let c = crate::mesh::cross(a, b);
+                worst = worst.min(crate::mesh::dot(c, c).sqrt().atan2(crate::mesh::dot(a, b)));
+            }
+            (worst, n)
+        };
+        // A few sweeps settle every cell met in practice; the bound keeps the cost fixed.
+        for _ in 0..3 {
+            let mut flipped = false;
+            for i in first..patch.triangles.len() {
+                for j in i + 1..patch.triangles.len() {
+                    let (t1, t2) = (patch.triangles[i], patch.triangles[j]);
+                    let Some(k) = (0..3).find(|&k| {
+                        let (a, b) = (t1[k], t1[(k + 1) % 3]);
+                        (0..3).any(|m| t2[m] == b && t2[(m + 1) % 3] == a)
+                    }) else {
+                        continue;
+                    };
+                    let (a, b, c) = (t1[k], t1[(k + 1) % 3], t1[(k + 2) % 3]);
+                    let d = *t2.iter().find(|&&x| x != a && x != b).expect("a triangle");
+                    if c == d || faces(c) & faces(d) != 0 {
+                        continue;
+                    }
+                    let exists = patch.triangles[first..].iter().any(|t| {
+                        (0..3).any(|m| {
+                            let (x, y) = (t[m], t[(m + 1) % 3]);
+                            (x, y) == (c, d) || (x, y) == (d, c)
+                        })
+                    });
+                    if exists {
+                        continue;
+                    }
+                    let (o1, n1) = min_angle(t1);
+                    let (o2, n2) = min_angle(t2);
+                    let (new1, new2) = ([c, a, d], [d, b, c]);
+                    let (m1, q1) = min_angle(new1);
+                    let (m2, q2) = min_angle(new2);
+                    let normal = [0, 1, 2].map(|x| n1[x] + n2[x]);
+                    if m1.min(m2) > o1.min(o2) + 1e-9
+                        && crate::mesh::dot(q1, normal) > 0.0
+                        && crate::mesh::dot(q2, normal) > 0.0
+                    {
+                        patch.triangles[i] = new1;
+                        patch.triangles[j] = new2;
+                        flipped = true;
+                    }
+                }
+            }
+            if !flipped {
+                break;
+            }
         }
     }
 
@@ -343,10 +467,48 @@ impl<'a> Ternary<'a> {
             if old.binary_search(&canonical(*t)).is_ok() {
                 return true;
             }
-            let p = t.map(|k| self.position(k, after).map(f64::from));
+            let p = t.map(|k| self.position(k, &after.interiors).map(f64::from));
             let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
             crate::mesh::dot(n, n) > 0.0
         })
+    }
+
+    /// Where the vertex of zero point `p` goes, as `(edge start, axis, fraction)`: `(p, 0, 0.0)`
+    /// for the grid point itself.
+    fn snapped_place(&self, p: usize) -> (usize, usize, f64) {
+        let values = self.grid.values();
+        let level = f64::from(self.level);
+        let v = f64::from(values[p]);
+        if self.snapping.position == SnapPosition::GridPoint
+            || (v - level).abs() <= f64::from(self.snapping.zero_threshold)
+        {
+            return (p, 0, 0.0);
+        }
+        let c = self.coords(p);
+        let dims = self.grid.dims();
+        let mut best = (p, 0, 0.0, f64::INFINITY);
+        for (axis, &stride) in self.strides.iter().enumerate() {
+            for forward in [false, true] {
+                let q = match forward {
+                    true if c[axis] + 1 < dims[axis] => p + stride,
+                    false if c[axis] > 0 => p - stride,
+                    _ => continue,
+                };
+                let w = f64::from(values[q]);
+                if !w.is_finite() || (v >= level) == (w >= level) {
+                    continue;
+                }
+                let t = (level - v) / (w - v);
+                if t < best.3 {
+                    best = if forward {
+                        (p, axis, t, t)
+                    } else {
+                        (q, axis, 1.0 - t, t)
+                    };
+                }
+            }
+        }
+        (best.0, best.1, best.2)
     }
 
     fn edge_t(&self, a: usize, axis: usize) -> f64 {
@@ -355,12 +517,15 @@ impl<'a> Ternary<'a> {
         ((f64::from(self.level) - v0) / (v1 - v0)).clamp(MIN_OFFSET, 1.0 - MIN_OFFSET)
     }
 
-    fn position(&self, k: Key, patch: &Patch) -> [f32; 3] {
+    fn position(&self, k: Key, interiors: &[(Key, Vec<Key>)]) -> [f32; 3] {
         let payload = (k & PAYLOAD) as usize;
         match tag(k) {
             POINT => {
-                let c = self.coords(payload);
-                self.grid.point(c[0], c[1], c[2]).map(|x| x as f32)
+                let (p0, axis, t) = self.snapped_place(payload);
+                let c = self.coords(p0);
+                let mut x = self.grid.point(c[0], c[1], c[2]);
+                x[axis] += t * self.grid.spacing()[axis];
+                x.map(|c| c as f32)
             }
             EDGE => {
                 let (a, axis) = (payload / 3, payload % 3);
@@ -373,8 +538,7 @@ impl<'a> Ternary<'a> {
                 x.map(|c| c as f32)
             }
             _ => {
-                let support = &patch
-                    .interiors
+                let support = &interiors
                     .iter()
                     .find(|(key, _)| *key == k)
                     .expect("interior points come with their support")
@@ -382,7 +546,7 @@ impl<'a> Ternary<'a> {
                 let n = support.len() as f64;
                 let mut x = [0.0f64; 3];
                 for &s in support {
-                    let q = self.position(s, patch);
+                    let q = self.position(s, interiors);
                     for d in 0..3 {
                         x[d] += f64::from(q[d]) / n;
                     }
@@ -450,7 +614,10 @@ impl<'a> Ternary<'a> {
         }
         let payload = (key & PAYLOAD) as usize;
         let id = match tag(key) {
-            POINT => placer.point_vertex(self.coords(payload), mesh)?,
+            POINT => match self.snapped_place(payload) {
+                (p, _, 0.0) => placer.point_vertex(self.coords(p), mesh)?,
+                (p0, axis, t) => placer.vertex_on_edge(self.coords(p0), axis, t, mesh)?,
+            },
             EDGE => {
                 let (a, axis) = (payload / 3, payload % 3);
                 placer.vertex_on_edge(self.coords(a), axis, self.edge_t(a, axis), mesh)?

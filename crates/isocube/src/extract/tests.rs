@@ -288,12 +288,21 @@ fn mc33_opens_the_case_4_tunnel() {
 
 mod ternary {
     use super::*;
-    use crate::extract::{Method, Snapping, MIN_OFFSET};
+    use crate::extract::{Method, SnapPosition, Snapping, MIN_OFFSET};
 
     fn ternary(zero_threshold: f32, snap: f32) -> ExtractOptions {
         ExtractOptions::default().with_method(Method::Ternary(Snapping {
             zero_threshold,
             snap,
+            position: SnapPosition::NearestCrossing,
+        }))
+    }
+
+    fn ternary_on_grid(zero_threshold: f32, snap: f32) -> ExtractOptions {
+        ExtractOptions::default().with_method(Method::Ternary(Snapping {
+            zero_threshold,
+            snap,
+            position: SnapPosition::GridPoint,
         }))
     }
 
@@ -313,8 +322,9 @@ mod ternary {
         assert_eq!(mesh.report().degenerate, 0, "degenerate triangle");
     }
 
-    /// Every vertex is a grid point or lies on a grid edge at least `MIN_OFFSET` from its ends.
-    fn assert_on_grid_edges(grid: &Grid, mesh: &Mesh, interior: usize) {
+    /// Every vertex but the interior points is a grid point or lies on a grid edge, at least
+    /// `min_offset` from its ends.
+    fn assert_on_grid_edges(grid: &Grid, mesh: &Mesh, interior: usize, min_offset: f64) {
         let h = grid.spacing();
         let o = grid.origin();
         let mut off_edges = 0;
@@ -326,7 +336,7 @@ mod ternary {
                 0 => {}
                 1 => {
                     let f = frac.iter().copied().fold(0.0, f64::max);
-                    assert!(f >= MIN_OFFSET * 0.99, "crossing {f} from a grid point");
+                    assert!(f >= min_offset * 0.99, "crossing {f} from a grid point");
                 }
                 _ => off_edges += 1,
             }
@@ -349,10 +359,11 @@ mod ternary {
         /// watertight, edge-manifold, oriented, without repeated or zero-area triangles, and has
         /// the components and Euler characteristic of the MC33 mesh.
         #[test]
-        fn random_tied_grids(grid in closed_grid(), threshold in 0u8..3, snap in 0u8..6) {
+        fn random_tied_grids(grid in closed_grid(), threshold in 0u8..3, snap in 0u8..6, on_grid: bool) {
             let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
             // Values are multiples of 1, 2 or 3: a threshold of 1 makes the ±1 values zero too.
-            let options = ternary(f32::from(threshold) * 0.5, f32::from(snap) * 0.1);
+            let (t, d) = (f32::from(threshold) * 0.5, f32::from(snap) * 0.1);
+            let options = if on_grid { ternary_on_grid(t, d) } else { ternary(t, d) };
             let (mesh, stats) = extract(&grid, &options).unwrap();
             mesh.validate().unwrap();
             prop_assert_eq!(topology(&mesh), topology(&mc33));
@@ -360,7 +371,8 @@ mod ternary {
                 assert_closed_manifold(&mesh.report());
             }
             assert_clean(&mesh);
-            assert_on_grid_edges(&grid, &mesh, stats.interior_vertices);
+            let min_offset = if on_grid { MIN_OFFSET } else { 0.0 };
+            assert_on_grid_edges(&grid, &mesh, stats.interior_vertices, min_offset);
         }
     }
 
@@ -428,12 +440,18 @@ mod ternary {
                 for snapping in [
                     Snapping::default(),
                     Snapping {
-                        zero_threshold: 0.0,
                         snap: 0.5,
+                        ..Snapping::default()
+                    },
+                    Snapping {
+                        snap: 0.5,
+                        position: SnapPosition::GridPoint,
+                        ..Snapping::default()
                     },
                     Snapping {
                         zero_threshold: eps,
                         snap: 0.0,
+                        ..Snapping::default()
                     },
                 ] {
                     let options = ExtractOptions::default().with_method(Method::Ternary(snapping));
@@ -446,7 +464,11 @@ mod ternary {
                     let r = mesh.report();
                     assert!(r.oriented && r.nonmanifold_edges == 0, "{sample} at {n}");
                     assert_clean(&mesh);
-                    assert_on_grid_edges(&grid, &mesh, stats.interior_vertices);
+                    let min_offset = match snapping.position {
+                        SnapPosition::GridPoint => MIN_OFFSET,
+                        SnapPosition::NearestCrossing => 0.0,
+                    };
+                    assert_on_grid_edges(&grid, &mesh, stats.interior_vertices, min_offset);
                 }
             }
         }

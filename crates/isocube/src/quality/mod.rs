@@ -1,0 +1,161 @@
+//! Mesh quality: angle statistics and the distance of a mesh from a field's level set.
+//!
+//! ```
+//! use isocube::extract::{extract, ExtractOptions};
+//! use isocube::field::Sample;
+//! use isocube::quality::{angle_summary, level_set_distance};
+//! let grid = Sample::Sphere.grid(20);
+//! let (mesh, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+//! let angles = angle_summary(&mesh);
+//! assert!(angles.min_angle > 0.0 && angles.max_angle < 180.0);
+//! // The sphere's field is a distance, so this is the geometric error in grid spacings.
+//! let d = level_set_distance(&mesh, |p| Sample::Sphere.eval(p), 0.0, grid.spacing()[0]);
+//! assert!(d.max < 0.05);
+//! ```
+
+use crate::mesh::{cross, dot, sub, Mesh};
+
+/// Angle statistics over the non-degenerate triangles of a mesh.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AngleSummary {
+    /// Triangles counted (non-degenerate).
+    pub triangles: usize,
+    /// Smallest angle, degrees.
+    pub min_angle: f64,
+    /// Largest angle, degrees.
+    pub max_angle: f64,
+    /// Fraction of triangles whose smallest angle is below 10°.
+    pub below_10: f64,
+    /// Fraction of triangles whose smallest angle is below 20°.
+    pub below_20: f64,
+}
+
+fn angles(p: [[f64; 3]; 3]) -> Option<[f64; 3]> {
+    let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+    if dot(n, n) == 0.0 {
+        return None;
+    }
+    Some(std::array::from_fn(|k| {
+        let a = sub(p[(k + 1) % 3], p[k]);
+        let b = sub(p[(k + 2) % 3], p[k]);
+        let c = cross(a, b);
+        dot(c, c).sqrt().atan2(dot(a, b)).to_degrees()
+    }))
+}
+
+/// Smallest and largest angles and the share of triangles with small angles.
+pub fn angle_summary(mesh: &Mesh) -> AngleSummary {
+    let mut s = AngleSummary {
+        triangles: 0,
+        min_angle: f64::NAN,
+        max_angle: f64::NAN,
+        below_10: 0.0,
+        below_20: 0.0,
+    };
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut n10, mut n20) = (0usize, 0usize);
+    for t in &mesh.triangles {
+        let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
+        let Some(a) = angles(p) else { continue };
+        let min = a[0].min(a[1]).min(a[2]);
+        let max = a[0].max(a[1]).max(a[2]);
+        lo = lo.min(min);
+        hi = hi.max(max);
+        n10 += usize::from(min < 10.0);
+        n20 += usize::from(min < 20.0);
+        s.triangles += 1;
+    }
+    if s.triangles > 0 {
+        s.min_angle = lo;
+        s.max_angle = hi;
+        s.below_10 = n10 as f64 / s.triangles as f64;
+        s.below_20 = n20 as f64 / s.triangles as f64;
+    }
+    s
+}
+
+/// Distance statistics of a mesh from a level set, in units of the grid spacing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Distance {
+    /// Largest first-order distance `|f − level| / |∇f|` over the sample points.
+    pub max: f64,
+    /// Mean over the sample points.
+    pub mean: f64,
+    /// Number of sample points (each vertex, each edge midpoint, each triangle centroid).
+    pub samples: usize,
+}
+
+/// The first-order distance `|f(x) − level| / |∇f(x)|` from the level set of `field` at the
+/// mesh's vertices, edge midpoints and triangle centroids, divided by `spacing`. The gradient is
+/// taken by central differences with a step of `1e-4 · spacing`; points where it vanishes are
+/// skipped.
+pub fn level_set_distance(
+    mesh: &Mesh,
+    field: impl Fn([f64; 3]) -> f64,
+    level: f64,
+    spacing: f64,
+) -> Distance {
+    let h = 1e-4 * spacing;
+    let distance = |x: [f64; 3]| {
+        let g: [f64; 3] = std::array::from_fn(|a| {
+            let (mut lo, mut hi) = (x, x);
+            lo[a] -= h;
+            hi[a] += h;
+            (field(hi) - field(lo)) / (2.0 * h)
+        });
+        let len = dot(g, g).sqrt();
+        (len > 0.0).then(|| (field(x) - level).abs() / len / spacing)
+    };
+    let (mut max, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
+    let mut add = |d: Option<f64>| {
+        if let Some(d) = d {
+            max = max.max(d);
+            sum += d;
+            n += 1;
+        }
+    };
+    for p in &mesh.positions {
+        add(distance(p.map(f64::from)));
+    }
+    for t in &mesh.triangles {
+        let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
+        for k in 0..3 {
+            // Each interior edge is shared by two triangles; sample it from the one where it
+            // runs forward.
+            if t[k] < t[(k + 1) % 3] {
+                add(distance(std::array::from_fn(|a| {
+                    (p[k][a] + p[(k + 1) % 3][a]) / 2.0
+                })));
+            }
+        }
+        add(distance(std::array::from_fn(|a| {
+            (p[0][a] + p[1][a] + p[2][a]) / 3.0
+        })));
+    }
+    Distance {
+        max,
+        mean: if n > 0 { sum / n as f64 } else { 0.0 },
+        samples: n,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn right_isosceles_triangle() {
+        let mesh = Mesh {
+            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            normals: Vec::new(),
+            triangles: vec![[0, 1, 2]],
+        };
+        let s = angle_summary(&mesh);
+        assert!((s.min_angle - 45.0).abs() < 1e-9 && (s.max_angle - 90.0).abs() < 1e-9);
+        assert_eq!((s.below_10, s.below_20), (0.0, 0.0));
+        // Plane z = 0.25 as the field: every sample point is 0.25 away.
+        let d = level_set_distance(&mesh, |p| p[2] - 0.25, 0.0, 0.5);
+        assert!((d.max - 0.5).abs() < 1e-6 && (d.mean - 0.5).abs() < 1e-6);
+        assert_eq!(d.samples, 3 + 3 + 1);
+    }
+}
