@@ -550,3 +550,27 @@ mod ternary {
         assert_eq!(a.triangles, b.triangles);
     }
 }
+
+/// The quality SnapMC reports on a sphere sampled at 40 points per axis (smallest angle about 17°
+/// at D = 0.3 and 30° at D = 0.5, largest distance about 0.05 grid spacings), reached or bettered
+/// at the same D.
+#[test]
+fn ternary_sphere_quality_matches_snapmc() {
+    use crate::extract::{Method, Snapping};
+    use crate::quality::{angle_summary, level_set_distance};
+    let grid = Sample::Sphere.grid(40);
+    let (mc, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+    let mc_angles = angle_summary(&mc);
+    for (snap, min_angle) in [(0.3, 17.0), (0.5, 30.0)] {
+        let options = ExtractOptions::default().with_method(Method::Ternary(Snapping {
+            snap,
+            ..Snapping::default()
+        }));
+        let (mesh, _) = extract(&grid, &options).unwrap();
+        let a = angle_summary(&mesh);
+        let d = level_set_distance(&mesh, |p| Sample::Sphere.eval(p), 0.0, grid.spacing()[0]);
+        assert!(a.min_angle >= min_angle, "D {snap}: {a:?}");
+        assert!(d.max <= 0.05, "D {snap}: {d:?}");
+        assert!(a.below_10 < mc_angles.below_10 && a.max_angle < mc_angles.max_angle);
+    }
+}
