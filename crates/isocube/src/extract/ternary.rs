@@ -255,8 +255,8 @@ impl<'a> Ternary<'a> {
     }
 
     /// Appends the triangles of cell `cell` (its first grid point) to `patch`, with point `over`
-    /// treated as zero.
-    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch) {
+    /// treated as zero, improved by flips if `flips`.
+    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch, flips: bool) {
         let pts = self.offsets.map(|o| base + o);
         let v = pts.map(|p| self.value(p, over));
         if v.iter().any(|x| !x.is_finite()) {
@@ -312,7 +312,9 @@ impl<'a> Ternary<'a> {
                 .interiors
                 .push((key(Corner::interior(i as u8)), support));
         }
-        self.improve_cell(base, first, patch);
+        if flips {
+            self.improve_cell(base, first, patch);
+        }
     }
 
     /// Flips diagonals between the cell's triangles `first..` where that raises the smaller of the
@@ -339,15 +341,16 @@ impl<'a> Ternary<'a> {
         };
         let interiors = &patch.interiors;
         let pos = |k: Key| self.position(k, interiors).map(f64::from);
-        let min_angle = |t: [Key; 3]| -> (f64, [f64; 3]) {
+        // The largest cosine of a triangle's angles stands for its smallest angle.
+        let max_cos = |t: [Key; 3]| -> (f64, [f64; 3]) {
             let p = t.map(pos);
             let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
-            let mut worst = f64::INFINITY;
+            let mut worst = f64::NEG_INFINITY;
             for k in 0..3 {
                 let a = crate::mesh::sub(p[(k + 1) % 3], p[k]);
                 let b = crate::mesh::sub(p[(k + 2) % 3], p[k]);
-                let c = crate::mesh::cross(a, b);
-                worst = worst.min(crate::mesh::dot(c, c).sqrt().atan2(crate::mesh::dot(a, b)));
+                let norm = (crate::mesh::dot(a, a) * crate::mesh::dot(b, b)).sqrt();
+                worst = worst.max(crate::mesh::dot(a, b) / norm);
             }
             (worst, n)
         };
@@ -377,13 +380,13 @@ impl<'a> Ternary<'a> {
                     if exists {
                         continue;
                     }
-                    let (o1, n1) = min_angle(t1);
-                    let (o2, n2) = min_angle(t2);
+                    let (o1, n1) = max_cos(t1);
+                    let (o2, n2) = max_cos(t2);
                     let (new1, new2) = ([c, a, d], [d, b, c]);
-                    let (m1, q1) = min_angle(new1);
-                    let (m2, q2) = min_angle(new2);
+                    let (m1, q1) = max_cos(new1);
+                    let (m2, q2) = max_cos(new2);
                     let normal = [0, 1, 2].map(|x| n1[x] + n2[x]);
-                    if m1.min(m2) > o1.min(o2) + 1e-9
+                    if m1.max(m2) < o1.max(o2) - 1e-12
                         && crate::mesh::dot(q1, normal) > 0.0
                         && crate::mesh::dot(q2, normal) > 0.0
                     {
@@ -431,8 +434,10 @@ impl<'a> Ternary<'a> {
         before.clear();
         after.clear();
         for cell in self.star(p) {
-            self.emit(cell, None, before);
-            self.emit(cell, Some(p), after);
+            // Flips change neither the combinatorics outside a cell nor its topology, and never
+            // make a zero-area triangle, so the check can skip them.
+            self.emit(cell, None, before, false);
+            self.emit(cell, Some(p), after, false);
         }
         let c = self.coords(p);
         let dims = self.grid.dims();
@@ -449,14 +454,40 @@ impl<'a> Ternary<'a> {
                 }
             }
         }
-        let on = |planes: &[(usize, usize)], keys: &[Key]| {
-            planes
-                .iter()
-                .any(|&(a, x)| keys.iter().all(|&k| self.key_coords(k)[a] == x))
+        // Which boundary planes each key lies on, as bit masks (frozen, open), found once.
+        let mut planes: Vec<(Key, u8, u8)> = before
+            .triangles
+            .iter()
+            .chain(&after.triangles)
+            .flatten()
+            .map(|&k| {
+                let c = self.key_coords(k);
+                let mask = |list: &[(usize, usize)]| {
+                    list.iter()
+                        .enumerate()
+                        .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
+                };
+                (k, mask(&frozen), mask(&open))
+            })
+            .collect();
+        planes.sort_unstable();
+        planes.dedup();
+        let lookup = |k: Key| {
+            let i = planes
+                .binary_search_by_key(&k, |e| e.0)
+                .expect("every key of the patches is listed");
+            (planes[i].1, planes[i].2)
+        };
+        let on = |keys: &[Key], open: bool| {
+            let common = keys.iter().fold(u8::MAX, |m, &k| {
+                let (f, o) = lookup(k);
+                m & if open { o } else { f }
+            });
+            common != 0
         };
         let check = Check {
-            frozen: &|keys: &[Key]| on(&frozen, keys),
-            open: &|keys: &[Key]| on(&open, keys),
+            frozen: &|keys: &[Key]| on(keys, false),
+            open: &|keys: &[Key]| on(keys, true),
         };
         check.accepts(&before.triangles, &after.triangles) && self.no_zero_area(before, after)
     }
@@ -578,7 +609,7 @@ impl<'a> Ternary<'a> {
                         continue;
                     }
                     patch.clear();
-                    self.emit(base, None, &mut patch);
+                    self.emit(base, None, &mut patch, true);
                     if patch.triangles.is_empty() {
                         continue;
                     }

@@ -117,19 +117,23 @@ pub fn level_set_distance(
     for p in &mesh.positions {
         add(distance(p.map(f64::from)));
     }
+    let mut edges: Vec<(u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
     for t in &mesh.triangles {
         let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
         for k in 0..3 {
-            // Each interior edge is shared by two triangles; sample it from the one where it
-            // runs forward.
-            if t[k] < t[(k + 1) % 3] {
-                add(distance(std::array::from_fn(|a| {
-                    (p[k][a] + p[(k + 1) % 3][a]) / 2.0
-                })));
-            }
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            edges.push((a.min(b), a.max(b)));
         }
         add(distance(std::array::from_fn(|a| {
             (p[0][a] + p[1][a] + p[2][a]) / 3.0
+        })));
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    for (a, b) in edges {
+        let (p, q) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+        add(distance(std::array::from_fn(|k| {
+            (f64::from(p[k]) + f64::from(q[k])) / 2.0
         })));
     }
     Distance {
