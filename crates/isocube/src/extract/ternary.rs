@@ -18,18 +18,24 @@
 //! after, and the change is accepted when, in the after-patch,
 //! - every edge inside the 2×2×2 block of cells is used by 0 or 2 triangles with opposite
 //!   directions (once on the grid boundary), and edges on the block's boundary faces are used
-//!   exactly as before, so the rest of the mesh still fits;
+//!   exactly as before (or dropped, when the block alone used them both ways), so the rest of
+//!   the mesh still fits;
 //! - every vertex's triangles form one fan (a disk, or a half-disk on the grid boundary), and
-//!   vertices on the block's boundary keep their fans' ends;
-//! - the triangles form components with the same Euler characteristics and the same boundary
-//!   edges and vertices as before, and no triangle repeats or has zero area.
+//!   vertices on the block's boundary keep the ends of their fans that continue outside;
+//! - the triangles form components with the same Euler characteristics and the same interface
+//!   edges (boundary-face edges used once) as before, and no triangle repeats or has zero area.
 //!
 //! The outside of the block does not change, so each accepted step keeps the global mesh a
 //! manifold with the same components and Euler characteristic; starting from MC33, so does the
-//! result. Points are decided in eight passes by coordinate parity: points of one parity class
-//! are two apart, their blocks share no cell, so the decisions of a pass do not depend on each
-//! other's order. Refused points keep their sign; their crossings are kept at least
-//! [`MIN_OFFSET`] of an edge away from the grid point so that no triangle collapses to zero area.
+//! result. Points are decided closest crossing first, in rounds of 1/20 of an edge, and within a
+//! round by coordinate parity class: points of one class are two apart and their blocks share no
+//! cell, so decisions within a class do not depend on each other's order (room for parallel
+//! work). Refused points keep their sign; their crossings are kept at least [`MIN_OFFSET`] of an
+//! edge away from the grid point so that no triangle collapses to zero area.
+//!
+//! Finally, inside each cell, a diagonal between two triangles is flipped where that raises the
+//! smaller of their smallest angles; new diagonals join corners that share no face of the cell,
+//! so no neighbour can ever use the same edge, and flips never change the topology.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
