@@ -197,41 +197,61 @@ impl<'a> Ternary<'a> {
         let values = self.grid.values();
         let level = f64::from(self.level);
         let dims = self.grid.dims();
-        // (round, parity class, point): closest crossings first, in rounds of 1/20 of an edge.
-        let mut order: Vec<(u8, u8, usize)> = Vec::new();
-        for (p, &v) in values.iter().enumerate() {
-            if !v.is_finite() {
-                continue;
-            }
-            let v = f64::from(v);
-            let c = self.coords(p);
-            let mut nearest = if (v - level).abs() <= f64::from(snapping.zero_threshold) {
-                0.0
-            } else {
-                f64::INFINITY
-            };
-            if nearest > 0.0 && snapping.snap > 0.0 {
-                for (axis, &stride) in self.strides.iter().enumerate() {
-                    for forward in [false, true] {
-                        let q = match forward {
-                            true if c[axis] + 1 < dims[axis] => p + stride,
-                            false if c[axis] > 0 => p - stride,
-                            _ => continue,
-                        };
+        // (point, nearest crossing as a fraction of an edge), from one pass over the grid edges.
+        let mut near: Vec<(usize, f64)> = Vec::new();
+        let threshold = f64::from(snapping.zero_threshold);
+        let snap = f64::from(snapping.snap);
+        let [nx, ny, nz] = dims;
+        for k in 0..nz {
+            for j in 0..ny {
+                let row = self.grid.index(0, j, k);
+                for i in 0..nx {
+                    let p = row + i;
+                    let v = f64::from(values[p]);
+                    if !v.is_finite() {
+                        continue;
+                    }
+                    if (v - level).abs() <= threshold {
+                        near.push((p, 0.0));
+                    }
+                    if snap <= 0.0 {
+                        continue;
+                    }
+                    for (axis, inside) in [(0, i + 1 < nx), (1, j + 1 < ny), (2, k + 1 < nz)] {
+                        if !inside {
+                            continue;
+                        }
+                        let q = p + self.strides[axis];
                         let w = f64::from(values[q]);
                         if !w.is_finite() || (v >= level) == (w >= level) {
                             continue;
                         }
-                        nearest = nearest.min((level - v) / (w - v));
+                        let t = (level - v) / (w - v);
+                        if t <= snap {
+                            near.push((p, t));
+                        }
+                        if 1.0 - t <= snap {
+                            near.push((q, 1.0 - t));
+                        }
                     }
                 }
             }
-            if nearest <= f64::from(snapping.snap) {
-                let round = (nearest * 20.0).floor().min(10.0) as u8;
-                let class = (c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2) as u8;
-                order.push((round, class, p));
-            }
         }
+        near.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        near.dedup_by_key(|e| e.0);
+        // Closest crossings first, in rounds of 1/20 of an edge, then by parity class.
+        let mut order: Vec<(u8, u8, usize)> = near
+            .into_iter()
+            .map(|(p, t)| {
+                let c = self.coords(p);
+                let round = (t * 20.0).floor().min(10.0) as u8;
+                (
+                    round,
+                    (c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2) as u8,
+                    p,
+                )
+            })
+            .collect();
         order.sort_unstable();
         let (mut snapped, mut refused) = (0, 0);
         let mut before = Patch::default();
@@ -782,8 +802,31 @@ impl Check<'_> {
     }
 
     fn fans_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
-        let mut vertices: Vec<Key> = new.iter().flatten().copied().collect();
-        vertices.extend(old.iter().flatten().filter(|&&k| (self.frozen)(&[k])));
+        // Only vertices of triangles that appear or disappear can change their fans (both lists
+        // are sorted canonical triangles).
+        let mut vertices: Vec<Key> = Vec::new();
+        let (mut i, mut j) = (0, 0);
+        while i < old.len() || j < new.len() {
+            match (old.get(i), new.get(j)) {
+                (Some(a), Some(b)) if a == b => {
+                    i += 1;
+                    j += 1;
+                }
+                (Some(a), Some(b)) if a < b => {
+                    vertices.extend(a);
+                    i += 1;
+                }
+                (Some(a), None) => {
+                    vertices.extend(a);
+                    i += 1;
+                }
+                (_, Some(b)) => {
+                    vertices.extend(b);
+                    j += 1;
+                }
+                (None, None) => break,
+            }
+        }
         vertices.sort_unstable();
         vertices.dedup();
         for &u in &vertices {
