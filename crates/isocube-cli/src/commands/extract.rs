@@ -8,6 +8,7 @@ use isocube::cube::Topology;
 use isocube::extract::{extract_into, ExtractOptions, Method, SnapPosition, Snapping};
 use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
 use isocube::mesh::Mesh;
+use isocube::quality::Strategy;
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;
@@ -45,6 +46,11 @@ pub(crate) struct Args {
     /// edges, keeping Marching Cubes' accuracy) or `grid` (the grid point itself).
     #[arg(long, default_value = "crossing")]
     snap_position: SnapPosition,
+    /// How cell polygons become triangles: `fan` (the table's), `local` (the local-change paper:
+    /// small angles cut off, interior vertex toward short sides, largest angle split) or `optimal`
+    /// (the largest smallest angle per polygon).
+    #[arg(long, default_value = "fan")]
+    triangulate: Strategy,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -72,6 +78,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         .with_flip(args.flip)
         .with_normals(!args.no_normals)
         .with_topology(args.topology)
+        .with_triangulation(args.triangulate)
         .with_method(match args.method.as_str() {
             "ternary" => Method::Ternary(Snapping {
                 zero_threshold: args.zero_threshold,

@@ -78,9 +78,11 @@ pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
 
 use thiserror::Error;
 
+use crate::cube::triangulate::{may_join, safe_triangulation};
 use crate::cube::{CaseTable, Corner, Topology};
 use crate::field::Grid;
 use crate::mesh::Mesh;
+use crate::quality::{triangulate, Strategy};
 
 use classify::{cell_config, face_decisions, interior_links};
 use place::Placer;
@@ -99,6 +101,8 @@ pub struct ExtractOptions {
     pub topology: Topology,
     /// Plain (binary) Marching Cubes, or ternary with zero points on the surface.
     pub method: Method,
+    /// How each cell polygon becomes triangles.
+    pub triangulation: Strategy,
 }
 
 /// Which Marching Cubes: binary (values at or above the level versus below) or ternary.
@@ -131,6 +135,7 @@ impl Default for ExtractOptions {
             normals: true,
             topology: Topology::Mc33,
             method: Method::MarchingCubes,
+            triangulation: Strategy::Fan,
         }
     }
 }
@@ -163,6 +168,12 @@ impl ExtractOptions {
     /// Sets the method.
     pub fn with_method(mut self, method: Method) -> Self {
         self.method = method;
+        self
+    }
+
+    /// Sets the triangulation strategy.
+    pub fn with_triangulation(mut self, strategy: Strategy) -> Self {
+        self.triangulation = strategy;
         self
     }
 }
@@ -278,6 +289,22 @@ pub fn extract_into(
                     None
                 };
                 stats.tunnels += usize::from(tunnel.is_some());
+                if options.triangulation != Strategy::Fan && tunnel.is_none() {
+                    let bounds = (grid.point(i, j, k), grid.point(i + 1, j + 1, k + 1));
+                    for polygon in table.polygons(config, decisions) {
+                        emit_polygon(
+                            polygon,
+                            [i, j, k],
+                            bounds,
+                            options,
+                            &mut cache,
+                            &placer,
+                            mesh,
+                            &mut stats,
+                        )?;
+                    }
+                    continue;
+                }
                 let cell = table.cell_triangles(config, decisions, options.topology, tunnel);
                 let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
                 for tri in cell.triangles {
@@ -383,6 +410,71 @@ fn choose_tunnel(
         }
     }
     found
+}
+
+/// Triangulates one loop of a binary cell by the options' strategy, from the actual positions of
+/// its crossings. Diagonals follow the table's rule (never one a neighbour could draw too); if the
+/// strategy finds nothing, the table's triangulation of the loop is used.
+#[allow(clippy::too_many_arguments)]
+fn emit_polygon(
+    polygon: &[Corner],
+    [i, j, k]: [usize; 3],
+    bounds: ([f64; 3], [f64; 3]),
+    options: &ExtractOptions,
+    cache: &mut EdgeCache,
+    placer: &Placer,
+    mesh: &mut Mesh,
+    stats: &mut ExtractStats,
+) -> Result<(), ExtractError> {
+    let mut ids = Vec::with_capacity(polygon.len());
+    for c in polygon {
+        let e = c.as_edge().expect("binary polygons have edge corners");
+        ids.push(cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?);
+    }
+    let positions: Vec<[f64; 3]> = ids
+        .iter()
+        .map(|&v| mesh.positions[v as usize].map(f64::from))
+        .collect();
+    let allowed = |a: usize, b: usize| may_join(polygon[a], polygon[b]);
+    let push = |t: [u32; 3], mesh: &mut Mesh| {
+        let mut t = t;
+        if options.flip {
+            t.swap(1, 2);
+        }
+        mesh.triangles.push(t);
+    };
+    match triangulate(&positions, &allowed, options.triangulation, bounds) {
+        Some(result) => {
+            let interior = match result.interior {
+                Some(x) => {
+                    stats.interior_vertices += 1;
+                    placer.interior_vertex(x, &ids, mesh)?
+                }
+                None => u32::MAX,
+            };
+            for t in result.triangles {
+                let id = |c: u8| ids.get(usize::from(c)).copied().unwrap_or(interior);
+                push(t.map(id), mesh);
+            }
+        }
+        None => match safe_triangulation(polygon) {
+            Some(tris) => {
+                for t in tris {
+                    let id =
+                        |c: Corner| ids[polygon.iter().position(|&x| x == c).expect("a corner")];
+                    push(t.map(id), mesh);
+                }
+            }
+            None => {
+                stats.interior_vertices += 1;
+                let centre = placer.centroid_vertex(&ids, mesh)?;
+                for a in 0..ids.len() {
+                    push([ids[a], ids[(a + 1) % ids.len()], centre], mesh);
+                }
+            }
+        },
+    }
+    Ok(())
 }
 
 fn place_interior(

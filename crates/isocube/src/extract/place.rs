@@ -101,20 +101,32 @@ impl<'a> Placer<'a> {
         ids: &[u32],
         mesh: &mut Mesh,
     ) -> Result<u32, ExtractError> {
-        let id = next_id(mesh)?;
         let n = ids.len() as f64;
         let mut p = [0.0f64; 3];
-        let mut g = [0.0f64; 3];
         for &v in ids {
             for d in 0..3 {
                 p[d] += f64::from(mesh.positions[v as usize][d]) / n;
-                if self.normals {
+            }
+        }
+        self.interior_vertex(p, ids, mesh)
+    }
+
+    /// Creates a vertex at `p` inside a cell, its normal the mean of the normals of `ids`.
+    pub(super) fn interior_vertex(
+        &self,
+        p: [f64; 3],
+        ids: &[u32],
+        mesh: &mut Mesh,
+    ) -> Result<u32, ExtractError> {
+        let id = next_id(mesh)?;
+        mesh.positions.push(p.map(|c| c as f32));
+        if self.normals {
+            let mut g = [0.0f64; 3];
+            for &v in ids {
+                for d in 0..3 {
                     g[d] += f64::from(mesh.normals[v as usize][d]);
                 }
             }
-        }
-        mesh.positions.push(p.map(|c| c as f32));
-        if self.normals {
             // Normals of the corners already carry the flip.
             let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
             mesh.normals.push(if len > 0.0 {

@@ -13,6 +13,10 @@
 //! assert!(d.max < 0.05);
 //! ```
 
+pub mod triangulate;
+
+pub use triangulate::{triangulate, PolygonTriangles, Strategy};
+
 use crate::mesh::{cross, dot, sub, Mesh};
 
 /// Angle statistics over the non-degenerate triangles of a mesh.

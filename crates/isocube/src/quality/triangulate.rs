@@ -1,0 +1,518 @@
+//! Triangulating one cell polygon from its actual corner positions.
+//!
+//! A polygon is a closed loop of corners in order (its normal, by the right-hand rule, points
+//! toward increasing values). `allowed(i, j)` says whether a diagonal between corners `i` and `j`
+//! may be drawn; the extractor forbids diagonals that a neighbouring cell could draw too, which is
+//! what keeps the mesh watertight and manifold. An interior vertex is always allowed: it belongs to
+//! the cell alone. Triangles index the corners `0..n`, and `n` stands for the interior vertex.
+
+use crate::mesh::{cross, dot, sub};
+
+/// How cell polygons are split into triangles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Strategy {
+    /// The table's triangulation, fixed per configuration (classic Marching Cubes).
+    #[default]
+    Fan,
+    /// The local-change paper's method: small-angle corners cut off, an interior vertex pulled
+    /// toward short sides for pentagons and larger (and long quads), otherwise the largest angle
+    /// split.
+    Local,
+    /// The triangulation that maximises the smallest angle: exact over all triangulations by
+    /// diagonals, compared with a star around one interior vertex placed by a pattern search.
+    Optimal,
+}
+
+impl Strategy {
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Fan => "fan",
+            Strategy::Local => "local",
+            Strategy::Optimal => "optimal",
+        }
+    }
+}
+
+impl std::str::FromStr for Strategy {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "fan" => Ok(Strategy::Fan),
+            "local" => Ok(Strategy::Local),
+            "optimal" => Ok(Strategy::Optimal),
+            _ => Err(format!(
+                "unknown triangulation '{s}': expected fan, local or optimal"
+            )),
+        }
+    }
+}
+
+/// A polygon's triangulation: triangles over corner indices (`n` is the interior vertex) and the
+/// interior vertex's position if one is used.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PolygonTriangles {
+    /// Triangles, oriented like the polygon.
+    pub triangles: Vec<[u8; 3]>,
+    /// The interior vertex, if any.
+    pub interior: Option<[f64; 3]>,
+}
+
+/// Parameters of [`Strategy::Local`].
+pub const LOCAL_BAD_ANGLE_DEGREES: f64 = 30.0;
+/// A quadrilateral whose longest side exceeds this many times its shortest gets an interior
+/// vertex under [`Strategy::Local`].
+pub const LOCAL_QUAD_RATIO: f64 = 2.0;
+
+/// Triangulates a polygon by a strategy other than [`Strategy::Fan`]. Returns `None` when the
+/// allowed diagonals admit no triangulation and no interior vertex is wanted (the caller keeps its
+/// table triangulation then); every returned triangle has positive area.
+pub fn triangulate(
+    corners: &[[f64; 3]],
+    allowed: &dyn Fn(usize, usize) -> bool,
+    strategy: Strategy,
+    bounds: ([f64; 3], [f64; 3]),
+) -> Option<PolygonTriangles> {
+    let n = corners.len();
+    if n < 3 || n > 16 {
+        return None;
+    }
+    if n == 3 {
+        return Some(PolygonTriangles {
+            triangles: vec![[0, 1, 2]],
+            interior: None,
+        });
+    }
+    match strategy {
+        Strategy::Fan => None,
+        Strategy::Local => local(corners, allowed, bounds),
+        Strategy::Optimal => optimal(corners, allowed, bounds),
+    }
+}
+
+/// Newell's normal of a polygon (not normalised).
+fn polygon_normal(p: &[[f64; 3]]) -> [f64; 3] {
+    let mut n = [0.0; 3];
+    for i in 0..p.len() {
+        let (a, b) = (p[i], p[(i + 1) % p.len()]);
+        n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    n
+}
+
+/// The smallest angle of a triangle in radians, or −1 when it is degenerate or faces against
+/// `normal` (a fold).
+fn quality(a: [f64; 3], b: [f64; 3], c: [f64; 3], normal: [f64; 3]) -> f64 {
+    let n = cross(sub(b, a), sub(c, a));
+    if dot(n, n) == 0.0 || dot(n, normal) <= 0.0 {
+        return -1.0;
+    }
+    let p = [a, b, c];
+    let mut worst = f64::INFINITY;
+    for k in 0..3 {
+        let u = sub(p[(k + 1) % 3], p[k]);
+        let v = sub(p[(k + 2) % 3], p[k]);
+        let w = cross(u, v);
+        worst = worst.min(dot(w, w).sqrt().atan2(dot(u, v)));
+    }
+    worst
+}
+
+/// Angle at corner `i` of the polygon, radians.
+fn corner_angle(p: &[[f64; 3]], i: usize) -> f64 {
+    let n = p.len();
+    let u = sub(p[(i + n - 1) % n], p[i]);
+    let v = sub(p[(i + 1) % n], p[i]);
+    let w = cross(u, v);
+    dot(w, w).sqrt().atan2(dot(u, v))
+}
+
+fn length(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = sub(a, b);
+    dot(d, d).sqrt()
+}
+
+/// Exact max–min-angle triangulation by diagonals (dynamic programming over sub-polygons).
+fn best_by_diagonals(
+    p: &[[f64; 3]],
+    allowed: &dyn Fn(usize, usize) -> bool,
+    normal: [f64; 3],
+) -> Option<(f64, Vec<[u8; 3]>)> {
+    let n = p.len();
+    let chord = |i: usize, j: usize| j == i + 1 || (i == 0 && j == n - 1) || allowed(i, j);
+    // best[i][j]: the best smallest angle triangulating corners i..=j (chord i–j closing it).
+    let mut best = vec![vec![f64::NEG_INFINITY; n]; n];
+    let mut split = vec![vec![usize::MAX; n]; n];
+    for i in 0..n - 1 {
+        best[i][i + 1] = f64::INFINITY;
+    }
+    for len in 2..n {
+        for i in 0..n - len {
+            let j = i + len;
+            if !chord(i, j) {
+                continue;
+            }
+            for k in i + 1..j {
+                if !chord(i, k) || !chord(k, j) {
+                    continue;
+                }
+                let q = quality(p[i], p[k], p[j], normal)
+                    .min(best[i][k])
+                    .min(best[k][j]);
+                if q > best[i][j] {
+                    best[i][j] = q;
+                    split[i][j] = k;
+                }
+            }
+        }
+    }
+    if best[0][n - 1] <= 0.0 {
+        return None;
+    }
+    let mut out = Vec::with_capacity(n - 2);
+    let mut stack = vec![(0, n - 1)];
+    while let Some((i, j)) = stack.pop() {
+        if j <= i + 1 {
+            continue;
+        }
+        let k = split[i][j];
+        out.push([i as u8, k as u8, j as u8]);
+        stack.push((i, k));
+        stack.push((k, j));
+    }
+    Some((best[0][n - 1], out))
+}
+
+fn star_quality(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3]) -> f64 {
+    let n = p.len();
+    (0..n)
+        .map(|i| quality(p[i], p[(i + 1) % n], x, normal))
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn star(n: usize) -> Vec<[u8; 3]> {
+    (0..n)
+        .map(|i| [i as u8, ((i + 1) % n) as u8, n as u8])
+        .collect()
+}
+
+/// The paper's interior vertex: a weighted average of the corners, each weighted by
+/// `sqrt(1 + SLME / LSE)` (LSE: its shortest incident side; SLME: the sum of those), pulled toward
+/// the short sides.
+pub fn weighted_interior_point(p: &[[f64; 3]]) -> [f64; 3] {
+    let n = p.len();
+    let lse: Vec<f64> = (0..n)
+        .map(|i| length(p[i], p[(i + 1) % n]).min(length(p[i], p[(i + n - 1) % n])))
+        .collect();
+    let slme: f64 = lse.iter().sum();
+    let mut x = [0.0; 3];
+    let mut total = 0.0;
+    for i in 0..n {
+        let w = (1.0 + slme / lse[i].max(1e-300)).sqrt();
+        total += w;
+        for d in 0..3 {
+            x[d] += w * p[i][d];
+        }
+    }
+    x.map(|c| c / total)
+}
+
+fn clamp_to(x: [f64; 3], (lo, hi): ([f64; 3], [f64; 3])) -> [f64; 3] {
+    std::array::from_fn(|d| x[d].clamp(lo[d], hi[d]))
+}
+
+/// A star around one interior vertex, its position improved by a pattern search in the polygon's
+/// plane from the better of the centroid and the paper's weighted point.
+fn best_star(p: &[[f64; 3]], normal: [f64; 3], bounds: ([f64; 3], [f64; 3])) -> (f64, [f64; 3]) {
+    let n = p.len();
+    let centroid: [f64; 3] =
+        std::array::from_fn(|d| p.iter().map(|q| q[d]).sum::<f64>() / n as f64);
+    let weighted = weighted_interior_point(p);
+    let mut x = centroid;
+    let mut q = star_quality(p, x, normal);
+    let qw = star_quality(p, weighted, normal);
+    if qw > q {
+        (x, q) = (weighted, qw);
+    }
+    // Two directions in the polygon's plane.
+    let len = dot(normal, normal).sqrt();
+    if len == 0.0 {
+        return (q, x);
+    }
+    let nn = normal.map(|c| c / len);
+    let seed = if nn[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = {
+        let c = cross(nn, seed);
+        let l = dot(c, c).sqrt();
+        c.map(|v| v / l)
+    };
+    let v = cross(nn, u);
+    let perimeter: f64 = (0..n).map(|i| length(p[i], p[(i + 1) % n])).sum();
+    let mut step = 0.25 * perimeter / n as f64;
+    for _ in 0..24 {
+        let mut improved = false;
+        for dir in [u, v, u.map(|c| -c), v.map(|c| -c)] {
+            let y = clamp_to(std::array::from_fn(|d| x[d] + step * dir[d]), bounds);
+            let qy = star_quality(p, y, normal);
+            if qy > q {
+                (x, q) = (y, qy);
+                improved = true;
+            }
+        }
+        if !improved {
+            step *= 0.5;
+        }
+    }
+    (q, x)
+}
+
+fn optimal(
+    p: &[[f64; 3]],
+    allowed: &dyn Fn(usize, usize) -> bool,
+    bounds: ([f64; 3], [f64; 3]),
+) -> Option<PolygonTriangles> {
+    let normal = polygon_normal(p);
+    let by_diagonals = best_by_diagonals(p, allowed, normal);
+    let (qs, x) = best_star(p, normal, bounds);
+    match by_diagonals {
+        Some((qd, tris)) if qd >= qs => Some(PolygonTriangles {
+            triangles: tris,
+            interior: None,
+        }),
+        _ if qs > 0.0 => Some(PolygonTriangles {
+            triangles: star(p.len()),
+            interior: Some(x),
+        }),
+        Some((_, tris)) => Some(PolygonTriangles {
+            triangles: tris,
+            interior: None,
+        }),
+        None => None,
+    }
+}
+
+fn local(
+    p: &[[f64; 3]],
+    allowed: &dyn Fn(usize, usize) -> bool,
+    bounds: ([f64; 3], [f64; 3]),
+) -> Option<PolygonTriangles> {
+    let normal = polygon_normal(p);
+    let bad = LOCAL_BAD_ANGLE_DEGREES.to_radians();
+    // Remaining corners, by index into `p`.
+    let mut rest: Vec<usize> = (0..p.len()).collect();
+    let mut out: Vec<[u8; 3]> = Vec::new();
+    // (1) Cut off corners with a bad angle, smallest first, while the cut is allowed and valid.
+    loop {
+        if rest.len() <= 3 {
+            break;
+        }
+        let q: Vec<[f64; 3]> = rest.iter().map(|&i| p[i]).collect();
+        let m = rest.len();
+        let mut candidates: Vec<(f64, usize)> = (0..m)
+            .map(|k| (corner_angle(&q, k), k))
+            .filter(|&(a, _)| a < bad)
+            .collect();
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let cut = candidates.into_iter().find(|&(_, k)| {
+            let (a, b, c) = (rest[(k + m - 1) % m], rest[k], rest[(k + 1) % m]);
+            allowed(a.min(c), a.max(c)) && quality(p[a], p[b], p[c], normal) > 0.0
+        });
+        match cut {
+            Some((_, k)) => {
+                let (a, b, c) = (rest[(k + m - 1) % m], rest[k], rest[(k + 1) % m]);
+                out.push([a as u8, b as u8, c as u8]);
+                rest.remove(k);
+            }
+            None => break,
+        }
+    }
+    let q: Vec<[f64; 3]> = rest.iter().map(|&i| p[i]).collect();
+    let m = rest.len();
+    let sides: Vec<f64> = (0..m).map(|k| length(q[k], q[(k + 1) % m])).collect();
+    let ratio = sides.iter().copied().fold(0.0, f64::max)
+        / sides.iter().copied().fold(f64::INFINITY, f64::min);
+    let interior_wanted = m >= 5 || (m == 4 && ratio > LOCAL_QUAD_RATIO);
+    let with_interior = |out: &mut Vec<[u8; 3]>| {
+        let x = clamp_to(weighted_interior_point(&q), bounds);
+        let n = p.len() as u8;
+        for k in 0..m {
+            out.push([rest[k] as u8, rest[(k + 1) % m] as u8, n]);
+        }
+        x
+    };
+    // (2) An interior vertex for pentagons and larger, and for long quads.
+    if interior_wanted && star_quality(&q, weighted_interior_point(&q), normal) > 0.0 {
+        let x = with_interior(&mut out);
+        return Some(PolygonTriangles {
+            triangles: out,
+            interior: Some(x),
+        });
+    }
+    if m == 3 {
+        out.push([rest[0] as u8, rest[1] as u8, rest[2] as u8]);
+        return Some(PolygonTriangles {
+            triangles: out,
+            interior: None,
+        });
+    }
+    // (3) Split the largest angle toward the corner two edges away, trying the larger angles
+    // first; fall back to the exact search over the remaining polygon.
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&a, &b| corner_angle(&q, b).total_cmp(&corner_angle(&q, a)));
+    if m == 4 {
+        for k in order {
+            let (a, b) = (k, (k + 2) % 4);
+            let (ia, ib) = (rest[a], rest[b]);
+            if !allowed(ia.min(ib), ia.max(ib)) {
+                continue;
+            }
+            let t1 = [rest[a], rest[(a + 1) % 4], rest[b]];
+            let t2 = [rest[b], rest[(b + 1) % 4], rest[a]];
+            if quality(p[t1[0]], p[t1[1]], p[t1[2]], normal) > 0.0
+                && quality(p[t2[0]], p[t2[1]], p[t2[2]], normal) > 0.0
+            {
+                out.push(t1.map(|i| i as u8));
+                out.push(t2.map(|i| i as u8));
+                return Some(PolygonTriangles {
+                    triangles: out,
+                    interior: None,
+                });
+            }
+        }
+    }
+    let sub_allowed = |i: usize, j: usize| {
+        let (a, b) = (rest[i], rest[j]);
+        allowed(a.min(b), a.max(b))
+    };
+    if let Some((_, tris)) = best_by_diagonals(&q, &sub_allowed, normal) {
+        out.extend(tris.iter().map(|t| t.map(|k| rest[usize::from(k)] as u8)));
+        return Some(PolygonTriangles {
+            triangles: out,
+            interior: None,
+        });
+    }
+    if star_quality(&q, weighted_interior_point(&q), normal) > 0.0 {
+        let x = with_interior(&mut out);
+        return Some(PolygonTriangles {
+            triangles: out,
+            interior: Some(x),
+        });
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn regular(n: usize) -> Vec<[f64; 3]> {
+        (0..n)
+            .map(|i| {
+                let a = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
+                [a.cos(), a.sin(), 0.0]
+            })
+            .collect()
+    }
+
+    fn min_angle(p: &[[f64; 3]], t: &PolygonTriangles) -> f64 {
+        let mut all = p.to_vec();
+        if let Some(x) = t.interior {
+            all.push(x);
+        }
+        t.triangles
+            .iter()
+            .map(|tri| {
+                quality(
+                    all[tri[0] as usize],
+                    all[tri[1] as usize],
+                    all[tri[2] as usize],
+                    [0.0, 0.0, 1.0],
+                )
+            })
+            .fold(f64::INFINITY, f64::min)
+            .to_degrees()
+    }
+
+    /// Area of the triangles equals the polygon's: they tile it without overlap or gap.
+    fn area(p: &[[f64; 3]], t: &PolygonTriangles) -> f64 {
+        let mut all = p.to_vec();
+        if let Some(x) = t.interior {
+            all.push(x);
+        }
+        t.triangles
+            .iter()
+            .map(|tri| {
+                let n = cross(
+                    sub(all[tri[1] as usize], all[tri[0] as usize]),
+                    sub(all[tri[2] as usize], all[tri[0] as usize]),
+                );
+                n[2] / 2.0
+            })
+            .sum()
+    }
+
+    #[test]
+    fn regular_polygons() {
+        let any = |_: usize, _: usize| true;
+        let bounds = ([-2.0; 3], [2.0; 3]);
+        for n in 4..=12 {
+            let p = regular(n);
+            let exact = polygon_normal(&p)[2] / 2.0;
+            for s in [Strategy::Local, Strategy::Optimal] {
+                let t = triangulate(&p, &any, s, bounds).unwrap();
+                assert!((area(&p, &t) - exact).abs() < 1e-9, "{s:?} {n}");
+                assert!(min_angle(&p, &t) > 0.0);
+            }
+            // Every angle of a triangulation of a regular n-gon by diagonals is a multiple of
+            // 180°/n; the star around the centre has angles 360°/n and (180° − 360°/n)/2.
+            // Optimal does at least as well as both.
+            let t = triangulate(&p, &any, Strategy::Optimal, bounds).unwrap();
+            let nf = n as f64;
+            let star_angle = (360.0 / nf).min((180.0 - 360.0 / nf) / 2.0);
+            let bound = star_angle.max(180.0 / nf);
+            let got = min_angle(&p, &t);
+            assert!(got >= bound - 1e-6, "{n}: {got}");
+        }
+    }
+
+    #[test]
+    fn forbidden_diagonals_are_respected() {
+        let p = regular(6);
+        // Only diagonals from corner 0.
+        let from0 = |i: usize, _: usize| i == 0;
+        let t = best_by_diagonals(&p, &from0, polygon_normal(&p)).unwrap().1;
+        for tri in &t {
+            for k in 0..3 {
+                let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
+                assert!(b == a + 1 || (a, b) == (0, 5) || a == 0, "{t:?}");
+            }
+        }
+        // Nothing allowed: no triangulation by diagonals.
+        assert!(best_by_diagonals(&p, &|_, _| false, polygon_normal(&p)).is_none());
+    }
+
+    #[test]
+    fn local_cuts_a_sliver_corner_and_optimal_beats_it() {
+        // A long thin quad: local inserts an interior vertex (side ratio 10).
+        let p = vec![
+            [0.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [10.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let any = |_: usize, _: usize| true;
+        let bounds = ([-1.0; 3], [11.0; 3]);
+        let l = triangulate(&p, &any, Strategy::Local, bounds).unwrap();
+        assert!(l.interior.is_some());
+        let o = triangulate(&p, &any, Strategy::Optimal, bounds).unwrap();
+        assert!(min_angle(&p, &o) >= min_angle(&p, &l) - 1e-9);
+        assert!((area(&p, &o) - 10.0).abs() < 1e-9 && (area(&p, &l) - 10.0).abs() < 1e-9);
+    }
+}
