@@ -51,6 +51,10 @@ pub(crate) struct Args {
     /// (the largest smallest angle per polygon).
     #[arg(long, default_value = "fan")]
     triangulate: Strategy,
+    /// Relaxation sweeps: vertices slide along the surface of the interpolated field to lift the
+    /// smallest angles, never turning a triangle over.
+    #[arg(long, default_value_t = 0)]
+    relax: usize,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -79,6 +83,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         .with_normals(!args.no_normals)
         .with_topology(args.topology)
         .with_triangulation(args.triangulate)
+        .with_relax(args.relax)
         .with_method(match args.method.as_str() {
             "ternary" => Method::Ternary(Snapping {
                 zero_threshold: args.zero_threshold,

@@ -103,6 +103,8 @@ pub struct ExtractOptions {
     pub method: Method,
     /// How each cell polygon becomes triangles.
     pub triangulation: Strategy,
+    /// Relaxation sweeps after extraction (see [`crate::quality::relax`]); 0 for none.
+    pub relax: usize,
 }
 
 /// Which Marching Cubes: binary (values at or above the level versus below) or ternary.
@@ -136,6 +138,7 @@ impl Default for ExtractOptions {
             topology: Topology::Mc33,
             method: Method::MarchingCubes,
             triangulation: Strategy::Fan,
+            relax: 0,
         }
     }
 }
@@ -168,6 +171,12 @@ impl ExtractOptions {
     /// Sets the method.
     pub fn with_method(mut self, method: Method) -> Self {
         self.method = method;
+        self
+    }
+
+    /// Sets the number of relaxation sweeps.
+    pub fn with_relax(mut self, sweeps: usize) -> Self {
+        self.relax = sweeps;
         self
     }
 
@@ -233,6 +242,26 @@ pub fn extract(
 /// Extracts into `mesh` (cleared first, allocations reused), calling `progress(done, total)`
 /// after each layer of cells.
 pub fn extract_into(
+    grid: &Grid,
+    options: &ExtractOptions,
+    mesh: &mut Mesh,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ExtractStats, ExtractError> {
+    let stats = extract_cells(grid, options, mesh, progress)?;
+    if options.relax > 0 {
+        let spacing = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
+        crate::quality::relax(
+            mesh,
+            &crate::quality::Trilinear(grid),
+            f64::from(options.level),
+            options.relax,
+            spacing,
+        );
+    }
+    Ok(stats)
+}
+
+fn extract_cells(
     grid: &Grid,
     options: &ExtractOptions,
     mesh: &mut Mesh,

@@ -40,9 +40,11 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
+use crate::cube::triangulate::{safe_triangulation, star};
 use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
 use crate::field::Grid;
 use crate::mesh::Mesh;
+use crate::quality::{triangulate, Strategy};
 
 use super::classify::{cell_config, face_decisions};
 use super::place::Placer;
@@ -144,11 +146,18 @@ fn tag(k: Key) -> u64 {
     k >> TAG_SHIFT
 }
 
-/// Patch triangles plus, for each interior point used, the keys it is the centroid of.
+/// Patch triangles plus, for each interior point used, the corners it belongs to and where it
+/// sits: at their centroid, or at a position a triangulation strategy chose.
 #[derive(Default)]
 struct Patch {
     triangles: Vec<[Key; 3]>,
-    interiors: Vec<(Key, Vec<Key>)>,
+    interiors: Vec<Interior>,
+}
+
+struct Interior {
+    key: Key,
+    support: Vec<Key>,
+    at: Option<[f64; 3]>,
 }
 
 impl Patch {
@@ -166,6 +175,7 @@ pub(super) struct Ternary<'a> {
     g: Vec<f32>,
     zero: Vec<bool>,
     snapping: Snapping,
+    strategy: Strategy,
     offsets: [usize; 8],
     strides: [usize; 3],
 }
@@ -181,6 +191,7 @@ impl<'a> Ternary<'a> {
             g: grid.values().to_vec(),
             zero: vec![false; grid.values().len()],
             snapping,
+            strategy: options.triangulation,
             offsets: [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz],
             strides: [1, sy, sz],
         }
@@ -300,7 +311,6 @@ impl<'a> Ternary<'a> {
             } else {
                 None
             };
-        let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
         let key = |c: Corner| -> Key {
             if let Some(e) = c.as_edge() {
                 let [a, b] = EDGES[usize::from(e)].map(|x| pts[usize::from(x)]);
@@ -315,10 +325,18 @@ impl<'a> Ternary<'a> {
                 let k = c
                     .as_interior()
                     .expect("binary cells have edge and interior corners");
-                INTERIOR << TAG_SHIFT | (base * 4 + usize::from(k)) as u64
+                INTERIOR << TAG_SHIFT | (base * 8 + usize::from(k)) as u64
             }
         };
         let first = patch.triangles.len();
+        if flips && self.strategy != Strategy::Fan && tunnel.is_none() {
+            for (l, polygon) in table.polygons(config, decisions).enumerate() {
+                self.emit_polygon(base, l, polygon, &key, patch);
+            }
+            self.improve_cell(base, first, patch);
+            return;
+        }
+        let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
         let mut used = [false; Corner::MAX_INTERIOR];
         for t in cell.triangles {
             let k = t.map(key);
@@ -334,12 +352,107 @@ impl<'a> Ternary<'a> {
         }
         for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
             let support = cell.interior_support(i).iter().map(|&c| key(c)).collect();
-            patch
-                .interiors
-                .push((key(Corner::interior(i as u8)), support));
+            patch.interiors.push(Interior {
+                key: key(Corner::interior(i as u8)),
+                support,
+                at: None,
+            });
         }
         if flips {
             self.improve_cell(base, first, patch);
+        }
+    }
+
+    /// One loop of a cell by the triangulation strategy, after collapse onto zero points. A loop
+    /// that stays simple is re-triangulated (diagonals only between corners sharing no face of
+    /// the cell, or around an interior vertex): a disk with the same boundary as the triangulation
+    /// the local check validated, so the topology is the same. A loop that pinches or that the
+    /// strategy cannot split keeps the table's triangulation, collapsed.
+    fn emit_polygon(
+        &self,
+        base: usize,
+        l: usize,
+        polygon: &[Corner],
+        key: &dyn Fn(Corner) -> Key,
+        patch: &mut Patch,
+    ) {
+        let mut keys: Vec<Key> = polygon.iter().map(|&c| key(c)).collect();
+        keys.dedup();
+        while keys.len() > 1 && keys.first() == keys.last() {
+            keys.pop();
+        }
+        if keys.len() < 3 {
+            return;
+        }
+        let mut sorted = keys.clone();
+        sorted.sort_unstable();
+        let simple = sorted.windows(2).all(|w| w[0] != w[1]);
+        let interior_key = INTERIOR << TAG_SHIFT | (base * 8 + 4 + l) as u64;
+        if simple {
+            let cell = self.coords(base).map(|c| 2 * c);
+            let faces = |k: Key| {
+                let c = self.key_coords(k);
+                (0..3).fold(0u8, |m, a| {
+                    m | u8::from(c[a] == cell[a]) << a | u8::from(c[a] == cell[a] + 2) << (a + 3)
+                })
+            };
+            let masks: Vec<u8> = keys.iter().map(|&k| faces(k)).collect();
+            let positions: Vec<[f64; 3]> = keys
+                .iter()
+                .map(|&k| self.position(k, &patch.interiors).map(f64::from))
+                .collect();
+            let c = self.coords(base);
+            let bounds = (
+                self.grid.point(c[0], c[1], c[2]),
+                self.grid.point(c[0] + 1, c[1] + 1, c[2] + 1),
+            );
+            let allowed = |a: usize, b: usize| masks[a] & masks[b] == 0;
+            if let Some(result) = triangulate(&positions, &allowed, self.strategy, bounds) {
+                if let Some(x) = result.interior {
+                    patch.interiors.push(Interior {
+                        key: interior_key,
+                        support: keys.clone(),
+                        at: Some(x),
+                    });
+                }
+                for t in result.triangles {
+                    patch
+                        .triangles
+                        .push(t.map(|i| keys.get(usize::from(i)).copied().unwrap_or(interior_key)));
+                }
+                return;
+            }
+        }
+        // Exactly the table's triangulation of this loop, which the local check validated.
+        let star_from = match self.topology {
+            Topology::Mc33 => CaseTable::MC33_STAR_CORNERS,
+            Topology::Classic => usize::MAX,
+        };
+        let table_triangles = (polygon.len() < star_from)
+            .then(|| safe_triangulation(polygon))
+            .flatten()
+            .unwrap_or_else(|| star(polygon));
+        let mut centre_used = false;
+        for t in table_triangles {
+            let k = t.map(|c| {
+                if c.as_interior().is_some() {
+                    interior_key
+                } else {
+                    key(c)
+                }
+            });
+            if k[0] == k[1] || k[1] == k[2] || k[0] == k[2] {
+                continue;
+            }
+            centre_used |= k.contains(&interior_key);
+            patch.triangles.push(k);
+        }
+        if centre_used {
+            patch.interiors.push(Interior {
+                key: interior_key,
+                support: polygon.iter().map(|&c| key(c)).collect(),
+                at: None,
+            });
         }
     }
 
@@ -452,7 +565,7 @@ impl<'a> Ternary<'a> {
                 c[payload % 3] += 1;
                 c
             }
-            _ => self.coords(payload / 4).map(|c| 2 * c + 1),
+            _ => self.coords(payload / 8).map(|c| 2 * c + 1),
         }
     }
 
@@ -574,7 +687,7 @@ impl<'a> Ternary<'a> {
         ((f64::from(self.level) - v0) / (v1 - v0)).clamp(MIN_OFFSET, 1.0 - MIN_OFFSET)
     }
 
-    fn position(&self, k: Key, interiors: &[(Key, Vec<Key>)]) -> [f32; 3] {
+    fn position(&self, k: Key, interiors: &[Interior]) -> [f32; 3] {
         let payload = (k & PAYLOAD) as usize;
         match tag(k) {
             POINT => {
@@ -595,11 +708,14 @@ impl<'a> Ternary<'a> {
                 x.map(|c| c as f32)
             }
             _ => {
-                let support = &interiors
+                let interior = interiors
                     .iter()
-                    .find(|(key, _)| *key == k)
-                    .expect("interior points come with their support")
-                    .1;
+                    .find(|i| i.key == k)
+                    .expect("interior points come with their support");
+                if let Some(x) = interior.at {
+                    return x.map(|c| c as f32);
+                }
+                let support = &interior.support;
                 let n = support.len() as f64;
                 let mut x = [0.0f64; 3];
                 for &s in support {
@@ -680,18 +796,20 @@ impl<'a> Ternary<'a> {
                 placer.vertex_on_edge(self.coords(a), axis, self.edge_t(a, axis), mesh)?
             }
             _ => {
-                let support = &patch
+                let interior = patch
                     .interiors
                     .iter()
-                    .find(|(k, _)| *k == key)
-                    .expect("interior points come with their support")
-                    .1;
-                let mut corner_ids = Vec::with_capacity(support.len());
-                for &s in support {
+                    .find(|i| i.key == key)
+                    .expect("interior points come with their support");
+                let mut corner_ids = Vec::with_capacity(interior.support.len());
+                for &s in &interior.support {
                     corner_ids.push(self.vertex(s, patch, placer, ids, mesh, stats)?);
                 }
                 stats.interior_vertices += 1;
-                placer.centroid_vertex(&corner_ids, mesh)?
+                match interior.at {
+                    Some(x) => placer.interior_vertex(x, &corner_ids, mesh)?,
+                    None => placer.centroid_vertex(&corner_ids, mesh)?,
+                }
             }
         };
         ids.insert(key, id);

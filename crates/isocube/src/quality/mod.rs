@@ -13,8 +13,10 @@
 //! assert!(d.max < 0.05);
 //! ```
 
+pub mod relax;
 pub mod triangulate;
 
+pub use relax::{relax, Field, Trilinear};
 pub use triangulate::{triangulate, PolygonTriangles, Strategy};
 
 use crate::mesh::{cross, dot, sub, Mesh};
