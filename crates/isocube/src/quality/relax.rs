@@ -1,6 +1,8 @@
 //! Relaxation: vertices slide along the isosurface to lift the angles no per-cell change can fix.
 //!
-//! Each sweep visits the vertices in index order (so the result is deterministic). A vertex moves
+//! Each sweep first flips edges where the other diagonal of two triangles is better (same
+//! measure as below, no folds), then visits the vertices in index order (so the result is
+//! deterministic). A vertex moves
 //! toward the area-weighted centroid of its triangles, tangentially (the component along the
 //! field's gradient removed), and is then projected back onto the level set by Newton steps on the
 //! field. The move is kept only if none of its triangles turns over and the worst quality among
@@ -100,24 +102,6 @@ pub fn relax(
     if nv == 0 || sweeps == 0 {
         return 0;
     }
-    // Incident triangles per vertex (CSR).
-    let mut start = vec![0u32; nv + 1];
-    for t in &mesh.triangles {
-        for &v in t {
-            start[v as usize + 1] += 1;
-        }
-    }
-    for i in 0..nv {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut incident = vec![0u32; start[nv] as usize];
-    for (ti, t) in mesh.triangles.iter().enumerate() {
-        for &v in t {
-            incident[fill[v as usize] as usize] = ti as u32;
-            fill[v as usize] += 1;
-        }
-    }
     // Vertices on open or non-manifold edges are fixed.
     let mut edges: Vec<(u32, u32)> = mesh
         .triangles
@@ -133,7 +117,11 @@ pub fn relax(
         }
     }
     let mut kept = 0;
+    let (mut start, mut incident) = incidence(mesh);
     for _ in 0..sweeps {
+        if flip_edges(mesh, &fixed) > 0 {
+            (start, incident) = incidence(mesh);
+        }
         for v in 0..nv {
             if fixed[v] {
                 continue;
@@ -152,6 +140,97 @@ pub fn relax(
         reset_normals(mesh, field, &incident, &start);
     }
     kept
+}
+
+/// Incident triangles per vertex, as CSR arrays.
+fn incidence(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
+    let nv = mesh.positions.len();
+    let mut start = vec![0u32; nv + 1];
+    for t in &mesh.triangles {
+        for &v in t {
+            start[v as usize + 1] += 1;
+        }
+    }
+    for i in 0..nv {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut incident = vec![0u32; start[nv] as usize];
+    for (ti, t) in mesh.triangles.iter().enumerate() {
+        for &v in t {
+            incident[fill[v as usize] as usize] = ti as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (start, incident)
+}
+
+/// One pass of edge flips: an edge shared by two triangles is replaced by the other diagonal of
+/// their quad when that raises the pair's worst quality, the new edge is not in the mesh yet, and
+/// both new triangles face the way the pair did (no fold, at most 30° between them). The
+/// topology is unchanged; triangles touched in this pass are left for the next.
+fn flip_edges(mesh: &mut Mesh, fixed: &[bool]) -> usize {
+    let _ = fixed;
+    let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
+    for (ti, t) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            half.push((a.min(b), a.max(b), ti as u32));
+        }
+    }
+    half.sort_unstable();
+    let mut existing: std::collections::HashSet<(u32, u32)> =
+        half.iter().map(|h| (h.0, h.1)).collect();
+    let mut touched = vec![false; mesh.triangles.len()];
+    let mut flips = 0;
+    let cos30 = 30f64.to_radians().cos();
+    for group in half.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        if group.len() != 2 {
+            continue;
+        }
+        let (t1, t2) = (group[0].2 as usize, group[1].2 as usize);
+        if touched[t1] || touched[t2] {
+            continue;
+        }
+        let (ta, tb) = (mesh.triangles[t1], mesh.triangles[t2]);
+        // Orient: ta has a→b, tb has b→a.
+        let Some(k) = (0..3).find(|&k| {
+            let (a, b) = (ta[k], ta[(k + 1) % 3]);
+            (0..3).any(|m| tb[m] == b && tb[(m + 1) % 3] == a)
+        }) else {
+            continue;
+        };
+        let (a, b, c) = (ta[k], ta[(k + 1) % 3], ta[(k + 2) % 3]);
+        let Some(&d) = tb.iter().find(|&&x| x != a && x != b) else {
+            continue;
+        };
+        if c == d || existing.contains(&(c.min(d), c.max(d))) {
+            continue;
+        }
+        let p = |v: u32| pos(mesh, v);
+        let old = score([p(a), p(b), p(c)]).min(score([p(b), p(a), p(d)]));
+        let (n1, n2) = ([c, a, d], [d, b, c]);
+        let new = score(n1.map(p)).min(score(n2.map(p)));
+        if new <= old + 1e-9 {
+            continue;
+        }
+        let on = normal([p(a), p(b), p(c)]);
+        let on2 = normal([p(b), p(a), p(d)]);
+        let sum: [f64; 3] = std::array::from_fn(|i| on[i] + on2[i]);
+        let (q1, q2) = (normal(n1.map(p)), normal(n2.map(p)));
+        let unit_dot = |u: [f64; 3], w: [f64; 3]| dot(u, w) / (dot(u, u) * dot(w, w)).sqrt();
+        if dot(q1, sum) <= 0.0 || dot(q2, sum) <= 0.0 || unit_dot(q1, q2) < cos30 {
+            continue;
+        }
+        mesh.triangles[t1] = n1;
+        mesh.triangles[t2] = n2;
+        touched[t1] = true;
+        touched[t2] = true;
+        existing.remove(&(a.min(b), a.max(b)));
+        existing.insert((c.min(d), c.max(d)));
+        flips += 1;
+    }
+    flips
 }
 
 fn pos(mesh: &Mesh, v: u32) -> [f64; 3] {
