@@ -31,6 +31,8 @@ enum Command {
     Extract(commands::extract::Args),
     /// Report a mesh's topology and triangle quality.
     Info(commands::info::Args),
+    /// Triangle quality (Verdict measures), distance from the field's level set, angle histogram.
+    Quality(commands::quality::Args),
     /// Print the symmetry-derived configuration tables as TSV.
     Tables(commands::tables::Args),
     /// Extract the built-in samples and print a summary table.
@@ -99,6 +101,7 @@ fn dispatch(cli: &Cli) -> Result<(), Failure> {
     match &cli.command {
         Command::Extract(a) => commands::extract::run(a, cli.quiet),
         Command::Info(a) => commands::info::run(a),
+        Command::Quality(a) => commands::quality::run(a),
         Command::Tables(a) => commands::tables::run(a),
         Command::Demo(a) => commands::demo::run(a, cli.quiet),
     }
@@ -122,6 +125,8 @@ mod tests {
             "isocube extract v.npy --axes zyx -o m.stl --flip",
             "isocube extract sample:gyroid:40 -o g.ply --topology classic",
             "isocube info m.ply --json",
+            "isocube quality m.ply --field sample:sphere:40 --histogram h.svg --json",
+            "isocube extract sample:torus:64 -o t.ply --method ternary --snap 0.5 --triangulate optimal --relax 10",
             "isocube tables --ternary --group rotations",
             "isocube demo --out d --size 32",
             "isocube --quiet demo",

@@ -318,31 +318,78 @@ fn try_move(
     let d = sub(target, x);
     let dn = dot(d, n);
     let tangential: [f64; 3] = std::array::from_fn(|k| d[k] - dn * n[k]);
-    for fraction in [1.0, 0.5] {
-        let moved: [f64; 3] = std::array::from_fn(|k| x[k] + fraction * tangential[k]);
-        let Some(y) = project(moved, field, level, step_limit) else {
-            continue;
-        };
+    // The worst incident quality at a candidate position, if no triangle turns over.
+    let evaluate = |moved: [f64; 3]| -> Option<(f64, [f32; 3])> {
+        let y = project(moved, field, level, step_limit)?;
         let y32 = y.map(|c| c as f32);
         let y = y32.map(f64::from);
-        let ok = tris.iter().all(|&t| {
-            let before = corners(t, x);
-            let after = corners(t, y);
-            dot(normal(before), normal(after)) > 0.0
-        });
+        let ok = tris
+            .iter()
+            .all(|&t| dot(normal(corners(t, x)), normal(corners(t, y))) > 0.0);
         if !ok {
-            continue;
+            return None;
         }
-        let new_score = tris
+        let s = tris
             .iter()
             .map(|&t| score(corners(t, y)))
             .fold(f64::INFINITY, f64::min);
-        if new_score >= old_score {
-            return Some(y32);
+        Some((s, y32))
+    };
+    for fraction in [1.0, 0.5] {
+        let moved: [f64; 3] = std::array::from_fn(|k| x[k] + fraction * tangential[k]);
+        if let Some((s, y)) = evaluate(moved) {
+            if s >= old_score {
+                return Some(y);
+            }
         }
     }
-    None
+    // Where the centroid does not help a poor vertex, search its tangent plane directly for the
+    // position that best raises its worst triangle.
+    if old_score >= SEARCH_BELOW {
+        return None;
+    }
+    let seed = if n[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = {
+        let c = cross(n, seed);
+        let l = dot(c, c).sqrt();
+        c.map(|w| w / l)
+    };
+    let w = cross(n, u);
+    let mean_edge = tris
+        .iter()
+        .map(|&t| {
+            let p = corners(t, x);
+            let e = sub(p[1], p[0]);
+            dot(e, e).sqrt()
+        })
+        .sum::<f64>()
+        / tris.len() as f64;
+    let (mut best, mut at, mut found) = (old_score, x, None);
+    let mut step = 0.2 * mean_edge;
+    for _ in 0..12 {
+        let mut improved = false;
+        for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
+            let moved: [f64; 3] = std::array::from_fn(|k| at[k] + step * (a * u[k] + b * w[k]));
+            if let Some((s, y)) = evaluate(moved) {
+                if s > best + 1e-9 {
+                    (best, at, found) = (s, y.map(f64::from), Some(y));
+                    improved = true;
+                }
+            }
+        }
+        if !improved {
+            step *= 0.5;
+        }
+    }
+    found
 }
+
+/// Vertices whose worst triangle scores below this (degrees) get the direct search.
+const SEARCH_BELOW: f64 = 35.0;
 
 fn reset_normals(mesh: &mut Mesh, field: &dyn Field, incident: &[u32], start: &[u32]) {
     for v in 0..mesh.positions.len() {

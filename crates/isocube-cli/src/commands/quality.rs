@@ -1,0 +1,361 @@
+//! `isocube quality MESH [--field VOLUME] [--level L] [--json] [--histogram FILE.png|FILE.svg]`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use clap::Args as ClapArgs;
+use isocube::field::{Grid, SampleSpec};
+use isocube::io::{read_mesh, read_volume, VolumeOptions};
+use isocube::mesh::Mesh;
+use isocube::quality::{
+    level_set_distance, quality_report, Distance, Field, QualityReport, Range, Trilinear,
+};
+use serde_json::json;
+
+use crate::Failure;
+
+#[derive(Debug, ClapArgs)]
+pub(crate) struct Args {
+    /// A .ply, .obj or .stl mesh.
+    mesh: PathBuf,
+    /// The field the mesh came from, to measure its distance from the level set: a built-in
+    /// sample (`sample:NAME:N`, evaluated exactly) or a .npy/.nrrd/.nhdr volume (trilinear).
+    /// Distances are `|f − level| / |∇f|` in units of the grid spacing.
+    #[arg(long, value_name = "VOLUME")]
+    field: Option<String>,
+    /// The level of the field.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    level: f64,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Write the angle histogram (5° bins) as a picture: .svg or .png.
+    #[arg(long, value_name = "FILE")]
+    histogram: Option<PathBuf>,
+}
+
+pub(crate) fn run(args: &Args) -> Result<(), Failure> {
+    if let Some(path) = &args.histogram {
+        if picture_format(path).is_none() {
+            return Err(Failure::input(anyhow::anyhow!(
+                "{}: unknown picture extension (expected .svg or .png)",
+                path.display()
+            )));
+        }
+    }
+    let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
+    let report = quality_report(&mesh);
+    let distance = match &args.field {
+        Some(spec) => Some(distance(&mesh, spec, args.level)?),
+        None => None,
+    };
+    if let Some(path) = &args.histogram {
+        let title = format!(
+            "{}: {} triangles, angles {:.1}°–{:.1}°",
+            args.mesh
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            report.triangles,
+            report.min_angle.min,
+            report.max_angle.max
+        );
+        write_picture(path, &report.histogram, &title)?;
+    }
+    if args.json {
+        println!("{}", to_json(&report, distance.as_ref()));
+    } else {
+        print!("{}", to_table(&report, distance.as_ref()));
+    }
+    Ok(())
+}
+
+fn distance(mesh: &Mesh, spec: &str, level: f64) -> Result<Distance, Failure> {
+    if SampleSpec::is_sample(spec) {
+        let s: SampleSpec = spec
+            .parse()
+            .map_err(|e: String| Failure::input(anyhow::anyhow!(e)))?;
+        let grid = s.grid();
+        let sample = s.sample;
+        return Ok(level_set_distance(
+            mesh,
+            |p| sample.eval(p),
+            level,
+            min_spacing(&grid),
+        ));
+    }
+    let grid = read_volume(Path::new(spec), &VolumeOptions::default())
+        .map_err(|e| crate::io_failure(e, true))?;
+    let field = Trilinear(&grid);
+    let f = |p: [f64; 3]| field.value_and_gradient(p).map_or(f64::NAN, |(v, _)| v);
+    Ok(level_set_distance(mesh, f, level, min_spacing(&grid)))
+}
+
+fn min_spacing(grid: &Grid) -> f64 {
+    grid.spacing().iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+fn number(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        json!((x * 1e6).round() / 1e6)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
+fn range(r: &Range) -> serde_json::Value {
+    json!({"min": number(r.min), "max": number(r.max), "mean": number(r.mean)})
+}
+
+fn to_json(r: &QualityReport, d: Option<&Distance>) -> serde_json::Value {
+    json!({
+        "triangles": r.triangles,
+        "degenerate": r.degenerate,
+        "min_angle": range(&r.min_angle),
+        "max_angle": range(&r.max_angle),
+        "radius_ratio": range(&r.radius_ratio),
+        "aspect_ratio": range(&r.aspect_ratio),
+        "edge_ratio": range(&r.edge_ratio),
+        "area": range(&r.area),
+        "below_10": number(r.below[0]),
+        "below_20": number(r.below[1]),
+        "below_30": number(r.below[2]),
+        "distance": d.map(|d| json!({"max": number(d.max), "mean": number(d.mean), "samples": d.samples})),
+        "histogram_5deg": r.histogram.to_vec(),
+    })
+}
+
+fn to_table(r: &QualityReport, d: Option<&Distance>) -> String {
+    let mut s = format!(
+        "triangles      {}\ndegenerate     {}\n{:<14} {:>12} {:>12} {:>12}\n",
+        r.triangles, r.degenerate, "measure", "min", "mean", "max"
+    );
+    for (name, x) in [
+        ("min_angle", &r.min_angle),
+        ("max_angle", &r.max_angle),
+        ("radius_ratio", &r.radius_ratio),
+        ("aspect_ratio", &r.aspect_ratio),
+        ("edge_ratio", &r.edge_ratio),
+        ("area", &r.area),
+    ] {
+        s += &format!(
+            "{name:<14} {:>12.4} {:>12.4} {:>12.4}\n",
+            x.min, x.mean, x.max
+        );
+    }
+    s += &format!(
+        "min angle < 10°: {:.2} %, < 20°: {:.2} %, < 30°: {:.2} %\n",
+        100.0 * r.below[0],
+        100.0 * r.below[1],
+        100.0 * r.below[2]
+    );
+    if let Some(d) = d {
+        s += &format!(
+            "distance to the level set (grid spacings): max {:.4}, mean {:.4} ({} samples)\n",
+            d.max, d.mean, d.samples
+        );
+    }
+    s
+}
+
+#[derive(Clone, Copy)]
+enum Picture {
+    Svg,
+    Png,
+}
+
+fn picture_format(path: &Path) -> Option<Picture> {
+    match path.extension()?.to_str()?.to_ascii_lowercase().as_str() {
+        "svg" => Some(Picture::Svg),
+        "png" => Some(Picture::Png),
+        _ => None,
+    }
+}
+
+/// Writes through a temporary file in the target's directory, renamed into place once complete.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), Failure> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let fail = |e: std::io::Error| Failure::other(anyhow::anyhow!("{}: {e}", path.display()));
+    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(fail)?;
+    tmp.write_all(bytes).map_err(fail)?;
+    tmp.as_file().sync_all().map_err(fail)?;
+    tmp.persist(path).map_err(|e| fail(e.error))?;
+    Ok(())
+}
+
+const WIDTH: usize = 760;
+const HEIGHT: usize = 380;
+const LEFT: usize = 70;
+const RIGHT: usize = 20;
+const TOP: usize = 40;
+const BOTTOM: usize = 50;
+
+fn write_picture(path: &Path, bins: &[usize; 36], title: &str) -> Result<(), Failure> {
+    let bytes = match picture_format(path) {
+        Some(Picture::Svg) => svg(bins, title).into_bytes(),
+        Some(Picture::Png) => png_bytes(bins).map_err(Failure::other)?,
+        None => unreachable!("checked before reading the mesh"),
+    };
+    write_atomically(path, &bytes)
+}
+
+/// A round upper bound for the y axis.
+fn y_max(bins: &[usize; 36]) -> usize {
+    let m = bins.iter().copied().max().unwrap_or(0).max(1);
+    let magnitude = 10usize.pow((m as f64).log10().floor() as u32);
+    m.div_ceil(magnitude) * magnitude
+}
+
+fn svg(bins: &[usize; 36], title: &str) -> String {
+    let (pw, ph) = (
+        (WIDTH - LEFT - RIGHT) as f64,
+        (HEIGHT - TOP - BOTTOM) as f64,
+    );
+    let ymax = y_max(bins) as f64;
+    let bar = pw / 36.0;
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{WIDTH}\" height=\"{HEIGHT}\" viewBox=\"0 0 {WIDTH} {HEIGHT}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"22\" text-anchor=\"middle\" font-size=\"14\">{}</text>\n",
+        WIDTH / 2,
+        escape(title)
+    );
+    for (i, &n) in bins.iter().enumerate() {
+        let h = ph * n as f64 / ymax;
+        s += &format!(
+            "<rect x=\"{:.2}\" y=\"{:.2}\" width=\"{:.2}\" height=\"{:.2}\" fill=\"#3b6ea5\"><title>{}–{}°: {n}</title></rect>\n",
+            LEFT as f64 + bar * i as f64 + 1.0,
+            TOP as f64 + ph - h,
+            bar - 2.0,
+            h,
+            5 * i,
+            5 * i + 5
+        );
+    }
+    let (x0, y0) = (LEFT as f64, (TOP as f64) + ph);
+    s += &format!(
+        "<path d=\"M{x0} {TOP} V{y0} H{}\" stroke=\"black\" fill=\"none\"/>\n",
+        x0 + pw
+    );
+    for deg in (0..=180).step_by(30) {
+        let x = x0 + pw * f64::from(deg) / 180.0;
+        s += &format!(
+            "<line x1=\"{x:.2}\" y1=\"{y0}\" x2=\"{x:.2}\" y2=\"{}\" stroke=\"black\"/><text x=\"{x:.2}\" y=\"{}\" text-anchor=\"middle\">{deg}°</text>\n",
+            y0 + 5.0,
+            y0 + 20.0
+        );
+    }
+    for k in 0..=4 {
+        let v = ymax * f64::from(k) / 4.0;
+        let y = y0 - ph * f64::from(k) / 4.0;
+        s += &format!(
+            "<line x1=\"{}\" y1=\"{y:.2}\" x2=\"{x0}\" y2=\"{y:.2}\" stroke=\"black\"/><text x=\"{}\" y=\"{:.2}\" text-anchor=\"end\">{}</text>\n",
+            x0 - 5.0,
+            x0 - 8.0,
+            y + 4.0,
+            v.round()
+        );
+    }
+    s += &format!(
+        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">angle (degrees)</text>\n<text x=\"16\" y=\"{}\" text-anchor=\"middle\" transform=\"rotate(-90 16 {})\">number of angles</text>\n</svg>\n",
+        x0 + pw / 2.0,
+        HEIGHT - 8,
+        TOP as f64 + ph / 2.0,
+        TOP as f64 + ph / 2.0
+    );
+    s
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// Digits 0–9 in a 3×5 bitmap, rows top to bottom, bit 2 the left column.
+const DIGITS: [[u8; 5]; 10] = [
+    [7, 5, 5, 5, 7],
+    [2, 6, 2, 2, 7],
+    [7, 1, 7, 4, 7],
+    [7, 1, 7, 1, 7],
+    [5, 5, 7, 1, 1],
+    [7, 4, 7, 1, 7],
+    [7, 4, 7, 5, 7],
+    [7, 1, 1, 1, 1],
+    [7, 5, 7, 5, 7],
+    [7, 5, 7, 1, 7],
+];
+
+struct Canvas {
+    rgb: Vec<u8>,
+}
+
+impl Canvas {
+    fn fill(&mut self, x0: usize, y0: usize, x1: usize, y1: usize, c: [u8; 3]) {
+        for y in y0.min(HEIGHT)..y1.min(HEIGHT) {
+            for x in x0.min(WIDTH)..x1.min(WIDTH) {
+                let i = 3 * (y * WIDTH + x);
+                self.rgb[i..i + 3].copy_from_slice(&c);
+            }
+        }
+    }
+
+    /// Draws a number with its centre at `cx`, top at `y` (scale 2: 6×10 pixels per digit).
+    fn number(&mut self, n: usize, cx: usize, y: usize, right_aligned: bool) {
+        let text = n.to_string();
+        let w = text.len() * 8;
+        let x0 = if right_aligned {
+            cx.saturating_sub(w)
+        } else {
+            cx.saturating_sub(w / 2)
+        };
+        for (k, ch) in text.bytes().enumerate() {
+            let glyph = DIGITS[usize::from(ch - b'0')];
+            for (row, bits) in glyph.iter().enumerate() {
+                for col in 0..3 {
+                    if bits >> (2 - col) & 1 == 1 {
+                        let x = x0 + 8 * k + 2 * col;
+                        let yy = y + 2 * row;
+                        self.fill(x, yy, x + 2, yy + 2, [0, 0, 0]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn png_bytes(bins: &[usize; 36]) -> Result<Vec<u8>, png::EncodingError> {
+    let mut c = Canvas {
+        rgb: vec![255; 3 * WIDTH * HEIGHT],
+    };
+    let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
+    let ymax = y_max(bins);
+    let y0 = TOP + ph;
+    for (i, &n) in bins.iter().enumerate() {
+        let h = ph * n / ymax;
+        let x = LEFT + pw * i / 36;
+        let x1 = LEFT + pw * (i + 1) / 36;
+        c.fill(x + 1, y0 - h, x1.saturating_sub(1), y0, [0x3b, 0x6e, 0xa5]);
+    }
+    c.fill(LEFT, TOP, LEFT + 1, y0 + 1, [0, 0, 0]);
+    c.fill(LEFT, y0, LEFT + pw, y0 + 1, [0, 0, 0]);
+    for deg in (0..=180).step_by(30) {
+        let x = LEFT + pw * deg / 180;
+        c.fill(x, y0, x + 1, y0 + 6, [0, 0, 0]);
+        c.number(deg, x, y0 + 10, false);
+    }
+    for k in 0..=4 {
+        let y = y0 - ph * k / 4;
+        c.fill(LEFT - 5, y, LEFT, y + 1, [0, 0, 0]);
+        c.number(ymax * k / 4, LEFT - 8, y.saturating_sub(5), true);
+    }
+    let mut out = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut out, WIDTH as u32, HEIGHT as u32);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header()?;
+        writer.write_image_data(&c.rgb)?;
+    }
+    Ok(out)
+}
