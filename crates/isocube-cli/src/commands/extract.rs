@@ -6,9 +6,10 @@ use std::time::Instant;
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{extract_into, ExtractOptions, Method, SnapPosition, Snapping};
+use isocube::field::SampleSpec;
 use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
 use isocube::mesh::Mesh;
-use isocube::quality::Strategy;
+use isocube::quality::{relax, Implicit, Strategy};
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;
@@ -51,8 +52,9 @@ pub(crate) struct Args {
     /// (the largest smallest angle per polygon).
     #[arg(long, default_value = "fan")]
     triangulate: Strategy,
-    /// Relaxation sweeps: vertices slide along the surface of the interpolated field to lift the
-    /// smallest angles, never turning a triangle over.
+    /// Relaxation sweeps: vertices slide along the level set to lift the smallest angles, never
+    /// turning a triangle over; the level set of the exact function for built-in samples, of the
+    /// trilinear interpolant otherwise.
     #[arg(long, default_value_t = 0)]
     relax: usize,
     /// Do not compute or write vertex normals.
@@ -77,13 +79,18 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         )));
     }
     let grid = args.volume.load()?;
+    let exact = SampleSpec::is_sample(&args.volume.volume)
+        .then(|| args.volume.volume.parse::<SampleSpec>().ok())
+        .flatten()
+        .map(|s| s.sample);
     let options = ExtractOptions::default()
         .with_level(args.level)
         .with_flip(args.flip)
         .with_normals(!args.no_normals)
         .with_topology(args.topology)
         .with_triangulation(args.triangulate)
-        .with_relax(args.relax)
+        // Built-in samples relax on their exact function, after extraction; files in extract.
+        .with_relax(if exact.is_some() { 0 } else { args.relax })
         .with_method(match args.method.as_str() {
             "ternary" => Method::Ternary(Snapping {
                 zero_threshold: args.zero_threshold,
@@ -100,6 +107,16 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     })
     .map_err(Failure::input)?;
     progress.finish();
+    if let (Some(sample), true) = (exact, args.relax > 0) {
+        let h = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
+        relax(
+            &mut mesh,
+            &Implicit(|p| sample.eval(p), 1e-4 * h),
+            f64::from(args.level),
+            args.relax,
+            h,
+        );
+    }
     let elapsed = started.elapsed();
     write_mesh(
         &args.output,

@@ -16,7 +16,7 @@
 pub mod relax;
 pub mod triangulate;
 
-pub use relax::{relax, Field, Trilinear};
+pub use relax::{relax, Field, Implicit, Trilinear};
 pub use triangulate::{triangulate, PolygonTriangles, Strategy};
 
 use crate::mesh::{cross, dot, sub, Mesh};

@@ -1,8 +1,9 @@
 //! Relaxation: vertices slide along the isosurface to lift the angles no per-cell change can fix.
 //!
 //! Each sweep first flips edges where the other diagonal of two triangles is better (same
-//! measure as below, no folds), then visits the vertices in index order (so the result is
-//! deterministic). A vertex moves
+//! measure as below, no folds), projects every vertex onto the level set (unless that would turn
+//! a triangle over), then visits the vertices in index order (so the result is deterministic).
+//! A vertex moves
 //! toward the area-weighted centroid of its triangles, tangentially (the component along the
 //! field's gradient removed), and is then projected back onto the level set by Newton steps on the
 //! field. The move is kept only if none of its triangles turns over and the worst quality among
@@ -80,6 +81,24 @@ impl Field for Trilinear<'_> {
     }
 }
 
+/// A field known only by its values (an implicit function); the gradient is taken by central
+/// differences with step `.1`.
+pub struct Implicit<F: Fn([f64; 3]) -> f64>(pub F, pub f64);
+
+impl<F: Fn([f64; 3]) -> f64> Field for Implicit<F> {
+    fn value_and_gradient(&self, p: [f64; 3]) -> Option<(f64, [f64; 3])> {
+        let v = (self.0)(p);
+        let h = self.1;
+        let g: [f64; 3] = std::array::from_fn(|a| {
+            let (mut lo, mut hi) = (p, p);
+            lo[a] -= h;
+            hi[a] += h;
+            ((self.0)(hi) - (self.0)(lo)) / (2.0 * h)
+        });
+        (v.is_finite() && g.iter().all(|c| c.is_finite())).then_some((v, g))
+    }
+}
+
 /// Any closure `p → (value, gradient)` is a field.
 impl<F: Fn([f64; 3]) -> Option<(f64, [f64; 3])>> Field for F {
     fn value_and_gradient(&self, p: [f64; 3]) -> Option<(f64, [f64; 3])> {
@@ -121,6 +140,15 @@ pub fn relax(
     for _ in 0..sweeps {
         if flip_edges(mesh, &fixed) > 0 {
             (start, incident) = incidence(mesh);
+        }
+        // Vertices off the level set (interior points of cells, say) go onto it first.
+        for v in 0..nv {
+            let tris = &incident[start[v] as usize..start[v + 1] as usize];
+            if !fixed[v] && !tris.is_empty() {
+                if let Some(p) = project_vertex(mesh, v, tris, field, level, step_limit) {
+                    mesh.positions[v] = p;
+                }
+            }
         }
         for v in 0..nv {
             if fixed[v] {
@@ -279,6 +307,26 @@ fn project(x: [f64; 3], field: &dyn Field, level: f64, step_limit: f64) -> Optio
         }
     }
     Some(x)
+}
+
+/// The vertex projected onto the level set, unless that turns a triangle over.
+fn project_vertex(
+    mesh: &Mesh,
+    v: usize,
+    tris: &[u32],
+    field: &dyn Field,
+    level: f64,
+    step_limit: f64,
+) -> Option<[f32; 3]> {
+    let x = pos(mesh, v as u32);
+    let y32 = project(x, field, level, step_limit)?.map(|c| c as f32);
+    let y = y32.map(f64::from);
+    let corners = |t: u32, at: [f64; 3]| -> [[f64; 3]; 3] {
+        mesh.triangles[t as usize].map(|w| if w as usize == v { at } else { pos(mesh, w) })
+    };
+    tris.iter()
+        .all(|&t| dot(normal(corners(t, x)), normal(corners(t, y))) > 0.0)
+        .then_some(y32)
 }
 
 fn try_move(
