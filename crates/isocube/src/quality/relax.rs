@@ -1,6 +1,9 @@
 //! Relaxation: vertices slide along the isosurface to lift the angles no per-cell change can fix.
 //!
-//! Each sweep first flips edges where the other diagonal of two triangles is better (same
+//! Each sweep of the first half first splits edges whose midpoint lies farther than
+//! [`SPLIT_ABOVE`] grid spacings from the level set (at the midpoint projected onto it). Every
+//! sweep then flips edges where the other
+//! diagonal of two triangles is better (same
 //! measure as below, no folds), projects every vertex onto the level set (unless that would turn
 //! a triangle over), then visits the vertices in index order (so the result is deterministic).
 //! A vertex moves
@@ -137,12 +140,9 @@ pub fn relax(
     }
     let mut kept = 0;
     let (mut start, mut incident) = incidence(mesh);
-    for _ in 0..sweeps {
-        if flip_edges(mesh, &fixed) > 0 {
-            (start, incident) = incidence(mesh);
-        }
+    for sweep in 0..sweeps {
         // Vertices off the level set (interior points of cells, say) go onto it first.
-        for v in 0..nv {
+        for v in 0..mesh.positions.len() {
             let tris = &incident[start[v] as usize..start[v + 1] as usize];
             if !fixed[v] && !tris.is_empty() {
                 if let Some(p) = project_vertex(mesh, v, tris, field, level, step_limit) {
@@ -150,7 +150,17 @@ pub fn relax(
                 }
             }
         }
-        for v in 0..nv {
+        // Splits in the first half only, so that the second half relaxes around the new
+        // vertices.
+        let split = if 2 * sweep < sweeps {
+            split_far_edges(mesh, &mut fixed, field, level, step_limit)
+        } else {
+            0
+        };
+        if flip_edges(mesh, field, level, step_limit) + split > 0 {
+            (start, incident) = incidence(mesh);
+        }
+        for v in 0..mesh.positions.len() {
             if fixed[v] {
                 continue;
             }
@@ -193,12 +203,105 @@ fn incidence(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
     (start, incident)
 }
 
+/// Edges whose midpoint lies farther than this many `step_limit`s (grid spacings) from the level
+/// set are split at the midpoint projected onto it.
+pub const SPLIT_ABOVE: f64 = 0.04;
+
+/// One pass of edge splits: an edge whose midpoint is farther than [`SPLIT_ABOVE`] from the level
+/// set gets a new vertex at the midpoint projected onto it, and its one or two triangles are
+/// halved. Triangles touched in this pass are left for the next. Returns the number of splits.
+fn split_far_edges(
+    mesh: &mut Mesh,
+    fixed: &mut Vec<bool>,
+    field: &dyn Field,
+    level: f64,
+    step_limit: f64,
+) -> usize {
+    let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
+    for (ti, t) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            half.push((a.min(b), a.max(b), ti as u32));
+        }
+    }
+    half.sort_unstable();
+    let mut touched = vec![false; mesh.triangles.len()];
+    let mut splits = 0;
+    for group in half.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        if group.len() > 2 || group.iter().any(|h| touched[h.2 as usize]) {
+            continue;
+        }
+        let (a, b) = (group[0].0, group[0].1);
+        let (pa, pb) = (pos(mesh, a), pos(mesh, b));
+        let mid: [f64; 3] = std::array::from_fn(|d| (pa[d] + pb[d]) / 2.0);
+        let Some((f, g)) = field.value_and_gradient(mid) else {
+            continue;
+        };
+        let gl = dot(g, g).sqrt();
+        if gl == 0.0 || (f - level).abs() / gl <= SPLIT_ABOVE * step_limit {
+            continue;
+        }
+        let Some(m) = project(mid, field, level, step_limit) else {
+            continue;
+        };
+        let m32 = m.map(|c| c as f32);
+        let m = m32.map(f64::from);
+        // The new triangles must face the way the old ones did.
+        let mut new_triangles = Vec::with_capacity(4);
+        let id = mesh.positions.len() as u32;
+        for h in group {
+            let t = mesh.triangles[h.2 as usize];
+            let k = (0..3)
+                .find(|&k| {
+                    let (x, y) = (t[k], t[(k + 1) % 3]);
+                    (x.min(y), x.max(y)) == (a, b)
+                })
+                .expect("the edge is in its triangle");
+            let (x, y, z) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            new_triangles.push((h.2 as usize, [x, id, z], [id, y, z]));
+        }
+        let at = |v: u32| if v == id { m } else { pos(mesh, v) };
+        let ok = new_triangles.iter().all(|(ti, t1, t2)| {
+            let old = normal(mesh.triangles[*ti].map(|v| pos(mesh, v)));
+            dot(normal(t1.map(at)), old) > 0.0 && dot(normal(t2.map(at)), old) > 0.0
+        });
+        if !ok {
+            continue;
+        }
+        mesh.positions.push(m32);
+        if !mesh.normals.is_empty() {
+            let n = g.map(|c| (c / gl) as f32);
+            mesh.normals.push(n);
+        }
+        fixed.push(group.len() == 1);
+        for (ti, t1, t2) in new_triangles {
+            mesh.triangles[ti] = t1;
+            mesh.triangles.push(t2);
+            touched[ti] = true;
+            touched.push(true);
+        }
+        splits += 1;
+    }
+    splits
+}
+
 /// One pass of edge flips: an edge shared by two triangles is replaced by the other diagonal of
 /// their quad when that raises the pair's worst quality, the new edge is not in the mesh yet, and
-/// both new triangles face the way the pair did (no fold, at most 30° between them). The
+/// both new triangles face the way the pair did (no fold, at most 30° between them), and the new
+/// edge's midpoint is within [`SPLIT_ABOVE`] of the level set (or closer than the old one's). The
 /// topology is unchanged; triangles touched in this pass are left for the next.
-fn flip_edges(mesh: &mut Mesh, fixed: &[bool]) -> usize {
-    let _ = fixed;
+fn flip_edges(mesh: &mut Mesh, field: &dyn Field, level: f64, step_limit: f64) -> usize {
+    // First-order distance of a point from the level set, in units of `step_limit`.
+    let off = |x: [f64; 3]| {
+        field.value_and_gradient(x).map_or(f64::INFINITY, |(f, g)| {
+            let gl = dot(g, g).sqrt();
+            if gl == 0.0 {
+                f64::INFINITY
+            } else {
+                (f - level).abs() / gl / step_limit
+            }
+        })
+    };
     let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
     for (ti, t) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
@@ -248,6 +351,15 @@ fn flip_edges(mesh: &mut Mesh, fixed: &[bool]) -> usize {
         let (q1, q2) = (normal(n1.map(p)), normal(n2.map(p)));
         let unit_dot = |u: [f64; 3], w: [f64; 3]| dot(u, w) / (dot(u, u) * dot(w, w)).sqrt();
         if dot(q1, sum) <= 0.0 || dot(q2, sum) <= 0.0 || unit_dot(q1, q2) < cos30 {
+            continue;
+        }
+        // The new edge must stay as close to the level set as splitting keeps edges.
+        let mid = |u: u32, w: u32| -> [f64; 3] {
+            let (pu, pw) = (p(u), p(w));
+            std::array::from_fn(|k| (pu[k] + pw[k]) / 2.0)
+        };
+        let new_off = off(mid(c, d));
+        if new_off > SPLIT_ABOVE && new_off > off(mid(a, b)) {
             continue;
         }
         mesh.triangles[t1] = n1;
@@ -366,7 +478,36 @@ fn try_move(
     let d = sub(target, x);
     let dn = dot(d, n);
     let tangential: [f64; 3] = std::array::from_fn(|k| d[k] - dn * n[k]);
-    // The worst incident quality at a candidate position, if no triangle turns over.
+    // How far the incident triangles' centroids and the midpoints of the vertex's edges lie from
+    // the level set (in grid spacings), with the vertex at `at`.
+    let off_surface = |at: [f64; 3]| -> f64 {
+        let off = |q: [f64; 3]| {
+            field.value_and_gradient(q).map_or(f64::INFINITY, |(f, g)| {
+                let gl = dot(g, g).sqrt();
+                if gl == 0.0 {
+                    f64::INFINITY
+                } else {
+                    (f - level).abs() / gl / step_limit
+                }
+            })
+        };
+        let mut worst: f64 = 0.0;
+        for &t in tris {
+            let p = corners(t, at);
+            worst = worst.max(off(std::array::from_fn(|d| {
+                (p[0][d] + p[1][d] + p[2][d]) / 3.0
+            })));
+            for q in p {
+                if q != at {
+                    worst = worst.max(off(std::array::from_fn(|d| (q[d] + at[d]) / 2.0)));
+                }
+            }
+        }
+        worst
+    };
+    let allowed_off = off_surface(x).max(SPLIT_ABOVE);
+    // The worst incident quality at a candidate position, if no triangle turns over and the
+    // triangles stay as close to the level set as before (or within the split threshold).
     let evaluate = |moved: [f64; 3]| -> Option<(f64, [f32; 3])> {
         let y = project(moved, field, level, step_limit)?;
         let y32 = y.map(|c| c as f32);
@@ -374,7 +515,7 @@ fn try_move(
         let ok = tris
             .iter()
             .all(|&t| dot(normal(corners(t, x)), normal(corners(t, y))) > 0.0);
-        if !ok {
+        if !ok || off_surface(y) > allowed_off {
             return None;
         }
         let s = tris
