@@ -104,8 +104,8 @@ impl<'a> Placer<'a> {
         let n = ids.len() as f64;
         let mut p = [0.0f64; 3];
         for &v in ids {
-            for d in 0..3 {
-                p[d] += f64::from(mesh.positions[v as usize][d]) / n;
+            for (c, x) in p.iter_mut().zip(mesh.positions[v as usize]) {
+                *c += f64::from(x) / n;
             }
         }
         self.interior_vertex(p, ids, mesh)
@@ -123,8 +123,8 @@ impl<'a> Placer<'a> {
         if self.normals {
             let mut g = [0.0f64; 3];
             for &v in ids {
-                for d in 0..3 {
-                    g[d] += f64::from(mesh.normals[v as usize][d]);
+                for (c, x) in g.iter_mut().zip(mesh.normals[v as usize]) {
+                    *c += f64::from(x);
                 }
             }
             // Normals of the corners already carry the flip.

@@ -575,3 +575,104 @@ fn ternary_sphere_quality_matches_snapmc() {
         assert!(a.below_10 < mc_angles.below_10 && a.max_angle < mc_angles.max_angle);
     }
 }
+
+mod strategies {
+    use super::*;
+    use crate::extract::{Method, Snapping};
+    use crate::quality::Strategy;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 5_000, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Every triangulation strategy, with binary or ternary extraction and with or without
+        /// relaxation, keeps random tied grids watertight, edge-manifold and oriented with the
+        /// MC33 mesh's components and Euler characteristic; ternary meshes also stay free of
+        /// zero-area triangles.
+        #[test]
+        fn every_strategy_keeps_closed_manifolds(
+            grid in closed_grid(),
+            strategy in prop_oneof![Just(Strategy::Fan), Just(Strategy::Local), Just(Strategy::Optimal)],
+            ternary: bool,
+            relax in 0usize..3,
+        ) {
+            let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0.report();
+            let mut options = ExtractOptions::default()
+                .with_triangulation(strategy)
+                .with_relax(relax);
+            if ternary {
+                options = options.with_method(Method::Ternary(Snapping { snap: 0.5, ..Snapping::default() }));
+            }
+            let (mesh, _) = extract(&grid, &options).unwrap();
+            mesh.validate().unwrap();
+            let r = mesh.report();
+            prop_assert_eq!((r.components, r.euler), (mc33.components, mc33.euler));
+            if mesh.triangle_count() > 0 {
+                assert_closed_manifold(&r);
+            }
+            if ternary {
+                prop_assert_eq!(r.degenerate, 0);
+            }
+        }
+    }
+
+    /// The combination of ternary snapping, optimal triangulation and relaxation on the exact
+    /// function (what `isocube extract … --relax` does for built-in samples): smallest angle at least
+    /// 30°, largest at most 110°, within 0.05 grid spacings of the zero set, at most 1.3× the
+    /// triangles of classic Marching Cubes, same topology as MC33.
+    #[test]
+    fn best_combination_meets_the_quality_targets() {
+        use crate::quality::{angle_summary, level_set_distance, relax, Implicit};
+        for sample in [
+            Sample::Sphere,
+            Sample::Torus,
+            Sample::Hyperboloid,
+            Sample::Gyroid,
+            Sample::Tangle,
+        ] {
+            for n in [40, 64] {
+                let grid = sample.grid(n);
+                let h = grid.spacing()[0];
+                let classic = extract(
+                    &grid,
+                    &ExtractOptions::default().with_topology(Topology::Classic),
+                )
+                .unwrap()
+                .0;
+                let mc33 = extract(&grid, &ExtractOptions::default())
+                    .unwrap()
+                    .0
+                    .report();
+                let options = ExtractOptions::default()
+                    .with_method(Method::Ternary(Snapping {
+                        snap: 0.5,
+                        ..Snapping::default()
+                    }))
+                    .with_triangulation(Strategy::Optimal);
+                let (mut mesh, _) = extract(&grid, &options).unwrap();
+                relax(
+                    &mut mesh,
+                    &Implicit(|p| sample.eval(p), 1e-4 * h),
+                    0.0,
+                    10,
+                    h,
+                );
+                let a = angle_summary(&mesh);
+                let d = level_set_distance(&mesh, |p| sample.eval(p), 0.0, h);
+                let r = mesh.report();
+                let what = format!("{sample}:{n}: {a:?} {d:?}");
+                assert!(a.min_angle >= 30.0 && a.max_angle <= 110.0, "{what}");
+                assert!(d.max <= 0.05, "{what}");
+                assert!(
+                    mesh.triangle_count() as f64 <= 1.3 * classic.triangle_count() as f64,
+                    "{what}"
+                );
+                assert_eq!(
+                    (r.components, r.euler, r.watertight),
+                    (mc33.components, mc33.euler, mc33.watertight),
+                    "{what}"
+                );
+                assert_eq!(r.nonmanifold_edges, 0, "{what}");
+            }
+        }
+    }
+}

@@ -15,8 +15,8 @@ pub enum Strategy {
     #[default]
     Fan,
     /// The local-change paper's method: small-angle corners cut off, an interior vertex pulled
-    /// toward short sides for pentagons and larger (and long quads), otherwise the largest angle
-    /// split.
+    /// toward short sides for pentagons and larger (and long quads) unless diagonals alone do better,
+    /// otherwise the largest angle split.
     Local,
     /// The triangulation that maximises the smallest angle: exact over all triangulations by
     /// diagonals, compared with a star around one interior vertex placed by a pattern search.
@@ -75,7 +75,7 @@ pub fn triangulate(
     bounds: ([f64; 3], [f64; 3]),
 ) -> Option<PolygonTriangles> {
     let n = corners.len();
-    if n < 3 || n > 16 {
+    if !(3..=16).contains(&n) {
         return None;
     }
     if n == 3 {
@@ -347,8 +347,17 @@ fn local(
         }
         x
     };
-    // (2) An interior vertex for pentagons and larger, and for long quads.
-    if interior_wanted && star_quality(&q, weighted_interior_point(&q), normal) > 0.0 {
+    let sub_allowed = |i: usize, j: usize| {
+        let (a, b) = (rest[i], rest[j]);
+        allowed(a.min(b), a.max(b))
+    };
+    // (2) An interior vertex for pentagons and larger, and for long quads — unless diagonals
+    // alone do better: in a sliver (two close, long sides) a vertex in the middle only makes
+    // needles with a near-180° angle.
+    let star_q = star_quality(&q, weighted_interior_point(&q), normal);
+    let split_better =
+        best_by_diagonals(&q, &sub_allowed, normal).is_some_and(|(qd, _)| qd >= star_q);
+    if interior_wanted && star_q > 0.0 && !split_better {
         let x = with_interior(&mut out);
         return Some(PolygonTriangles {
             triangles: out,
@@ -387,10 +396,6 @@ fn local(
             }
         }
     }
-    let sub_allowed = |i: usize, j: usize| {
-        let (a, b) = (rest[i], rest[j]);
-        allowed(a.min(b), a.max(b))
-    };
     if let Some((_, tris)) = best_by_diagonals(&q, &sub_allowed, normal) {
         out.extend(tris.iter().map(|t| t.map(|k| rest[usize::from(k)] as u8)));
         return Some(PolygonTriangles {
