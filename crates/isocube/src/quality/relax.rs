@@ -140,6 +140,7 @@ pub fn relax(
     }
     let mut kept = 0;
     let (mut start, mut incident) = incidence(mesh);
+    let budget = mesh.triangles.len() + mesh.triangles.len() * SPLIT_BUDGET_PERCENT / 100;
     for sweep in 0..sweeps {
         // Vertices off the level set (interior points of cells, say) go onto it first.
         for v in 0..mesh.positions.len() {
@@ -152,8 +153,8 @@ pub fn relax(
         }
         // Splits in the first half only, so that the second half relaxes around the new
         // vertices.
-        let split = if 2 * sweep < sweeps {
-            split_far_edges(mesh, &mut fixed, field, level, step_limit)
+        let split = if 2 * sweep < sweeps && mesh.triangles.len() < budget {
+            split_far_edges(mesh, &mut fixed, field, level, step_limit, budget)
         } else {
             0
         };
@@ -206,16 +207,22 @@ fn incidence(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
 /// Edges whose midpoint lies farther than this many `step_limit`s (grid spacings) from the level
 /// set are split at the midpoint projected onto it.
 pub const SPLIT_ABOVE: f64 = 0.04;
+/// Edges shorter than this many `step_limit`s are not split: at a crease of the field no chord
+/// comes close, and splitting would only multiply needles.
+pub const SPLIT_MIN_LENGTH: f64 = 0.5;
+/// Splits add at most this share of the triangles a relaxation starts with.
+pub const SPLIT_BUDGET_PERCENT: usize = 50;
 
-/// One pass of edge splits: an edge whose midpoint is farther than [`SPLIT_ABOVE`] from the level
-/// set gets a new vertex at the midpoint projected onto it, and its one or two triangles are
-/// halved. Triangles touched in this pass are left for the next. Returns the number of splits.
+/// One pass of edge splits: an edge at least [`SPLIT_MIN_LENGTH`] long whose midpoint is farther
+/// than [`SPLIT_ABOVE`] from the level set gets a new vertex at the midpoint projected onto it,
+/// and its one or two triangles are halved, within the triangle budget. Triangles touched in this pass are left for the next. Returns the number of splits.
 fn split_far_edges(
     mesh: &mut Mesh,
     fixed: &mut Vec<bool>,
     field: &dyn Field,
     level: f64,
     step_limit: f64,
+    budget: usize,
 ) -> usize {
     let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
     for (ti, t) in mesh.triangles.iter().enumerate() {
@@ -231,8 +238,15 @@ fn split_far_edges(
         if group.len() > 2 || group.iter().any(|h| touched[h.2 as usize]) {
             continue;
         }
+        if mesh.triangles.len() + group.len() > budget {
+            break;
+        }
         let (a, b) = (group[0].0, group[0].1);
         let (pa, pb) = (pos(mesh, a), pos(mesh, b));
+        let e = sub(pa, pb);
+        if dot(e, e).sqrt() < SPLIT_MIN_LENGTH * step_limit {
+            continue;
+        }
         let mid: [f64; 3] = std::array::from_fn(|d| (pa[d] + pb[d]) / 2.0);
         let Some((f, g)) = field.value_and_gradient(mid) else {
             continue;
