@@ -382,3 +382,102 @@ fn ternary_polygon_table() {
         .collect();
     assert_eq!(configs.len(), 256);
 }
+
+/// `isocube quality`: Verdict measures, distance from the sample's zero set, histograms as SVG
+/// and PNG; a bad picture extension is bad input.
+#[test]
+fn quality_report_and_histograms() {
+    let dir = tempfile::tempdir().unwrap();
+    ok(
+        dir.path(),
+        &["extract", "sample:sphere:10", "-o", "s.ply", "--quiet"],
+    );
+    let text = ok(
+        dir.path(),
+        &[
+            "quality",
+            "s.ply",
+            "--field",
+            "sample:sphere:10",
+            "--json",
+            "--histogram",
+            "h.svg",
+        ],
+    );
+    let q: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(q["triangles"], 524);
+    let bins: u64 = q["histogram_5deg"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b.as_u64().unwrap())
+        .sum();
+    assert_eq!(bins, 3 * 524);
+    let min = q["min_angle"]["min"].as_f64().unwrap();
+    assert!(min > 0.0 && min < 10.0);
+    assert!(q["radius_ratio"]["min"].as_f64().unwrap() >= 1.0);
+    let d = q["distance"]["max"].as_f64().unwrap();
+    assert!(d > 0.0 && d < 0.2, "{d}");
+    let svg = std::fs::read_to_string(dir.path().join("h.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert_eq!(svg.matches("<rect x=").count(), 36);
+    ok(dir.path(), &["quality", "s.ply", "--histogram", "h.png"]);
+    let png = std::fs::read(dir.path().join("h.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let be = |i: usize| u32::from_be_bytes(png[i..i + 4].try_into().unwrap());
+    assert_eq!((be(16), be(20)), (760, 380));
+    let out = isocube(dir.path(), &["quality", "s.ply", "--histogram", "h.gif"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.path().join("h.gif").exists());
+    let table = ok(dir.path(), &["quality", "s.ply"]);
+    assert!(table.contains("radius_ratio") && table.contains("edge_ratio"));
+}
+
+/// `--triangulate` and `--relax`: every strategy keeps the sphere watertight; ternary snapping
+/// with optimal triangles and relaxation lifts the smallest angle past 30°.
+#[test]
+fn triangulation_strategies_and_relaxation() {
+    let dir = tempfile::tempdir().unwrap();
+    for t in ["fan", "local", "optimal"] {
+        ok(
+            dir.path(),
+            &[
+                "extract",
+                "sample:sphere:20",
+                "--triangulate",
+                t,
+                "-o",
+                "s.ply",
+            ],
+        );
+        let r = info(dir.path(), "s.ply");
+        assert_eq!(
+            (r["watertight"].clone(), r["euler"].clone()),
+            (true.into(), 2.into()),
+            "{t}"
+        );
+    }
+    ok(
+        dir.path(),
+        &[
+            "extract",
+            "sample:torus:40",
+            "--method",
+            "ternary",
+            "--snap",
+            "0.5",
+            "--triangulate",
+            "optimal",
+            "--relax",
+            "10",
+            "-o",
+            "t.ply",
+        ],
+    );
+    let r = info(dir.path(), "t.ply");
+    assert_eq!(
+        (r["watertight"].clone(), r["genus"].clone()),
+        (true.into(), 1.into())
+    );
+    assert!(r["min_angle"].as_f64().unwrap() >= 30.0 && r["max_angle"].as_f64().unwrap() <= 110.0);
+}
