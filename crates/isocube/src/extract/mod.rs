@@ -103,7 +103,7 @@ pub struct ExtractOptions {
     pub method: Method,
     /// How each cell polygon becomes triangles.
     pub triangulation: Strategy,
-    /// Relaxation sweeps after extraction (see [`crate::quality::relax`]); 0 for none.
+    /// Relaxation sweeps after extraction (see [`crate::quality::relax()`]); 0 for none.
     pub relax: usize,
 }
 
