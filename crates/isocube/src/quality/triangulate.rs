@@ -504,20 +504,40 @@ mod tests {
     }
 
     #[test]
-    fn local_cuts_a_sliver_corner_and_optimal_beats_it() {
-        // A long thin quad: local inserts an interior vertex (side ratio 10).
+    fn local_skips_a_useless_interior_vertex_and_optimal_beats_local() {
+        let any = |_: usize, _: usize| true;
+        let bounds = ([-1.0; 3], [11.0; 3]);
+        // A sliver rectangle (side ratio 10): a vertex in the middle would only add needles, so
+        // local splits it by a diagonal.
         let p = vec![
             [0.0, 0.0, 0.0],
             [10.0, 0.0, 0.0],
             [10.0, 1.0, 0.0],
             [0.0, 1.0, 0.0],
         ];
-        let any = |_: usize, _: usize| true;
-        let bounds = ([-1.0; 3], [11.0; 3]);
         let l = triangulate(&p, &any, Strategy::Local, bounds).unwrap();
-        assert!(l.interior.is_some());
+        assert!(l.interior.is_none());
+        assert_eq!(l.triangles.len(), 2);
         let o = triangulate(&p, &any, Strategy::Optimal, bounds).unwrap();
         assert!(min_angle(&p, &o) >= min_angle(&p, &l) - 1e-9);
         assert!((area(&p, &o) - 10.0).abs() < 1e-9 && (area(&p, &l) - 10.0).abs() < 1e-9);
+        // A hexagon with one very short side: local's interior vertex, pulled toward the short
+        // side, beats every split by diagonals here, and optimal is at least as good again.
+        let h = vec![
+            [0.0, 0.0, 0.0],
+            [2.0, -1.0, 0.0],
+            [4.0, 0.0, 0.0],
+            [4.0, 0.2, 0.0],
+            [2.0, 1.2, 0.0],
+            [0.0, 0.2, 0.0],
+        ];
+        let lh = triangulate(&h, &any, Strategy::Local, bounds).unwrap();
+        let oh = triangulate(&h, &any, Strategy::Optimal, bounds).unwrap();
+        let diagonals = best_by_diagonals(&h, &any, polygon_normal(&h))
+            .unwrap()
+            .0
+            .to_degrees();
+        assert!(min_angle(&h, &lh) >= diagonals - 1e-9);
+        assert!(min_angle(&h, &oh) >= min_angle(&h, &lh) - 1e-9);
     }
 }
