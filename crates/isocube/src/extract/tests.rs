@@ -173,6 +173,21 @@ fn closed_grid() -> impl Strategy<Value = Grid> {
         })
 }
 
+/// Values from a seeded generator, quantised to quarters in [−1, 1] so that ties with levels on
+/// the same quarters occur.
+fn quantised_values(dims: [usize; 3], seed: u64) -> Vec<f32> {
+    let n: usize = dims.iter().product();
+    let mut state = seed;
+    (0..n)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 40) % 9) as f32 / 4.0 - 1.0
+        })
+        .collect()
+}
+
 fn assert_closed_manifold(r: &MeshReport) {
     assert_eq!(r.boundary_edges, 0, "{r:?}");
     assert_eq!(r.nonmanifold_edges, 0, "{r:?}");
@@ -211,13 +226,7 @@ proptest! {
         level in -1.0f32..1.0,
     ) {
         let dims = [dims.0, dims.1, dims.2];
-        let n: usize = dims.iter().product();
-        let mut state = seed;
-        let values: Vec<f32> = (0..n).map(|_| {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            // Quantised so that ties with the level occur.
-            ((state >> 40) % 9) as f32 / 4.0 - 1.0
-        }).collect();
+        let values = quantised_values(dims, seed);
         let level = (level * 4.0).round() / 4.0;
         let grid = Grid::new(dims, values).unwrap();
         let (mesh, _) = run(&grid, level);
@@ -390,12 +399,7 @@ mod ternary {
             snap in 0u8..6,
         ) {
             let dims = [dims.0, dims.1, dims.2];
-            let n: usize = dims.iter().product();
-            let mut state = seed;
-            let values: Vec<f32> = (0..n).map(|_| {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                ((state >> 40) % 9) as f32 / 4.0 - 1.0
-            }).collect();
+            let values = quantised_values(dims, seed);
             let grid = Grid::new(dims, values).unwrap();
             let level = f32::from(level) / 4.0;
             let mc33 = extract(&grid, &ExtractOptions::default().with_level(level)).unwrap().0;

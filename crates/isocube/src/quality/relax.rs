@@ -125,14 +125,9 @@ pub fn relax(
         return 0;
     }
     // Vertices on open or non-manifold edges are fixed.
-    let mut edges: Vec<(u32, u32)> = mesh
-        .triangles
-        .iter()
-        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
-        .collect();
-    edges.sort_unstable();
+    let edges = sorted_edges(mesh);
     let mut fixed = vec![false; nv];
-    for group in edges.chunk_by(|a, b| a == b) {
+    for group in edges.chunk_by(|a, b| (a.0, a.1) == (b.0, b.1)) {
         if group.len() != 2 {
             fixed[group[0].0 as usize] = true;
             fixed[group[0].1 as usize] = true;
@@ -181,6 +176,33 @@ pub fn relax(
     kept
 }
 
+/// Every triangle edge as `(low vertex, high vertex, triangle)`, sorted: the uses of one edge are
+/// consecutive.
+fn sorted_edges(mesh: &Mesh) -> Vec<(u32, u32, u32)> {
+    let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
+    for (ti, t) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            half.push((a.min(b), a.max(b), ti as u32));
+        }
+    }
+    half.sort_unstable();
+    half
+}
+
+/// First-order distance `|f − level| / |∇f|` of `x` from the level set, in units of `unit`
+/// (infinite where the field is undefined or flat).
+fn distance_off(field: &dyn Field, level: f64, unit: f64, x: [f64; 3]) -> f64 {
+    field.value_and_gradient(x).map_or(f64::INFINITY, |(f, g)| {
+        let gl = dot(g, g).sqrt();
+        if gl == 0.0 {
+            f64::INFINITY
+        } else {
+            (f - level).abs() / gl / unit
+        }
+    })
+}
+
 /// Incident triangles per vertex, as CSR arrays.
 fn incidence(mesh: &Mesh) -> (Vec<u32>, Vec<u32>) {
     let nv = mesh.positions.len();
@@ -224,14 +246,7 @@ fn split_far_edges(
     step_limit: f64,
     budget: usize,
 ) -> usize {
-    let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
-    for (ti, t) in mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            half.push((a.min(b), a.max(b), ti as u32));
-        }
-    }
-    half.sort_unstable();
+    let half = sorted_edges(mesh);
     let mut touched = vec![false; mesh.triangles.len()];
     let mut splits = 0;
     for group in half.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
@@ -305,25 +320,8 @@ fn split_far_edges(
 /// edge's midpoint is within [`SPLIT_ABOVE`] of the level set (or closer than the old one's). The
 /// topology is unchanged; triangles touched in this pass are left for the next.
 fn flip_edges(mesh: &mut Mesh, field: &dyn Field, level: f64, step_limit: f64) -> usize {
-    // First-order distance of a point from the level set, in units of `step_limit`.
-    let off = |x: [f64; 3]| {
-        field.value_and_gradient(x).map_or(f64::INFINITY, |(f, g)| {
-            let gl = dot(g, g).sqrt();
-            if gl == 0.0 {
-                f64::INFINITY
-            } else {
-                (f - level).abs() / gl / step_limit
-            }
-        })
-    };
-    let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
-    for (ti, t) in mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            half.push((a.min(b), a.max(b), ti as u32));
-        }
-    }
-    half.sort_unstable();
+    let off = |x: [f64; 3]| distance_off(field, level, step_limit, x);
+    let half = sorted_edges(mesh);
     let mut existing: std::collections::HashSet<(u32, u32)> =
         half.iter().map(|h| (h.0, h.1)).collect();
     let mut touched = vec![false; mesh.triangles.len()];
@@ -435,6 +433,11 @@ fn project(x: [f64; 3], field: &dyn Field, level: f64, step_limit: f64) -> Optio
     Some(x)
 }
 
+/// Triangle `t`'s corners with vertex `v` moved to `at`.
+fn with_vertex_at(mesh: &Mesh, t: u32, v: usize, at: [f64; 3]) -> [[f64; 3]; 3] {
+    mesh.triangles[t as usize].map(|w| if w as usize == v { at } else { pos(mesh, w) })
+}
+
 /// The vertex projected onto the level set, unless that turns a triangle over.
 fn project_vertex(
     mesh: &Mesh,
@@ -447,9 +450,7 @@ fn project_vertex(
     let x = pos(mesh, v as u32);
     let y32 = project(x, field, level, step_limit)?.map(|c| c as f32);
     let y = y32.map(f64::from);
-    let corners = |t: u32, at: [f64; 3]| -> [[f64; 3]; 3] {
-        mesh.triangles[t as usize].map(|w| if w as usize == v { at } else { pos(mesh, w) })
-    };
+    let corners = |t: u32, at: [f64; 3]| with_vertex_at(mesh, t, v, at);
     tris.iter()
         .all(|&t| dot(normal(corners(t, x)), normal(corners(t, y))) > 0.0)
         .then_some(y32)
@@ -464,9 +465,7 @@ fn try_move(
     step_limit: f64,
 ) -> Option<[f32; 3]> {
     let x = pos(mesh, v as u32);
-    let corners = |t: u32, at: [f64; 3]| -> [[f64; 3]; 3] {
-        mesh.triangles[t as usize].map(|w| if w as usize == v { at } else { pos(mesh, w) })
-    };
+    let corners = |t: u32, at: [f64; 3]| with_vertex_at(mesh, t, v, at);
     let (mut area, mut target) = (0.0, [0.0; 3]);
     let mut old_score = f64::INFINITY;
     for &t in tris {
@@ -495,16 +494,7 @@ fn try_move(
     // How far the incident triangles' centroids and the midpoints of the vertex's edges lie from
     // the level set (in grid spacings), with the vertex at `at`.
     let off_surface = |at: [f64; 3]| -> f64 {
-        let off = |q: [f64; 3]| {
-            field.value_and_gradient(q).map_or(f64::INFINITY, |(f, g)| {
-                let gl = dot(g, g).sqrt();
-                if gl == 0.0 {
-                    f64::INFINITY
-                } else {
-                    (f - level).abs() / gl / step_limit
-                }
-            })
-        };
+        let off = |q: [f64; 3]| distance_off(field, level, step_limit, q);
         let mut worst: f64 = 0.0;
         for &t in tris {
             let p = corners(t, at);

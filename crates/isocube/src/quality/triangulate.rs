@@ -426,40 +426,29 @@ mod tests {
             .collect()
     }
 
-    fn min_angle(p: &[[f64; 3]], t: &PolygonTriangles) -> f64 {
+    /// The triangles' corner positions (the interior vertex last).
+    fn corners(p: &[[f64; 3]], t: &PolygonTriangles) -> Vec<[[f64; 3]; 3]> {
         let mut all = p.to_vec();
-        if let Some(x) = t.interior {
-            all.push(x);
-        }
+        all.extend(t.interior);
         t.triangles
             .iter()
-            .map(|tri| {
-                quality(
-                    all[tri[0] as usize],
-                    all[tri[1] as usize],
-                    all[tri[2] as usize],
-                    [0.0, 0.0, 1.0],
-                )
-            })
+            .map(|tri| tri.map(|i| all[usize::from(i)]))
+            .collect()
+    }
+
+    fn min_angle(p: &[[f64; 3]], t: &PolygonTriangles) -> f64 {
+        corners(p, t)
+            .into_iter()
+            .map(|[a, b, c]| quality(a, b, c, [0.0, 0.0, 1.0]))
             .fold(f64::INFINITY, f64::min)
             .to_degrees()
     }
 
     /// Area of the triangles equals the polygon's: they tile it without overlap or gap.
     fn area(p: &[[f64; 3]], t: &PolygonTriangles) -> f64 {
-        let mut all = p.to_vec();
-        if let Some(x) = t.interior {
-            all.push(x);
-        }
-        t.triangles
-            .iter()
-            .map(|tri| {
-                let n = cross(
-                    sub(all[tri[1] as usize], all[tri[0] as usize]),
-                    sub(all[tri[2] as usize], all[tri[0] as usize]),
-                );
-                n[2] / 2.0
-            })
+        corners(p, t)
+            .into_iter()
+            .map(|[a, b, c]| cross(sub(b, a), sub(c, a))[2] / 2.0)
             .sum()
     }
 
