@@ -280,6 +280,20 @@ fn optimal(
 ) -> Option<PolygonTriangles> {
     let normal = polygon_normal(p);
     let by_diagonals = best_by_diagonals(p, allowed, normal);
+    // A star splits every corner's angle in two, so its smallest angle is at most half the
+    // polygon's smallest corner angle: when the diagonals reach that, no star can do better.
+    let half_corner = (0..p.len())
+        .map(|i| corner_angle(p, i))
+        .fold(f64::INFINITY, f64::min)
+        / 2.0;
+    if let Some((qd, tris)) = &by_diagonals {
+        if *qd >= half_corner {
+            return Some(PolygonTriangles {
+                triangles: tris.clone(),
+                interior: None,
+            });
+        }
+    }
     let (qs, x) = best_star(p, normal, bounds);
     match by_diagonals {
         Some((qd, tris)) if qd >= qs => Some(PolygonTriangles {
