@@ -19,7 +19,8 @@ pub enum Strategy {
     /// otherwise the largest angle split.
     Local,
     /// The triangulation that maximises the smallest angle: exact over all triangulations by
-    /// diagonals, compared with a star around one interior vertex placed by a pattern search.
+    /// diagonals, compared with the best triangulation around one interior vertex (exact over
+    /// which corners it joins; its position found by a pattern search).
     Optimal,
 }
 
@@ -295,13 +296,17 @@ fn optimal(
         }
     }
     let (qs, x) = best_star(p, normal, bounds);
+    // At that interior vertex, the best triangulation joining it to any three or more corners
+    // (the rest split by diagonals): exact over the choice of corners; the full star is one.
+    let with_point = best_with_point(p, allowed, normal, x).filter(|(q, _)| *q >= qs);
+    let (qs, star_tris) = with_point.unwrap_or((qs, star(p.len())));
     match by_diagonals {
         Some((qd, tris)) if qd >= qs => Some(PolygonTriangles {
             triangles: tris,
             interior: None,
         }),
         _ if qs > 0.0 => Some(PolygonTriangles {
-            triangles: star(p.len()),
+            triangles: star_tris,
             interior: Some(x),
         }),
         Some((_, tris)) => Some(PolygonTriangles {
@@ -310,6 +315,117 @@ fn optimal(
         }),
         None => None,
     }
+}
+
+/// The max–min-angle triangulation of a polygon with one interior vertex at `x` joined to at
+/// least three corners, the pockets between consecutive joined corners split by diagonals: exact,
+/// by dynamic programming over cyclic corner intervals.
+fn best_with_point(
+    p: &[[f64; 3]],
+    allowed: &dyn Fn(usize, usize) -> bool,
+    normal: [f64; 3],
+    x: [f64; 3],
+) -> Option<(f64, Vec<[u8; 3]>)> {
+    let n = p.len();
+    let at = |i: usize, len: usize| (i + len) % n;
+    let chord = |i: usize, j: usize| {
+        let d = (j + n - i) % n;
+        d == 1 || d == n - 1 || allowed(i.min(j), i.max(j))
+    };
+    // pocket[i][len]: best smallest angle triangulating corners i, i+1, …, i+len (cyclic) by
+    // diagonals, closed by the chord from i to i+len; len 1 is a polygon side (nothing to split).
+    let mut pocket = vec![vec![f64::NEG_INFINITY; n]; n];
+    let mut split = vec![vec![usize::MAX; n]; n];
+    for row in pocket.iter_mut() {
+        row[1] = f64::INFINITY;
+    }
+    for len in 2..n {
+        for i in 0..n {
+            let j = at(i, len);
+            if !chord(i, j) {
+                continue;
+            }
+            for m in 1..len {
+                let k = at(i, m);
+                if !chord(i, k) || !chord(k, j) {
+                    continue;
+                }
+                let q = quality(p[i], p[k], p[j], normal)
+                    .min(pocket[i][m])
+                    .min(pocket[k][len - m]);
+                if q > pocket[i][len] {
+                    pocket[i][len] = q;
+                    split[i][len] = m;
+                }
+            }
+        }
+    }
+    let fan = |i: usize, j: usize| quality(p[i], p[j], x, normal);
+    // Chains from the first joined corner s around to s again, through ≥ 3 joined corners.
+    let mut best: (f64, usize, Vec<usize>) = (f64::NEG_INFINITY, 0, Vec::new());
+    for s in 0..n {
+        // value[step][c]: best over chains from s to s+step with c (capped at 3) fan triangles.
+        let mut value = vec![[f64::NEG_INFINITY; 4]; n + 1];
+        let mut from = vec![[usize::MAX; 4]; n + 1];
+        value[0][0] = f64::INFINITY;
+        for j in 1..=n {
+            for i in 0..j {
+                let len = j - i;
+                if len >= n {
+                    continue;
+                }
+                let (a, b) = (at(s, i), at(s, j));
+                if !chord(a, b) {
+                    continue;
+                }
+                let q = fan(a, b).min(pocket[a][len]);
+                for c in 0..4 {
+                    if value[i][c] == f64::NEG_INFINITY {
+                        continue;
+                    }
+                    let v = value[i][c].min(q);
+                    let c2 = (c + 1).min(3);
+                    if v > value[j][c2] {
+                        value[j][c2] = v;
+                        from[j][c2] = i * 4 + c;
+                    }
+                }
+            }
+        }
+        if value[n][3] > best.0 {
+            // Walk back to the joined corners (as steps from s).
+            let mut steps = vec![n];
+            let (mut j, mut c) = (n, 3);
+            while j > 0 {
+                let f = from[j][c];
+                j = f / 4;
+                c = f % 4;
+                steps.push(j);
+            }
+            steps.reverse();
+            best = (value[n][3], s, steps);
+        }
+    }
+    if best.0 <= 0.0 {
+        return None;
+    }
+    let (q, s, steps) = best;
+    let mut out = Vec::new();
+    for w in steps.windows(2) {
+        let (a, len) = (at(s, w[0]), w[1] - w[0]);
+        out.push([a as u8, at(a, len) as u8, n as u8]);
+        let mut stack = vec![(a, len)];
+        while let Some((i, len)) = stack.pop() {
+            if len < 2 {
+                continue;
+            }
+            let m = split[i][len];
+            out.push([i as u8, at(i, m) as u8, at(i, len) as u8]);
+            stack.push((i, m));
+            stack.push((at(i, m), len - m));
+        }
+    }
+    Some((q, out))
 }
 
 fn local(
@@ -487,6 +603,51 @@ mod tests {
             let bound = star_angle.max(180.0 / nf);
             let got = min_angle(&p, &t);
             assert!(got >= bound - 1e-6, "{n}: {got}");
+        }
+    }
+
+    /// Around a fixed interior vertex, the exact search over joined corners tiles the polygon and
+    /// is never worse than the full star (one of its candidates), on irregular polygons.
+    #[test]
+    fn interior_vertex_triangulations_tile_and_beat_the_star() {
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let any = |_: usize, _: usize| true;
+        for n in 4..=12 {
+            for _ in 0..20 {
+                // A star-shaped polygon around the origin with random radii.
+                let p: Vec<[f64; 3]> = (0..n)
+                    .map(|i| {
+                        let a = 2.0 * std::f64::consts::PI * (i as f64 + 0.4 * next()) / n as f64;
+                        let r = 0.3 + next();
+                        [r * a.cos(), r * a.sin(), 0.0]
+                    })
+                    .collect();
+                let normal = polygon_normal(&p);
+                let x = [0.05 * next(), 0.05 * next(), 0.0];
+                let star_q = star_quality(&p, x, normal);
+                let Some((q, tris)) = best_with_point(&p, &any, normal, x) else {
+                    assert!(star_q <= 0.0);
+                    continue;
+                };
+                assert!(q >= star_q - 1e-12);
+                let t = PolygonTriangles {
+                    triangles: tris,
+                    interior: Some(x),
+                };
+                assert_eq!(
+                    t.triangles.len(),
+                    n - 2 + 2,
+                    "n triangles with one interior vertex"
+                );
+                assert!((area(&p, &t) - normal[2] / 2.0).abs() < 1e-9);
+                assert!((min_angle(&p, &t) - q.to_degrees()).abs() < 1e-9);
+            }
         }
     }
 
