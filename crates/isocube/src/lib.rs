@@ -12,6 +12,7 @@
 //!   closure, configuration classes (binary 23/15/14, ternary 333/183), and the polygons of every
 //!   configuration obtained from its class representative.
 //! - [`field`]: sampled grids and built-in implicit sample functions.
+//! - [`contours`]: stacks of cross-section contours (validated) and their signed distance.
 //! - [`extract`]: watertight Marching Cubes with face ambiguities resolved by the asymptotic
 //!   decider.
 //! - [`extract`] also offers ternary Marching Cubes ([`extract::Method::Ternary`]): grid points on
@@ -37,6 +38,7 @@
 //!   and pulls in no format crates.
 #![warn(missing_docs)]
 
+pub mod contours;
 pub mod cube;
 pub mod extract;
 pub mod field;

@@ -12,8 +12,11 @@
 //! Writes are atomic: the mesh goes to a temporary file in the target's directory, is flushed to
 //! disk, then renamed over the target. A failed write leaves the target as it was.
 //!
+//! Contour stacks: CSV (`section,z,contour,x,y`) and JSON ([`read_contours`]).
+//!
 //! Every error names the file, the position (line, byte or header field) and the reason.
 
+mod contours;
 mod mesh_io;
 mod npy;
 mod nrrd;
@@ -26,6 +29,7 @@ use thiserror::Error;
 
 use crate::field::{Grid, GridError};
 
+pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
 pub use mesh_io::{read_mesh, write_mesh, write_mesh_to, MeshFormat, MeshWriteOptions};
 pub use npy::{read_npy, NpyAxes};
 pub use nrrd::read_nrrd;

@@ -1,0 +1,439 @@
+//! Contour stacks from CSV and JSON files.
+//!
+//! **CSV**: a header naming the columns `section`, `z`, `contour`, `x`, `y` (any order, any case,
+//! extra columns ignored), then one row per contour point. `section` and `contour` are labels:
+//! rows with the same section label form a section (all at the same `z`), rows with the same
+//! contour label within it form a contour, points in row order. Blank lines and lines starting
+//! with `#` are skipped.
+//!
+//! **JSON**: `{"sections": [{"z": 0.0, "contours": [[[x, y], …], …]}, …]}` (or the bare array).
+//!
+//! In both, every contour is closed explicitly by repeating its first point at the end (as GeoJSON
+//! rings are); a contour that does not return to its start is reported as open. Sections may come
+//! in any order and at any spacing; they are sorted by height, and two sections at one height are
+//! an error.
+//!
+//! ```
+//! use isocube::io::parse_contours_csv;
+//! let csv = "section,z,contour,x,y\n\
+//!            a,0,outer,0,0\na,0,outer,1,0\na,0,outer,1,1\na,0,outer,0,0\n";
+//! let stack = parse_contours_csv(csv, std::path::Path::new("in.csv")).unwrap();
+//! assert_eq!(stack.sections()[0].contours()[0].points().len(), 3);
+//! ```
+
+use std::path::Path;
+
+use crate::contours::{ContourError, Point2, SectionStack};
+
+use super::{IoError, Position};
+
+/// Reads a contour stack, by extension: `.csv` or `.json`.
+pub fn read_contours(path: &Path) -> Result<SectionStack, IoError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let text = std::fs::read(path).map_err(|source| IoError::Os {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let text = String::from_utf8(text).map_err(|e| IoError::Format {
+        path: path.to_path_buf(),
+        position: Position::Byte(e.utf8_error().valid_up_to() as u64),
+        reason: "not UTF-8 text".into(),
+    })?;
+    match ext.as_deref() {
+        Some("csv") => parse_contours_csv(&text, path),
+        Some("json") => parse_contours_json(&text, path),
+        _ => Err(IoError::Unsupported {
+            path: path.to_path_buf(),
+            position: Position::File,
+            reason: "contour files are .csv or .json".into(),
+        }),
+    }
+}
+
+/// One section being read: its label, height, first line and contours (label, first line,
+/// points).
+struct RawSection {
+    label: String,
+    z: f64,
+    contours: Vec<(String, usize, usize, Vec<Point2>)>,
+}
+
+/// Builds the stack, checking closure, ordering and validity; errors point at the input's
+/// labels and lines through `describe`.
+fn build(
+    mut sections: Vec<RawSection>,
+    path: &Path,
+    where_is: &dyn Fn(&RawSection, usize) -> Position,
+) -> Result<SectionStack, IoError> {
+    let format = |position: Position, reason: String| IoError::Format {
+        path: path.to_path_buf(),
+        position,
+        reason,
+    };
+    if sections.is_empty() {
+        return Err(format(Position::File, "no contour points".into()));
+    }
+    sections.sort_by(|a, b| a.z.total_cmp(&b.z));
+    for w in sections.windows(2) {
+        if w[0].z == w[1].z {
+            return Err(format(
+                where_is(&w[1], 0),
+                format!(
+                    "sections '{}' and '{}' are both at z = {}",
+                    w[0].label, w[1].label, w[1].z
+                ),
+            ));
+        }
+    }
+    // Closure first: an open contour is the likeliest mistake and the clearest message.
+    for s in &sections {
+        for (c, (label, _, _, points)) in s.contours.iter().enumerate() {
+            let (first, last) = (points[0], points[points.len() - 1]);
+            if points.len() < 2 || first != last {
+                let gap = ((first[0] - last[0]).powi(2) + (first[1] - last[1]).powi(2)).sqrt();
+                let e = ContourError::Open {
+                    section: 0,
+                    contour: 0,
+                    gap,
+                };
+                return Err(format(
+                    where_is(s, c),
+                    format!(
+                        "section '{}' (z = {}), contour '{label}': {}",
+                        s.label,
+                        s.z,
+                        detail(&e)
+                    ),
+                ));
+            }
+        }
+    }
+    let input: Vec<(f64, Vec<Vec<Point2>>)> = sections
+        .iter()
+        .map(|s| (s.z, s.contours.iter().map(|c| c.3.clone()).collect()))
+        .collect();
+    SectionStack::from_points(input).map_err(|e| {
+        let (s, c) = e.location();
+        let sec = &sections[s.unwrap_or(0)];
+        let reason = match (&e, c) {
+            (ContourError::Crossing { contours, at, .. }, _) => format!(
+                "contours '{}' and '{}' meet at ({}, {})",
+                sec.contours[contours.0].0, sec.contours[contours.1].0, at[0], at[1]
+            ),
+            (_, Some(c)) => format!("contour '{}': {}", sec.contours[c].0, detail(&e)),
+            _ => detail(&e),
+        };
+        format(
+            where_is(sec, c.unwrap_or(0)),
+            format!("section '{}' (z = {}), {reason}", sec.label, sec.z),
+        )
+    })
+}
+
+/// The error's message without its "section i, contour j: " prefix.
+fn detail(e: &ContourError) -> String {
+    let text = e.to_string();
+    match text.find(": ") {
+        Some(i) if text.starts_with("section ") => text[i + 2..].to_string(),
+        _ => text,
+    }
+}
+
+/// Parses the CSV form (see the module documentation). `path` is only used in errors.
+pub fn parse_contours_csv(text: &str, path: &Path) -> Result<SectionStack, IoError> {
+    let format = |line: usize, reason: String| IoError::Format {
+        path: path.to_path_buf(),
+        position: Position::Line(line),
+        reason,
+    };
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let Some((header_line, header)) = lines.next() else {
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            position: Position::File,
+            reason: "empty file: expected a header section,z,contour,x,y".into(),
+        });
+    };
+    let names: Vec<String> = header
+        .split(',')
+        .map(|h| h.trim().trim_matches('"').to_ascii_lowercase())
+        .collect();
+    let column = |name: &str| {
+        names.iter().position(|n| n == name).ok_or_else(|| {
+            format(
+                header_line,
+                format!("the header has no '{name}' column (expected section,z,contour,x,y)"),
+            )
+        })
+    };
+    let cols = [
+        column("section")?,
+        column("z")?,
+        column("contour")?,
+        column("x")?,
+        column("y")?,
+    ];
+    let mut sections: Vec<RawSection> = Vec::new();
+    for (line, row) in lines {
+        let fields: Vec<&str> = row.split(',').map(|f| f.trim().trim_matches('"')).collect();
+        if fields.len() < names.len() {
+            return Err(format(
+                line,
+                format!("{} fields, the header has {}", fields.len(), names.len()),
+            ));
+        }
+        let number = |k: usize, name: &str| -> Result<f64, IoError> {
+            let v: f64 = fields[cols[k]].parse().map_err(|_| {
+                format(
+                    line,
+                    format!("{name} '{}' is not a number", fields[cols[k]]),
+                )
+            })?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(format(line, format!("{name} {v} is not a finite number")))
+            }
+        };
+        let (z, x, y) = (number(1, "z")?, number(3, "x")?, number(4, "y")?);
+        let (slabel, clabel) = (fields[cols[0]], fields[cols[2]]);
+        let s = match sections.iter().position(|s| s.label == slabel) {
+            Some(s) => s,
+            None => {
+                sections.push(RawSection {
+                    label: slabel.to_string(),
+                    z,
+                    contours: Vec::new(),
+                });
+                sections.len() - 1
+            }
+        };
+        let sec = &mut sections[s];
+        if sec.z != z {
+            return Err(format(
+                line,
+                format!(
+                    "section '{slabel}' is at z = {} but this row says {z}",
+                    sec.z
+                ),
+            ));
+        }
+        match sec.contours.iter_mut().position(|c| c.0 == clabel) {
+            Some(c) => {
+                let contour = &mut sec.contours[c];
+                if contour.3.len() > 1 && contour.3.first() == contour.3.last() {
+                    return Err(format(
+                        line,
+                        format!(
+                            "section '{slabel}', contour '{clabel}' continues after it was closed"
+                        ),
+                    ));
+                }
+                contour.2 = line;
+                contour.3.push([x, y]);
+            }
+            None => sec
+                .contours
+                .push((clabel.to_string(), line, line, vec![[x, y]])),
+        }
+    }
+    build(sections, path, &|s, c| {
+        Position::Line(s.contours.get(c).map_or(0, |c| c.1))
+    })
+}
+
+/// Parses the JSON form (see the module documentation). `path` is only used in errors.
+pub fn parse_contours_json(text: &str, path: &Path) -> Result<SectionStack, IoError> {
+    let format = |position: Position, reason: String| IoError::Format {
+        path: path.to_path_buf(),
+        position,
+        reason,
+    };
+    let value: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| format(Position::Line(e.line()), e.to_string()))?;
+    let list = match &value {
+        serde_json::Value::Array(a) => a,
+        serde_json::Value::Object(o) => match o.get("sections") {
+            Some(serde_json::Value::Array(a)) => a,
+            _ => {
+                return Err(format(
+                    Position::Field("sections".into()),
+                    "expected an array of sections".into(),
+                ))
+            }
+        },
+        _ => {
+            return Err(format(
+                Position::File,
+                "expected {\"sections\": [...]} or an array of sections".into(),
+            ))
+        }
+    };
+    let mut sections = Vec::with_capacity(list.len());
+    for (i, s) in list.iter().enumerate() {
+        let field = |name: &str| Position::Field(format!("sections[{i}].{name}"));
+        let z = s
+            .get("z")
+            .and_then(serde_json::Value::as_f64)
+            .ok_or_else(|| format(field("z"), "expected a number".into()))?;
+        let contours = s
+            .get("contours")
+            .and_then(serde_json::Value::as_array)
+            .ok_or_else(|| format(field("contours"), "expected an array of contours".into()))?;
+        let mut raw = Vec::with_capacity(contours.len());
+        for (c, contour) in contours.iter().enumerate() {
+            let at = |k: usize| Position::Field(format!("sections[{i}].contours[{c}][{k}]"));
+            let points = contour.as_array().ok_or_else(|| {
+                format(
+                    Position::Field(format!("sections[{i}].contours[{c}]")),
+                    "expected an array of [x, y] points".into(),
+                )
+            })?;
+            let mut pts = Vec::with_capacity(points.len());
+            for (k, p) in points.iter().enumerate() {
+                let xy = p
+                    .as_array()
+                    .filter(|a| a.len() == 2)
+                    .and_then(|a| Some([a[0].as_f64()?, a[1].as_f64()?]))
+                    .ok_or_else(|| format(at(k), "expected [x, y] with two numbers".into()))?;
+                pts.push(xy);
+            }
+            if pts.is_empty() {
+                return Err(format(
+                    Position::Field(format!("sections[{i}].contours[{c}]")),
+                    "an empty contour".into(),
+                ));
+            }
+            raw.push((c.to_string(), i, c, pts));
+        }
+        sections.push(RawSection {
+            label: i.to_string(),
+            z,
+            contours: raw,
+        });
+    }
+    build(sections, path, &|s, c| {
+        Position::Field(format!("sections[{}].contours[{c}]", s.label))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn csv(text: &str) -> Result<SectionStack, IoError> {
+        parse_contours_csv(text, Path::new("in.csv"))
+    }
+
+    const SQUARE: &str = "0,0\n1,0\n1,1\n0,1\n0,0";
+
+    fn csv_section(label: &str, z: f64, contour: &str, points: &str) -> String {
+        points
+            .lines()
+            .map(|p| format!("{label},{z},{contour},{p}\n"))
+            .collect()
+    }
+
+    #[test]
+    fn csv_sections_contours_and_order() {
+        let text = format!(
+            "# two sections given top first\nsection,z,contour,x,y\n{}{}{}",
+            csv_section("top", 5.0, "a", SQUARE),
+            csv_section("bottom", 1.5, "a", SQUARE),
+            csv_section("bottom", 1.5, "b", "3,3\n4,3\n4,4\n3,3"),
+        );
+        let stack = csv(&text).unwrap();
+        let zs: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
+        assert_eq!(zs, [1.5, 5.0]);
+        assert_eq!(stack.sections()[0].contours().len(), 2);
+        // Columns in another order, with an extra one.
+        let text =
+            "Y,X,note,Contour,Section,Z\n0,0,-,c,s,2\n0,1,-,c,s,2\n1,1,-,c,s,2\n0,0,-,c,s,2\n";
+        let s = csv(text).unwrap();
+        assert_eq!(
+            s.sections()[0].contours()[0].points(),
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]
+        );
+    }
+
+    #[test]
+    fn csv_errors_name_line_section_and_contour() {
+        let message = |text: &str| csv(text).unwrap_err().to_string();
+        let m = message(&format!(
+            "section,z,contour,x,y\n{}",
+            csv_section("s1", 0.0, "c1", "0,0\n1,0\n1,1")
+        ));
+        assert!(
+            m.contains("line 2")
+                && m.contains("section 's1'")
+                && m.contains("contour 'c1'")
+                && m.contains("open"),
+            "{m}"
+        );
+        let m = message(&format!(
+            "section,z,contour,x,y\n{}",
+            csv_section("s1", 0.0, "bow", "0,0\n2,2\n2,0\n0,2\n0,0")
+        ));
+        assert!(
+            m.contains("contour 'bow'") && m.contains("segments 0 and 2 meet at (1, 1)"),
+            "{m}"
+        );
+        let m = message(&format!(
+            "section,z,contour,x,y\n{}{}",
+            csv_section("s", 0.0, "p", "0,0\n2,0\n2,2\n0,2\n0,0"),
+            csv_section("s", 0.0, "q", "1,1\n3,1\n3,3\n1,3\n1,1")
+        ));
+        assert!(m.contains("contours 'p' and 'q' meet"), "{m}");
+        assert!(message("section,z,contour,x\n").contains("no 'y' column"));
+        assert!(message("section,z,contour,x,y\ns,0,c,1,zz\n")
+            .contains("line 2: y 'zz' is not a number"));
+        assert!(message("section,z,contour,x,y\ns,0,c,1,2\ns,1,c,1,2\n")
+            .contains("line 3: section 's' is at z = 0"));
+        assert!(message("").contains("empty file"));
+        let m = message(&format!(
+            "section,z,contour,x,y\n{}s,0,c,5,5\n",
+            csv_section("s", 0.0, "c", SQUARE)
+        ));
+        assert!(
+            m.contains("line 7") && m.contains("continues after it was closed"),
+            "{m}"
+        );
+        let m = message(&format!(
+            "section,z,contour,x,y\n{}{}",
+            csv_section("a", 1.0, "c", SQUARE),
+            csv_section("b", 1.0, "c", SQUARE)
+        ));
+        assert!(m.contains("both at z = 1"), "{m}");
+    }
+
+    #[test]
+    fn json_form() {
+        let text = r#"{"sections": [
+            {"z": 2.0, "contours": [[[0,0],[1,0],[1,1],[0,0]]]},
+            {"z": 0.0, "contours": [[[0,0],[2,0],[2,2],[0,2],[0,0]], [[0.5,0.5],[1,0.5],[1,1],[0.5,0.5]]]}
+        ]}"#;
+        let stack = parse_contours_json(text, Path::new("in.json")).unwrap();
+        assert_eq!(stack.sections()[0].z(), 0.0);
+        assert_eq!(stack.sections()[0].contours().len(), 2);
+        let bad = |t: &str| {
+            parse_contours_json(t, Path::new("in.json"))
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(bad("{\"sections\": [").contains("line 1"));
+        assert!(bad(r#"[{"z": 0, "contours": [[[0,0],[1,0],[1,1]]]}]"#)
+            .contains("sections[0].contours[0]"));
+        assert!(
+            bad(r#"[{"z": 0, "contours": [[[0,0],[1,0],["a",1],[0,0]]]}]"#)
+                .contains("sections[0].contours[0][2]")
+        );
+        assert!(bad(r#"[{"contours": []}]"#).contains("sections[0].z"));
+    }
+}
