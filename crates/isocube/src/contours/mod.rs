@@ -20,6 +20,10 @@
 //! assert_eq!(section.signed_distance([2.0, 0.5]), 0.0);
 //! ```
 
+mod field;
+
+pub use field::{inside_flags, section_field, PlaneGrid, SectionField};
+
 use thiserror::Error;
 
 /// A point in a section's plane.
