@@ -235,24 +235,44 @@ pub struct SectionField {
 /// at the corners of cells the surface passes through and as a placeholder of the right sign
 /// elsewhere.
 pub fn section_field(stack: &SectionStack, plane: &PlaneGrid) -> SectionField {
+    stacked_field(stack, plane, None).0
+}
+
+/// [`section_field`] with, if `extend` is given, one more layer beyond each end section at that
+/// distance: the end section's field lowered by its largest inside distance, so the body tapers
+/// to a point (or ridge) exactly `extend` beyond the end, as geologists extrapolate ore bodies.
+/// Returns the field and the heights of its layers.
+pub fn stacked_field(
+    stack: &SectionStack,
+    plane: &PlaneGrid,
+    extend: Option<f64>,
+) -> (SectionField, Vec<f64>) {
     let [nx, ny] = plane.dims;
+    let layer_size = nx * ny;
     let sections = stack.sections();
-    let nz = sections.len();
-    let flags: Vec<Vec<bool>> = sections.iter().map(|s| inside_flags(s, plane)).collect();
+    let ns = sections.len();
+    let mut heights: Vec<f64> = sections.iter().map(|s| s.z()).collect();
+    let mut flags: Vec<Vec<bool>> = sections.iter().map(|s| inside_flags(s, plane)).collect();
+    // Layer index of each real section.
+    let mut real: Vec<usize> = (0..ns).collect();
+    if let Some(d) = extend {
+        heights.insert(0, heights[0] - d);
+        heights.push(heights[heights.len() - 1] + d);
+        flags.insert(0, vec![false; layer_size]);
+        flags.push(vec![false; layer_size]);
+        real = (1..=ns).collect();
+    }
+    let nz = flags.len();
     let (lo, hi, _) = stack.bounds();
     let far = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt()
         + 4.0 * plane.spacing * (nx + ny) as f64;
-    let mut values: Vec<f32> = Vec::with_capacity(nx * ny * nz);
+    let mut values: Vec<f64> = Vec::with_capacity(layer_size * nz);
     for f in &flags {
-        values.extend(
-            f.iter()
-                .map(|&inside| if inside { far as f32 } else { -far as f32 }),
-        );
+        values.extend(f.iter().map(|&inside| if inside { far } else { -far }));
     }
-    let mut needed = vec![false; nx * ny * nz];
+    let mut needed = vec![false; layer_size * nz];
     let mut active_cells = 0;
-    let layers = if nz == 1 { 1 } else { nz - 1 };
-    for k in 0..layers {
+    for k in 0..nz.saturating_sub(1).max(1) {
         let (f0, f1) = (&flags[k], &flags[(k + 1).min(nz - 1)]);
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
@@ -268,53 +288,70 @@ pub fn section_field(stack: &SectionStack, plane: &PlaneGrid) -> SectionField {
                 }
                 active_cells += 1;
                 for &q in &idx {
-                    needed[k * nx * ny + q] = true;
-                    if nz > 1 {
-                        needed[(k + 1) * nx * ny + q] = true;
-                    }
+                    needed[k * layer_size + q] = true;
+                    needed[(k + 1).min(nz - 1) * layer_size + q] = true;
                 }
             }
         }
     }
     let mut evaluated = 0;
-    for (k, section) in sections.iter().enumerate() {
-        let layer = &needed[k * nx * ny..(k + 1) * nx * ny];
-        if !layer.iter().any(|&n| n) {
+    for (s, section) in sections.iter().enumerate() {
+        let k = real[s];
+        let range = k * layer_size..(k + 1) * layer_size;
+        if !needed[range.clone()].iter().any(|&n| n) {
             continue;
         }
         let index = SegmentIndex::new(section, 2.0 * plane.spacing);
-        for (q, &n) in layer.iter().enumerate() {
-            if !n {
+        for q in 0..layer_size {
+            if !needed[k * layer_size + q] {
                 continue;
             }
-            let p = plane.point(q % nx, q / nx);
-            let d = index.distance(p);
-            let signed = if flags[k][q] { d } else { -d };
-            values[k * nx * ny + q] = signed as f32;
+            let d = index.distance(plane.point(q % nx, q / nx));
+            values[k * layer_size + q] = if flags[k][q] { d } else { -d };
             evaluated += 1;
         }
     }
-    let grid = Grid::new([nx, ny, nz.max(2)], {
-        if nz == 1 {
-            // One section: a second, identical layer so the grid is three-dimensional.
-            let mut v = values.clone();
-            v.extend_from_slice(&values);
-            v
-        } else {
-            values
+    if extend.is_some() {
+        for (virtual_layer, end) in [(0, 1), (nz - 1, nz - 2)] {
+            let end_values = &values[end * layer_size..(end + 1) * layer_size];
+            let deepest = end_values
+                .iter()
+                .copied()
+                .filter(|&v| v > 0.0 && v < far)
+                .fold(0.0, f64::max);
+            // Strictly below zero everywhere, zero only in the limit at the deepest point.
+            let drop = deepest * (1.0 + 1e-6) + 1e-12 * far;
+            let lowered: Vec<f64> = end_values
+                .iter()
+                .map(|&v| if v.abs() < far { v - drop } else { -far })
+                .collect();
+            values[virtual_layer * layer_size..(virtual_layer + 1) * layer_size]
+                .copy_from_slice(&lowered);
         }
-    })
-    .expect("dimensions and values agree")
-    .with_spacing([plane.spacing, plane.spacing, 1.0])
-    .expect("positive spacing")
-    .with_origin([plane.origin[0], plane.origin[1], 0.0])
-    .expect("finite origin");
-    SectionField {
-        grid,
-        evaluated,
-        active_cells,
-        placeholder: far as f32,
     }
+    let mut values: Vec<f32> = values.into_iter().map(|v| v as f32).collect();
+    let layers = if nz == 1 {
+        // One section: a second, identical layer so the grid is three-dimensional.
+        values.extend_from_within(..);
+        2
+    } else {
+        nz
+    };
+    let grid = Grid::new([nx, ny, layers], values)
+        .expect("dimensions and values agree")
+        .with_spacing([plane.spacing, plane.spacing, 1.0])
+        .expect("positive spacing")
+        .with_origin([plane.origin[0], plane.origin[1], 0.0])
+        .expect("finite origin");
+    (
+        SectionField {
+            grid,
+            evaluated,
+            active_cells,
+            placeholder: far as f32,
+        },
+        heights,
+    )
 }
 
 #[cfg(test)]

@@ -21,8 +21,10 @@
 //! ```
 
 mod field;
+mod reconstruct;
 
-pub use field::{inside_flags, section_field, PlaneGrid, SectionField};
+pub use field::{inside_flags, section_field, stacked_field, PlaneGrid, SectionField};
+pub use reconstruct::{reconstruct, Cap, Reconstruction};
 
 use thiserror::Error;
 
