@@ -29,6 +29,8 @@ pub struct Cli {
 enum Command {
     /// Extract an isosurface from a volume and write it as a mesh.
     Extract(commands::extract::Args),
+    /// Reconstruct a surface from a stack of cross-section contours.
+    Contours(commands::contours::Args),
     /// Report a mesh's topology and triangle quality.
     Info(commands::info::Args),
     /// Triangle quality (Verdict measures), distance from the field's level set, angle histogram.
@@ -100,6 +102,7 @@ where
 fn dispatch(cli: &Cli) -> Result<(), Failure> {
     match &cli.command {
         Command::Extract(a) => commands::extract::run(a, cli.quiet),
+        Command::Contours(a) => commands::contours::run(a, cli.quiet),
         Command::Info(a) => commands::info::run(a),
         Command::Quality(a) => commands::quality::run(a),
         Command::Tables(a) => commands::tables::run(a),
@@ -125,6 +128,8 @@ mod tests {
             "isocube extract v.npy --axes zyx -o m.stl --flip",
             "isocube extract sample:gyroid:40 -o g.ply --topology classic",
             "isocube info m.ply --json",
+            "isocube contours sample:orebody -o o.ply --grid 80x60 --cap extend 5",
+            "isocube contours c.csv -o o.obj --cell 0.5 --cap none",
             "isocube quality m.ply --field sample:sphere:40 --histogram h.svg --json",
             "isocube extract sample:torus:64 -o t.ply --method ternary --snap 0.5 --triangulate optimal --relax 10",
             "isocube tables --ternary --group rotations",

@@ -481,3 +481,97 @@ fn triangulation_strategies_and_relaxation() {
     );
     assert!(r["min_angle"].as_f64().unwrap() >= 30.0 && r["max_angle"].as_f64().unwrap() <= 110.0);
 }
+
+/// `isocube contours`: the built-in ore body closes into one surface of genus 1; a CSV stack
+/// reconstructs; an open contour is bad input naming the line, section and contour, with no
+/// output written.
+#[test]
+fn contours_command() {
+    let dir = tempfile::tempdir().unwrap();
+    ok(
+        dir.path(),
+        &[
+            "contours",
+            "sample:orebody",
+            "-o",
+            "ore.ply",
+            "--grid",
+            "40x40",
+        ],
+    );
+    let r = info(dir.path(), "ore.ply");
+    assert_eq!(
+        (
+            r["watertight"].clone(),
+            r["genus"].clone(),
+            r["components"].clone()
+        ),
+        (true.into(), 1.into(), 1.into())
+    );
+    let mut csv = String::from("section,z,contour,x,y\n");
+    for (label, z, s) in [("a", 0.0, 2.0), ("b", 1.0, 1.5), ("c", 3.0, 2.5)] {
+        for [x, y] in [[-s, -s], [s, -s], [s, s], [-s, s], [-s, -s]] {
+            csv += &format!("{label},{z},outer,{x},{y}\n");
+        }
+    }
+    std::fs::write(dir.path().join("stack.csv"), &csv).unwrap();
+    ok(
+        dir.path(),
+        &[
+            "contours",
+            "stack.csv",
+            "-o",
+            "stack.obj",
+            "--cell",
+            "0.25",
+            "--cap",
+            "extend",
+            "0.5",
+        ],
+    );
+    let r = info(dir.path(), "stack.obj");
+    assert_eq!(
+        (r["watertight"].clone(), r["genus"].clone()),
+        (true.into(), 0.into())
+    );
+    ok(
+        dir.path(),
+        &["contours", "stack.csv", "-o", "open.ply", "--cap", "none"],
+    );
+    assert!(
+        info(dir.path(), "open.ply")["boundary_edges"]
+            .as_u64()
+            .unwrap()
+            > 0
+    );
+    let open = "section,z,contour,x,y\ns,0,c,0,0\ns,0,c,1,0\ns,0,c,1,1\n";
+    std::fs::write(dir.path().join("open.csv"), open).unwrap();
+    for (args, needle) in [
+        (
+            &["contours", "open.csv", "-o", "bad.ply"][..],
+            "line 2: section 's' (z = 0), contour 'c': open",
+        ),
+        (
+            &["contours", "stack.csv", "-o", "bad.ply", "--cap", "flat"][..],
+            "--cap flat",
+        ),
+        (
+            &[
+                "contours",
+                "stack.csv",
+                "-o",
+                "bad.ply",
+                "--cap",
+                "extend",
+                "-1",
+            ][..],
+            "not a distance",
+        ),
+    ] {
+        let out = isocube(dir.path(), args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{err}");
+        assert!(!dir.path().join("bad.ply").exists());
+    }
+}

@@ -1,5 +1,6 @@
 //! One module per subcommand: its arguments, their conversion to library options, and the run.
 
+pub(crate) mod contours;
 pub(crate) mod demo;
 pub(crate) mod extract;
 pub(crate) mod info;

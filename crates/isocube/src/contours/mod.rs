@@ -480,6 +480,77 @@ impl SectionStack {
     }
 }
 
+impl SectionStack {
+    /// A built-in ore body: six unevenly spaced sections (z = 0, 12, 20, 35, 44, 60) of irregular
+    /// lens-shaped contours. The lower three sections are rings (a hole runs through them and out
+    /// between the branches), at z = 35 the body splits into two branches, and the right branch
+    /// ends at z = 44. Reconstructed with extension caps it is one closed surface of genus 1.
+    pub fn sample_orebody() -> SectionStack {
+        // (z, [(centre x, centre y, semi-axis a, semi-axis b, phase, hole)])
+        type Lens = (f64, f64, f64, f64, f64, bool);
+        let sections: [(f64, &[Lens]); 6] = [
+            (
+                0.0,
+                &[
+                    (0.0, 0.0, 30.0, 18.0, 0.0, false),
+                    (2.0, 1.0, 8.0, 5.0, 1.0, true),
+                ],
+            ),
+            (
+                12.0,
+                &[
+                    (3.0, 2.0, 34.0, 20.0, 0.7, false),
+                    (4.0, 2.0, 9.0, 6.0, 2.0, true),
+                ],
+            ),
+            (
+                20.0,
+                &[
+                    (5.0, 1.0, 32.0, 22.0, 1.4, false),
+                    (5.0, 2.0, 10.0, 6.0, 0.3, true),
+                ],
+            ),
+            (
+                35.0,
+                &[
+                    (-12.0, 3.0, 12.0, 14.0, 2.1, false),
+                    (20.0, 0.0, 11.0, 12.0, 0.9, false),
+                ],
+            ),
+            (
+                44.0,
+                &[
+                    (-14.0, 5.0, 9.0, 10.0, 2.8, false),
+                    (22.0, 2.0, 8.0, 9.0, 1.7, false),
+                ],
+            ),
+            (60.0, &[(-15.0, 6.0, 6.0, 7.0, 0.5, false)]),
+        ];
+        let lens = |&(cx, cy, a, b, phase, hole): &Lens| -> Vec<Point2> {
+            let n = 48;
+            let mut points: Vec<Point2> = (0..n)
+                .map(|i| {
+                    let t = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
+                    // A lobed outline, as traced on a section.
+                    let r = 1.0 + 0.08 * (3.0 * t + phase).sin() + 0.04 * (5.0 * t - phase).cos();
+                    [cx + a * r * t.cos(), cy + b * r * t.sin()]
+                })
+                .collect();
+            if hole {
+                points.reverse();
+            }
+            points
+        };
+        SectionStack::from_points(
+            sections
+                .iter()
+                .map(|(z, lenses)| (*z, lenses.iter().map(lens).collect()))
+                .collect(),
+        )
+        .expect("the built-in ore body is valid")
+    }
+}
+
 fn sub(a: Point2, b: Point2) -> Point2 {
     [a[0] - b[0], a[1] - b[1]]
 }

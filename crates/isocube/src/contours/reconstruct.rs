@@ -163,6 +163,19 @@ mod tests {
     }
 
     #[test]
+    fn the_sample_ore_body_is_one_closed_surface_of_genus_one() {
+        let stack = SectionStack::sample_orebody();
+        for cells in [20, 40, 80] {
+            let r =
+                reconstruct(&stack, &PlaneGrid::across(&stack, cells), Cap::Extend(6.0)).unwrap();
+            let rep = r.mesh.report();
+            assert!(rep.watertight && rep.oriented, "{cells}: {rep:?}");
+            assert_eq!((rep.components, rep.genus), (1, Some(1)), "{cells}");
+            assert!(rep.volume.unwrap() > 0.0);
+        }
+    }
+
+    #[test]
     fn a_branch_keeps_one_body() {
         let r = build(
             vec![

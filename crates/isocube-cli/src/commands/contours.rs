@@ -1,0 +1,158 @@
+//! `isocube contours INPUT -o MESH [--grid NXxNY | --cell SIZE] [--cap none | extend [DIST]]`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::Args as ClapArgs;
+use isocube::contours::{reconstruct, Cap, PlaneGrid, SectionStack};
+use isocube::io::{read_contours, write_mesh, MeshFormat, MeshWriteOptions};
+
+use crate::Failure;
+
+#[derive(Debug, ClapArgs)]
+#[command(group(clap::ArgGroup::new("resolution").args(["grid", "cell"])))]
+pub(crate) struct Args {
+    /// A contour file (.csv with columns section,z,contour,x,y, or .json), or `sample:orebody`.
+    input: String,
+    /// Output mesh: .ply, .obj or .stl.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Plane grid: at most NX × NY square cells over the contours' bounding box.
+    #[arg(long, value_name = "NXxNY", value_parser = parse_grid)]
+    grid: Option<[usize; 2]>,
+    /// Plane grid: square cells of this size (in the contours' units).
+    #[arg(long, value_name = "SIZE")]
+    cell: Option<f64>,
+    /// How the ends close: `extend [DIST]` extrapolates the body DIST beyond each end section
+    /// (default: half the mean section spacing); `none` leaves them open.
+    #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIST"], default_values = ["extend"], allow_negative_numbers = true)]
+    cap: Vec<String>,
+    /// Write ASCII PLY.
+    #[arg(long)]
+    ascii: bool,
+}
+
+fn parse_grid(s: &str) -> Result<[usize; 2], String> {
+    let (a, b) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}': expected NXxNY, for example 100x80"))?;
+    let n = |t: &str| match t.trim().parse::<usize>() {
+        Ok(v) if (1..=1 << 16).contains(&v) => Ok(v),
+        _ => Err(format!("'{t}' is not a cell count between 1 and 65536")),
+    };
+    Ok([n(a)?, n(b)?])
+}
+
+fn cap(args: &Args, stack: &SectionStack) -> Result<Cap, Failure> {
+    let bad = |m: String| Failure::input(anyhow::anyhow!(m));
+    match args
+        .cap
+        .iter()
+        .map(String::as_str)
+        .collect::<Vec<_>>()
+        .as_slice()
+    {
+        ["none"] => Ok(Cap::Open),
+        ["extend"] => {
+            let z: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
+            let spacing = if z.len() > 1 {
+                (z[z.len() - 1] - z[0]) / (z.len() - 1) as f64
+            } else {
+                let (lo, hi, _) = stack.bounds();
+                (hi[0] - lo[0]).max(hi[1] - lo[1]) / 4.0
+            };
+            Ok(Cap::Extend(spacing / 2.0))
+        }
+        ["extend", d] => match d.parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(Cap::Extend(v)),
+            _ => Err(bad(format!("--cap extend: '{d}' is not a distance > 0"))),
+        },
+        ["flat", ..] => Err(bad(
+            "--cap flat is not available yet: use --cap extend [DIST] or --cap none".into(),
+        )),
+        other => Err(bad(format!(
+            "--cap {}: expected `none` or `extend [DIST]`",
+            other.join(" ")
+        ))),
+    }
+}
+
+pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
+    if MeshFormat::from_path(&args.output).is_none() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: unknown mesh extension (expected .ply, .obj or .stl)",
+            args.output.display()
+        )));
+    }
+    let stack = if args.input == "sample:orebody" {
+        SectionStack::sample_orebody()
+    } else {
+        let input = Path::new(&args.input);
+        if let (Ok(a), Ok(b)) = (
+            std::fs::canonicalize(input),
+            std::fs::canonicalize(&args.output),
+        ) {
+            if a == b {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "{}: the output would overwrite the input",
+                    args.output.display()
+                )));
+            }
+        }
+        read_contours(input).map_err(|e| crate::io_failure(e, true))?
+    };
+    let plane = match (args.grid, args.cell) {
+        (_, Some(c)) if c.is_finite() && c > 0.0 => PlaneGrid::with_cell(&stack, c),
+        (_, Some(c)) => {
+            return Err(Failure::input(anyhow::anyhow!(
+                "--cell {c}: expected a size > 0"
+            )))
+        }
+        (Some([nx, ny]), None) => {
+            let (lo, hi, _) = stack.bounds();
+            let cell = ((hi[0] - lo[0]) / nx as f64).max((hi[1] - lo[1]) / ny as f64);
+            PlaneGrid::with_cell(&stack, cell)
+        }
+        (None, None) => PlaneGrid::across(&stack, 100),
+    };
+    let points = plane.dims[0] * plane.dims[1] * (stack.sections().len() + 2);
+    if points > 1 << 31 {
+        return Err(Failure::input(anyhow::anyhow!(
+            "the grid would have {points} points; use a coarser --grid or a larger --cell"
+        )));
+    }
+    let cap = cap(args, &stack)?;
+    let started = Instant::now();
+    let r = reconstruct(&stack, &plane, cap).map_err(Failure::input)?;
+    let elapsed = started.elapsed();
+    write_mesh(
+        &args.output,
+        &r.mesh,
+        &MeshWriteOptions {
+            ascii: args.ascii,
+            normals: true,
+        },
+    )
+    .map_err(|e| crate::io_failure(e, false))?;
+    if !quiet {
+        let rep = r.mesh.report();
+        eprintln!(
+            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} sections, {}×{} plane grid, distance evaluated at {} of {} points)",
+            args.output.display(),
+            rep.vertices,
+            rep.triangles,
+            if rep.watertight && rep.oriented {
+                format!("watertight, genus {}", rep.genus.unwrap_or(0))
+            } else {
+                format!("{} boundary edges", rep.boundary_edges)
+            },
+            elapsed.as_secs_f64() * 1e3,
+            stack.sections().len(),
+            plane.dims[0],
+            plane.dims[1],
+            r.evaluated,
+            r.points
+        );
+    }
+    Ok(())
+}
