@@ -29,10 +29,19 @@ impl PlaneGrid {
     /// A grid with square cells of side `cell` covering every contour of the stack with one
     /// empty cell to spare on each side (so the surface closes inside the grid).
     pub fn with_cell(stack: &SectionStack, cell: f64) -> PlaneGrid {
+        // The grid starts a little over one cell before the contours, offset by fractions that
+        // input coordinates are unlikely to share, so that contour vertices and grid lines do not
+        // coincide.
+        PlaneGrid::with_cell_and_shift(stack, cell, [1.0719, 1.0437])
+    }
+
+    /// [`PlaneGrid::with_cell`] with the grid starting `shift` cells (each between 1 and 2)
+    /// before the contours' bounding box.
+    pub fn with_cell_and_shift(stack: &SectionStack, cell: f64, shift: [f64; 2]) -> PlaneGrid {
         let (lo, hi, _) = stack.bounds();
-        let dims = [0, 1].map(|a| ((hi[a] - lo[a]) / cell).ceil() as usize + 3);
+        let dims = [0, 1].map(|a| ((hi[a] - lo[a]) / cell + shift[a]).ceil() as usize + 2);
         PlaneGrid {
-            origin: [lo[0] - cell, lo[1] - cell],
+            origin: [lo[0] - shift[0] * cell, lo[1] - shift[1] * cell],
             spacing: cell,
             dims,
         }
@@ -425,7 +434,11 @@ mod tests {
             0.0,
             vec![vec![[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]]],
         )]);
-        let plane = PlaneGrid::with_cell(&s, 1.0);
+        let plane = PlaneGrid {
+            origin: [-1.0, -1.0],
+            spacing: 1.0,
+            dims: [7, 7],
+        };
         let flags = inside_flags(&s.sections()[0], &plane);
         let [nx, _] = plane.dims;
         let at = |x: f64, y: f64| {

@@ -20,11 +20,14 @@
 //! assert_eq!(section.signed_distance([2.0, 0.5]), 0.0);
 //! ```
 
+mod exact;
 mod field;
 mod reconstruct;
 
 pub use field::{inside_flags, section_field, stacked_field, PlaneGrid, SectionField};
-pub use reconstruct::{reconstruct, Cap, Reconstruction};
+pub use reconstruct::{
+    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, Fidelity, Reconstruction,
+};
 
 use thiserror::Error;
 

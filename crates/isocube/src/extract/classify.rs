@@ -4,7 +4,7 @@ use crate::cube::{FaceDecisions, FACES};
 
 /// The binary configuration: bit `i` set when vertex `i` is at or above the level.
 #[inline]
-pub(super) fn cell_config(v: &[f32; 8], level: f32) -> u8 {
+pub(crate) fn cell_config(v: &[f32; 8], level: f32) -> u8 {
     let mut config = 0u8;
     for (i, &x) in v.iter().enumerate() {
         config |= u8::from(x >= level) << i;
@@ -22,7 +22,7 @@ pub(super) fn cell_config(v: &[f32; 8], level: f32) -> u8 {
 /// in `f64` from the same four `f32` values by both cells sharing the face, so the two cells
 /// always reach the same decision.
 #[inline]
-pub(super) fn face_decisions(v: &[f32; 8], level: f32, ambiguous: u8) -> FaceDecisions {
+pub(crate) fn face_decisions(v: &[f32; 8], level: f32, ambiguous: u8) -> FaceDecisions {
     let mut decisions = 0;
     let mut mask = ambiguous;
     while mask != 0 {

@@ -71,6 +71,8 @@
 
 mod classify;
 mod place;
+
+pub(crate) use classify::{cell_config, face_decisions};
 mod ternary;
 mod weld;
 
@@ -84,7 +86,7 @@ use crate::field::Grid;
 use crate::mesh::Mesh;
 use crate::quality::{triangulate, Strategy};
 
-use classify::{cell_config, face_decisions, interior_links};
+use classify::interior_links;
 use place::Placer;
 use weld::EdgeCache;
 
