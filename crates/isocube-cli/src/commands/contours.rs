@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args as ClapArgs;
-use isocube::contours::{reconstruct, Cap, PlaneGrid, SectionStack};
+use isocube::contours::{reconstruct_with, Cap, Fidelity, PlaneGrid, SectionStack};
 use isocube::io::{read_contours, write_mesh, MeshFormat, MeshWriteOptions};
 
 use crate::Failure;
@@ -27,6 +27,10 @@ pub(crate) struct Args {
     /// (default: half the mean section spacing); `none` leaves them open.
     #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIST"], default_values = ["extend"], allow_negative_numbers = true)]
     cap: Vec<String>,
+    /// The section-data paper's plain approach: crossings interpolated from the distances and no
+    /// contour points inserted (by default the mesh's cut by every section is the contour).
+    #[arg(long)]
+    plain: bool,
     /// Write ASCII PLY.
     #[arg(long)]
     ascii: bool,
@@ -123,7 +127,12 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     }
     let cap = cap(args, &stack)?;
     let started = Instant::now();
-    let r = reconstruct(&stack, &plane, cap).map_err(Failure::input)?;
+    let fidelity = if args.plain {
+        Fidelity::Plain
+    } else {
+        Fidelity::Exact
+    };
+    let r = reconstruct_with(&stack, &plane, cap, fidelity).map_err(Failure::input)?;
     let elapsed = started.elapsed();
     write_mesh(
         &args.output,
@@ -137,7 +146,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if !quiet {
         let rep = r.mesh.report();
         eprintln!(
-            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} sections, {}×{} plane grid, distance evaluated at {} of {} points)",
+            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} sections, {}×{} plane grid, distance evaluated at {} of {} points){}",
             args.output.display(),
             rep.vertices,
             rep.triangles,
@@ -148,10 +157,19 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             },
             elapsed.as_secs_f64() * 1e3,
             stack.sections().len(),
-            plane.dims[0],
-            plane.dims[1],
+            r.plane.dims[0],
+            r.plane.dims[1],
             r.evaluated,
-            r.points
+            r.points,
+            if r.unresolved_edges > 0 {
+                format!(
+                    "; {} grid edges are crossed twice by a contour (sharp corners), where the cut \
+                     cannot follow it",
+                    r.unresolved_edges
+                )
+            } else {
+                String::new()
+            }
         );
     }
     Ok(())

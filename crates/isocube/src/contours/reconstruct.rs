@@ -49,23 +49,20 @@ pub struct Reconstruction {
 }
 
 /// The grid to follow the contours on: `plane` if no grid edge is crossed twice by a contour,
-/// otherwise the first of a few shifted copies of it that has none, then the same with cells
-/// 15 % smaller each time, down to a seventh of the asked size.
+/// otherwise the first of a few shifted copies of it (then of grids with cells 15 % and 28 %
+/// smaller) that has none, or failing that the one with the fewest. The search is bounded on
+/// purpose: near-tangent bulges of long smooth contours cross some edge twice at any resolution,
+/// and chasing them would only multiply the grid.
 fn resolving_plane(stack: &SectionStack, plane: &PlaneGrid) -> PlaneGrid {
-    if unresolved_edges(stack, plane) == 0 {
+    let first = unresolved_edges(stack, plane);
+    if first == 0 {
         return *plane;
     }
-    let shifts = [
-        [1.0719, 1.0437],
-        [1.3371, 1.6103],
-        [1.5813, 1.2917],
-        [1.8127, 1.4561],
-    ];
-    let mut cell = plane.spacing;
-    let mut best = (unresolved_edges(stack, plane), *plane);
-    for _ in 0..12 {
+    let shifts = [[1.3371, 1.6103], [1.5813, 1.2917], [1.8127, 1.4561]];
+    let mut best = (first, *plane);
+    for scale in [1.0, 0.85, 0.72] {
         for shift in shifts {
-            let p = PlaneGrid::with_cell_and_shift(stack, cell, shift);
+            let p = PlaneGrid::with_cell_and_shift(stack, plane.spacing * scale, shift);
             let u = unresolved_edges(stack, &p);
             if u == 0 {
                 return p;
@@ -74,7 +71,6 @@ fn resolving_plane(stack: &SectionStack, plane: &PlaneGrid) -> PlaneGrid {
                 best = (u, p);
             }
         }
-        cell *= 0.85;
     }
     best.1
 }
