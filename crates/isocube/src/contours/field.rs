@@ -371,14 +371,7 @@ mod tests {
         SectionStack::from_points(sections).unwrap()
     }
 
-    fn circle(cx: f64, cy: f64, r: f64, n: usize) -> Vec<Point2> {
-        (0..n)
-            .map(|i| {
-                let a = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
-                [cx + r * a.cos(), cy + r * a.sin()]
-            })
-            .collect()
-    }
+    use crate::contours::test_circle as circle;
 
     /// Flags and computed distances agree with the direct definition at every point.
     #[test]

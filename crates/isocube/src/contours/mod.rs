@@ -669,6 +669,17 @@ fn first_meeting(
     best
 }
 
+/// A regular `n`-gon of radius `r` around `(cx, cy)`, counter-clockwise (for tests).
+#[cfg(test)]
+pub(crate) fn test_circle(cx: f64, cy: f64, r: f64, n: usize) -> Vec<Point2> {
+    (0..n)
+        .map(|i| {
+            let a = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
+            [cx + r * a.cos(), cy + r * a.sin()]
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -174,14 +174,7 @@ mod tests {
         ]
     }
 
-    fn circle(cx: f64, cy: f64, r: f64, n: usize) -> Vec<Point2> {
-        (0..n)
-            .map(|i| {
-                let a = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
-                [cx + r * a.cos(), cy + r * a.sin()]
-            })
-            .collect()
-    }
+    use crate::contours::test_circle as circle;
 
     fn build(sections: Vec<(f64, Vec<Vec<Point2>>)>, cells: usize, cap: Cap) -> Reconstruction {
         let stack = SectionStack::from_points(sections).unwrap();
