@@ -333,7 +333,8 @@ mod ternary {
     }
 
     /// Every vertex but the interior points is a grid point or lies on a grid edge, at least
-    /// `min_offset` from its ends.
+    /// `min_offset` from its ends; no more vertices lie off the grid edges than there are
+    /// interior points.
     fn assert_on_grid_edges(grid: &Grid, mesh: &Mesh, interior: usize, min_offset: f64) {
         let h = grid.spacing();
         let o = grid.origin();
@@ -351,9 +352,10 @@ mod ternary {
                 _ => off_edges += 1,
             }
         }
-        assert_eq!(
-            off_edges, interior,
-            "only interior points lie off grid edges"
+        // An interior point (a centroid) may happen to fall on a grid line, hence "at most".
+        assert!(
+            off_edges <= interior,
+            "only interior points lie off grid edges: {off_edges} > {interior}"
         );
     }
 
