@@ -536,6 +536,15 @@ fn contours_command() {
     );
     ok(
         dir.path(),
+        &["contours", "stack.csv", "-o", "flat.ply", "--cap", "flat"],
+    );
+    let r = info(dir.path(), "flat.ply");
+    assert_eq!(
+        (r["watertight"].clone(), r["genus"].clone()),
+        (true.into(), 0.into())
+    );
+    ok(
+        dir.path(),
         &["contours", "stack.csv", "-o", "open.ply", "--cap", "none"],
     );
     assert!(
@@ -552,8 +561,8 @@ fn contours_command() {
             "line 2: section 's' (z = 0), contour 'c': open",
         ),
         (
-            &["contours", "stack.csv", "-o", "bad.ply", "--cap", "flat"][..],
-            "--cap flat",
+            &["contours", "stack.csv", "-o", "bad.ply", "--cap", "round"][..],
+            "--cap round",
         ),
         (
             &[

@@ -1,4 +1,4 @@
-//! `isocube contours INPUT -o MESH [--grid NXxNY | --cell SIZE] [--cap none | extend [DIST]]`.
+//! `isocube contours INPUT -o MESH [--grid NXxNY | --cell SIZE] [--cap flat | none | extend [DIST]]`.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,7 +24,8 @@ pub(crate) struct Args {
     #[arg(long, value_name = "SIZE")]
     cell: Option<f64>,
     /// How the ends close: `extend [DIST]` extrapolates the body DIST beyond each end section
-    /// (default: half the mean section spacing); `none` leaves them open.
+    /// (default: half the mean section spacing); `flat` fills the end contours in their planes
+    /// (holes kept open); `none` leaves them open.
     #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIST"], default_values = ["extend"], allow_negative_numbers = true)]
     cap: Vec<String>,
     /// The section-data paper's plain approach: crossings interpolated from the distances and no
@@ -71,11 +72,9 @@ fn cap(args: &Args, stack: &SectionStack) -> Result<Cap, Failure> {
             Ok(v) if v.is_finite() && v > 0.0 => Ok(Cap::Extend(v)),
             _ => Err(bad(format!("--cap extend: '{d}' is not a distance > 0"))),
         },
-        ["flat", ..] => Err(bad(
-            "--cap flat is not available yet: use --cap extend [DIST] or --cap none".into(),
-        )),
+        ["flat"] => Ok(Cap::Flat),
         other => Err(bad(format!(
-            "--cap {}: expected `none` or `extend [DIST]`",
+            "--cap {}: expected `flat`, `none` or `extend [DIST]`",
             other.join(" ")
         ))),
     }

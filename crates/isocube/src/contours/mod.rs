@@ -20,6 +20,7 @@
 //! assert_eq!(section.signed_distance([2.0, 0.5]), 0.0);
 //! ```
 
+mod cap;
 mod exact;
 mod field;
 mod reconstruct;

@@ -15,6 +15,8 @@ pub enum Cap {
     /// The body is extrapolated this far beyond each end section, tapering to the end contours'
     /// innermost points (geologists use half the section spacing).
     Extend(f64),
+    /// The end sections' contours are filled flat (holes kept open), in their planes.
+    Flat,
 }
 
 /// How closely the mesh follows the contours on the section planes.
@@ -107,8 +109,18 @@ pub fn reconstruct_with(
     cap: Cap,
     fidelity: Fidelity,
 ) -> Result<Reconstruction, ExtractError> {
+    if cap == Cap::Flat {
+        let mut r = reconstruct_with(stack, plane, Cap::Open, fidelity)?;
+        let sections = stack.sections();
+        for z in [sections[0].z(), sections[sections.len() - 1].z()] {
+            super::cap::close_plane(&mut r.mesh, z as f32)
+                .map_err(|reason| ExtractError::Cap(format!("section at z = {z}: {reason}")))?;
+        }
+        r.mesh.compute_normals();
+        return Ok(r);
+    }
     let extend = match cap {
-        Cap::Open => None,
+        Cap::Open | Cap::Flat => None,
         Cap::Extend(d) if d.is_finite() && d > 0.0 => Some(d),
         Cap::Extend(d) => {
             return Err(ExtractError::Option {
@@ -298,6 +310,7 @@ mod tests {
                 2..5,
             ),
             cells in 12usize..48,
+            flat: bool,
         ) {
             let mut z = 0.0;
             let mut sections = Vec::new();
@@ -316,7 +329,8 @@ mod tests {
             let stack = SectionStack::from_points(sections).unwrap();
             let (lo, hi, zr) = stack.bounds();
             let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (zr[1] - zr[0]).powi(2)).sqrt();
-            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), Cap::Extend(0.5)).unwrap();
+            let cap = if flat { Cap::Flat } else { Cap::Extend(0.5) };
+            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), cap).unwrap();
             let rep = r.mesh.report();
             prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
             prop_assert!(rep.volume.unwrap() > 0.0);
@@ -325,6 +339,46 @@ mod tests {
             prop_assume!(r.unresolved_edges == 0);
             let d = cut_distance(&r.mesh, &stack);
             prop_assert!(d.contour_to_cut <= 1e-6 * diag && d.cut_to_contour <= 1e-6 * diag, "{:?}", d);
+        }
+    }
+
+    #[test]
+    fn flat_caps_close_in_the_end_planes() {
+        // A 2 × 2 × 3 box: exact caps and cuts; between the sections only the corner cells
+        // bend a little.
+        let r = build(
+            vec![
+                (0.0, vec![square(0.0, 0.0, 1.0)]),
+                (3.0, vec![square(0.0, 0.0, 1.0)]),
+            ],
+            16,
+            Cap::Flat,
+        );
+        let rep = r.mesh.report();
+        assert!(rep.watertight && rep.oriented, "{rep:?}");
+        assert_eq!((rep.components, rep.genus), (1, Some(0)));
+        assert!((rep.volume.unwrap() - 12.0).abs() < 0.002 * 12.0, "{rep:?}");
+        assert!(
+            (rep.area - (2.0 * 4.0 + 4.0 * 6.0)).abs() < 0.005 * 32.0,
+            "{rep:?}"
+        );
+        // The ore body: a hole through the bottom section stays open in the cap.
+        let stack = SectionStack::sample_orebody();
+        for cells in [20, 40, 100] {
+            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), Cap::Flat).unwrap();
+            let rep = r.mesh.report();
+            assert!(rep.watertight && rep.oriented, "{cells}: {rep:?}");
+            assert_eq!((rep.components, rep.genus), (1, Some(1)), "{cells}");
+            assert!(rep.volume.unwrap() > 0.0 && rep.degenerate == 0);
+            let (lo, hi, z) = stack.bounds();
+            let diag =
+                ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (z[1] - z[0]).powi(2)).sqrt();
+            let zs = r.mesh.positions.iter().map(|p| f64::from(p[2]));
+            assert!(
+                zs.clone().fold(f64::MAX, f64::min) >= z[0] && zs.fold(f64::MIN, f64::max) <= z[1]
+            );
+            let d = cut_distance(&r.mesh, &stack);
+            assert!(d.contour_to_cut <= 1e-6 * diag, "{d:?}");
         }
     }
 
@@ -403,7 +457,9 @@ pub struct CutDistance {
     pub cut_to_contour: f64,
 }
 
-/// Measures [`CutDistance`] for every section and returns the worst.
+/// Measures [`CutDistance`] for every section and returns the worst. The cut at a section is
+/// made of the mesh edges in its plane that border a triangle leaving the plane (so the inside
+/// of a flat cap does not count).
 pub fn cut_distance(mesh: &Mesh, stack: &SectionStack) -> CutDistance {
     let mut worst = CutDistance {
         contour_to_cut: 0.0,
@@ -417,18 +473,22 @@ pub fn cut_distance(mesh: &Mesh, stack: &SectionStack) -> CutDistance {
     };
     for section in stack.sections() {
         let z = section.z() as f32;
+        // The cut: edges in the plane with a triangle on them that leaves the plane (edges inside
+        // a flat cap have only in-plane triangles on both sides).
+        let in_plane = |t: &[u32; 3]| t.iter().all(|&v| mesh.positions[v as usize][2] == z);
         let mut cut: Vec<([f64; 2], [f64; 2])> = Vec::new();
         for t in &mesh.triangles {
+            if in_plane(t) {
+                continue;
+            }
             for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if a < b {
-                    let (p, q) = (mesh.positions[a as usize], mesh.positions[b as usize]);
-                    if p[2] == z && q[2] == z {
-                        cut.push((
-                            [f64::from(p[0]), f64::from(p[1])],
-                            [f64::from(q[0]), f64::from(q[1])],
-                        ));
-                    }
+                let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                let (p, q) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+                if p[2] == z && q[2] == z {
+                    cut.push((
+                        [f64::from(p[0]), f64::from(p[1])],
+                        [f64::from(q[0]), f64::from(q[1])],
+                    ));
                 }
             }
         }

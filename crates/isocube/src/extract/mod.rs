@@ -226,6 +226,9 @@ pub enum ExtractError {
         /// The value given.
         value: f32,
     },
+    /// The ends of a contour reconstruction could not be closed flat.
+    #[error("cannot close the ends flat: {0}")]
+    Cap(String),
     /// The mesh would need more than `u32::MAX` vertices.
     #[error("the mesh would have more than {} vertices", u32::MAX)]
     TooManyVertices,
