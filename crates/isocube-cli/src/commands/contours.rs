@@ -12,7 +12,8 @@ use crate::Failure;
 #[derive(Debug, ClapArgs)]
 #[command(group(clap::ArgGroup::new("resolution").args(["grid", "cell"])))]
 pub(crate) struct Args {
-    /// A contour file (.csv with columns section,z,contour,x,y, or .json), or `sample:orebody`.
+    /// A contour file (.csv with columns section,z,contour,x,y; .json; or .dxf with closed
+    /// LWPOLYLINE/POLYLINE entities, elevation as z), or `sample:orebody`.
     input: String,
     /// Output mesh: .ply, .obj or .stl.
     #[arg(long, short)]

@@ -8,6 +8,11 @@
 //!
 //! **JSON**: `{"sections": [{"z": 0.0, "contours": [[[x, y], …], …]}, …]}` (or the bare array).
 //!
+//! **DXF** (ASCII): every `LWPOLYLINE` (elevation from group 38) and `POLYLINE` (elevation from
+//! its group 30, or its vertices') is a contour; polylines at one elevation form a section. They
+//! must be closed (flag 70 bit 1); other entities are ignored. Contours are named by their handle
+//! (group 5) or line.
+//!
 //! In both, every contour is closed explicitly by repeating its first point at the end (as GeoJSON
 //! rings are); a contour that does not return to its start is reported as open. Sections may come
 //! in any order and at any spacing; they are sorted by height, and two sections at one height are
@@ -27,7 +32,7 @@ use crate::contours::{ContourError, Point2, SectionStack};
 
 use super::{IoError, Position};
 
-/// Reads a contour stack, by extension: `.csv` or `.json`.
+/// Reads a contour stack, by extension: `.csv`, `.json` or `.dxf`.
 pub fn read_contours(path: &Path) -> Result<SectionStack, IoError> {
     let ext = path
         .extension()
@@ -45,10 +50,11 @@ pub fn read_contours(path: &Path) -> Result<SectionStack, IoError> {
     match ext.as_deref() {
         Some("csv") => parse_contours_csv(&text, path),
         Some("json") => parse_contours_json(&text, path),
+        Some("dxf") => parse_contours_dxf(&text, path),
         _ => Err(IoError::Unsupported {
             path: path.to_path_buf(),
             position: Position::File,
-            reason: "contour files are .csv or .json".into(),
+            reason: "contour files are .csv, .json or .dxf".into(),
         }),
     }
 }
@@ -249,6 +255,172 @@ pub fn parse_contours_csv(text: &str, path: &Path) -> Result<SectionStack, IoErr
     })
 }
 
+/// Parses the DXF form (see the module documentation). `path` is only used in errors.
+pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoError> {
+    let format = |line: usize, reason: String| IoError::Format {
+        path: path.to_path_buf(),
+        position: Position::Line(line),
+        reason,
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    if lines.len() % 2 == 1 && !lines[lines.len() - 1].trim().is_empty() {
+        return Err(format(lines.len(), "a group code without a value".into()));
+    }
+    // (line of the code, code, value)
+    let mut pairs = Vec::with_capacity(lines.len() / 2);
+    for k in (0..lines.len().saturating_sub(1)).step_by(2) {
+        let code: i32 = lines[k]
+            .trim()
+            .parse()
+            .map_err(|_| format(k + 1, format!("'{}' is not a group code", lines[k].trim())))?;
+        pairs.push((k + 1, code, lines[k + 1].trim()));
+    }
+    struct Polyline {
+        line: usize,
+        name: String,
+        closed: bool,
+        z: Option<f64>,
+        points: Vec<Point2>,
+    }
+    let number = |line: usize, v: &str| -> Result<f64, IoError> {
+        match v.parse::<f64>() {
+            Ok(x) if x.is_finite() => Ok(x),
+            _ => Err(format(line + 1, format!("'{v}' is not a finite number"))),
+        }
+    };
+    let mut polylines: Vec<Polyline> = Vec::new();
+    let mut k = 0;
+    while k < pairs.len() {
+        let (line, code, value) = pairs[k];
+        k += 1;
+        if code != 0 || !(value == "LWPOLYLINE" || value == "POLYLINE") {
+            continue;
+        }
+        let old_style = value == "POLYLINE";
+        let mut p = Polyline {
+            line,
+            name: format!("at line {line}"),
+            closed: false,
+            z: None,
+            points: Vec::new(),
+        };
+        let mut pending_x: Option<f64> = None;
+        // The entity's own groups, up to the next entity (or, for POLYLINE, its SEQEND).
+        while k < pairs.len() {
+            let (l, c, v) = pairs[k];
+            if c == 0 {
+                if old_style && v == "VERTEX" {
+                    k += 1;
+                    let (mut x, mut y, mut vz) = (None, None, None);
+                    while k < pairs.len() && pairs[k].1 != 0 {
+                        let (l2, c2, v2) = pairs[k];
+                        match c2 {
+                            10 => x = Some(number(l2, v2)?),
+                            20 => y = Some(number(l2, v2)?),
+                            30 => vz = Some(number(l2, v2)?),
+                            _ => {}
+                        }
+                        k += 1;
+                    }
+                    match (x, y) {
+                        (Some(x), Some(y)) => p.points.push([x, y]),
+                        _ => return Err(format(l, "a VERTEX without x (10) and y (20)".into())),
+                    }
+                    if let (Some(vz), Some(z)) = (vz, p.z) {
+                        if vz != z && z != 0.0 {
+                            return Err(format(
+                                l,
+                                format!(
+                                    "polyline {} is not flat: vertex at z = {vz}, polyline at {z}",
+                                    p.name
+                                ),
+                            ));
+                        }
+                    }
+                    if matches!(p.z, None | Some(0.0)) {
+                        p.z = vz.or(p.z);
+                    }
+                    continue;
+                }
+                if old_style && v == "SEQEND" {
+                    k += 1;
+                }
+                break;
+            }
+            match c {
+                5 => p.name = format!("'{v}'"),
+                70 => {
+                    let flags: i64 = v
+                        .parse()
+                        .map_err(|_| format(l + 1, format!("flags '{v}' are not an integer")))?;
+                    p.closed = flags & 1 == 1;
+                }
+                38 if !old_style => p.z = Some(number(l, v)?),
+                30 if old_style => p.z = Some(number(l, v)?),
+                10 if !old_style => pending_x = Some(number(l, v)?),
+                20 if !old_style => {
+                    let y = number(l, v)?;
+                    let x = pending_x
+                        .take()
+                        .ok_or_else(|| format(l, "a y (20) without its x (10)".into()))?;
+                    p.points.push([x, y]);
+                }
+                _ => {}
+            }
+            k += 1;
+        }
+        polylines.push(p);
+    }
+    if polylines.is_empty() {
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            position: Position::File,
+            reason: "no LWPOLYLINE or POLYLINE entity".into(),
+        });
+    }
+    let mut sections: Vec<RawSection> = Vec::new();
+    for p in polylines {
+        if p.points.is_empty() {
+            return Err(format(
+                p.line,
+                format!("polyline {} has no vertices", p.name),
+            ));
+        }
+        let mut points = p.points;
+        if p.closed {
+            if points.first() != points.last() {
+                points.push(points[0]);
+            }
+        } else if points.first() != points.last() {
+            let (a, b) = (points[0], points[points.len() - 1]);
+            let gap = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+            return Err(format(
+                p.line,
+                format!(
+                    "polyline {} is open (flag 70 bit 1 not set; the ends are {gap} apart)",
+                    p.name
+                ),
+            ));
+        }
+        let z = p.z.unwrap_or(0.0);
+        let s = match sections.iter().position(|s| s.z == z) {
+            Some(s) => s,
+            None => {
+                sections.push(RawSection {
+                    label: format!("z = {z}"),
+                    z,
+                    contours: Vec::new(),
+                });
+                sections.len() - 1
+            }
+        };
+        sections[s].contours.push((p.name, p.line, p.line, points));
+    }
+    build(sections, path, &|s, c| {
+        Position::Line(s.contours.get(c).map_or(0, |c| c.1))
+    })
+}
+
 /// Parses the JSON form (see the module documentation). `path` is only used in errors.
 pub fn parse_contours_json(text: &str, path: &Path) -> Result<SectionStack, IoError> {
     let format = |position: Position, reason: String| IoError::Format {
@@ -411,6 +583,57 @@ mod tests {
             csv_section("b", 1.0, "c", SQUARE)
         ));
         assert!(m.contains("both at z = 1"), "{m}");
+    }
+
+    /// A DXF with two sections: LWPOLYLINEs (elevation 38) and an old-style POLYLINE (vertex z),
+    /// written the way CAD programs write them (code and value on alternate lines).
+    #[test]
+    fn dxf_form() {
+        let lw = |handle: &str, z: f64, pts: &[[f64; 2]], flags: i32| {
+            let mut s = format!(
+                "0\nLWPOLYLINE\n5\n{handle}\n8\nore\n90\n{}\n70\n{flags}\n38\n{z}\n",
+                pts.len()
+            );
+            for p in pts {
+                s += &format!("10\n{}\n20\n{}\n", p[0], p[1]);
+            }
+            s
+        };
+        let square = [[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]];
+        let hole = [[1.0, 1.0], [1.0, 2.0], [2.0, 2.0], [2.0, 1.0]];
+        let mut text = String::from("0\nSECTION\n2\nENTITIES\n");
+        text += &lw("A1", 10.0, &square, 1);
+        text += &lw("A2", 10.0, &hole, 1);
+        text += "0\nPOLYLINE\n5\nB1\n66\n1\n70\n1\n10\n0\n20\n0\n30\n0\n";
+        for p in square {
+            text += &format!("0\nVERTEX\n10\n{}\n20\n{}\n30\n25.5\n", p[0], p[1]);
+        }
+        text += "0\nSEQEND\n0\nCIRCLE\n10\n0\n20\n0\n40\n1\n0\nENDSEC\n0\nEOF\n";
+        let stack = parse_contours_dxf(&text, Path::new("in.dxf")).unwrap();
+        let zs: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
+        assert_eq!(zs, [10.0, 25.5]);
+        assert_eq!(stack.sections()[0].contours().len(), 2);
+        assert_eq!(stack.sections()[1].contours()[0].points().len(), 4);
+        // An open polyline is named by its handle and line.
+        let open = format!(
+            "0\nSECTION\n2\nENTITIES\n{}0\nENDSEC\n",
+            lw("C7", 0.0, &square, 0)
+        );
+        let e = parse_contours_dxf(&open, Path::new("in.dxf"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("line 5") && e.contains("polyline 'C7' is open"),
+            "{e}"
+        );
+        let e = parse_contours_dxf("0\nSECTION\nx\n1\n", Path::new("in.dxf"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 3: 'x' is not a group code"), "{e}");
+        let e = parse_contours_dxf("0\nSECTION\n0\nEOF\n", Path::new("in.dxf"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no LWPOLYLINE or POLYLINE"), "{e}");
     }
 
     #[test]
