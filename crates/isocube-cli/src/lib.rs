@@ -77,6 +77,17 @@ pub(crate) fn io_failure(e: isocube::io::IoError, reading: bool) -> Failure {
     }
 }
 
+/// Rejects an output path whose extension names no mesh format (before any work is done).
+pub(crate) fn check_mesh_output(path: &std::path::Path) -> Result<(), Failure> {
+    if isocube::io::MeshFormat::from_path(path).is_none() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: unknown mesh extension (expected .ply, .obj or .stl)",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
 /// Runs the command line and returns the process exit code.
 pub fn run<I, T>(args: I) -> ExitCode
 where

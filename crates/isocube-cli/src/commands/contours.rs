@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::contours::{reconstruct_with, Cap, Fidelity, PlaneGrid, SectionStack};
-use isocube::io::{read_contours, write_mesh, MeshFormat, MeshWriteOptions};
+use isocube::io::{read_contours, write_mesh, MeshWriteOptions};
 
 use crate::Failure;
 
@@ -82,12 +82,7 @@ fn cap(args: &Args, stack: &SectionStack) -> Result<Cap, Failure> {
 }
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
-    if MeshFormat::from_path(&args.output).is_none() {
-        return Err(Failure::input(anyhow::anyhow!(
-            "{}: unknown mesh extension (expected .ply, .obj or .stl)",
-            args.output.display()
-        )));
-    }
+    crate::check_mesh_output(&args.output)?;
     let stack = if args.input == "sample:orebody" {
         SectionStack::sample_orebody()
     } else {

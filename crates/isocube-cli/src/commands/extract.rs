@@ -7,7 +7,7 @@ use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{extract_into, ExtractOptions, Method, SnapPosition, Snapping};
 use isocube::field::SampleSpec;
-use isocube::io::{write_mesh, MeshFormat, MeshWriteOptions};
+use isocube::io::{write_mesh, MeshWriteOptions};
 use isocube::mesh::Mesh;
 use isocube::quality::{relax, Implicit, Strategy};
 
@@ -66,12 +66,7 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
-    if MeshFormat::from_path(&args.output).is_none() {
-        return Err(Failure::input(anyhow::anyhow!(
-            "{}: unknown mesh extension (expected .ply, .obj or .stl)",
-            args.output.display()
-        )));
-    }
+    crate::check_mesh_output(&args.output)?;
     if args.volume.is_file(&args.output) {
         return Err(Failure::input(anyhow::anyhow!(
             "{}: the output would overwrite the input volume",
