@@ -553,6 +553,38 @@ fn contours_command() {
             .unwrap()
             > 0
     );
+    // Every triangulation closes the same body.
+    for t in ["fan", "local", "optimal"] {
+        let name = format!("tri-{t}.ply");
+        ok(
+            dir.path(),
+            &["contours", "stack.csv", "-o", &name, "--triangulate", t],
+        );
+        let r = info(dir.path(), &name);
+        assert_eq!(
+            (r["watertight"].clone(), r["genus"].clone()),
+            (true.into(), 0.into()),
+            "{t}"
+        );
+    }
+    // A contour smaller than a cell is reported as missing.
+    let mut tiny = csv.clone();
+    for [x, y] in [[5.0, 5.0], [5.1, 5.0], [5.1, 5.1], [5.0, 5.1], [5.0, 5.0]] {
+        tiny += &format!("c,3,speck,{x},{y}\n");
+    }
+    std::fs::write(dir.path().join("tiny.csv"), &tiny).unwrap();
+    let out = isocube(
+        dir.path(),
+        &["contours", "tiny.csv", "-o", "tiny.ply", "--cell", "1"],
+    );
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("1 contour encloses no grid point and is missing"),
+        "{err}"
+    );
+    let single = "section,z,contour,x,y\ns,0,c,0,0\ns,0,c,1,0\ns,0,c,1,1\ns,0,c,0,0\n";
+    std::fs::write(dir.path().join("single.csv"), single).unwrap();
     let open = "section,z,contour,x,y\ns,0,c,0,0\ns,0,c,1,0\ns,0,c,1,1\n";
     std::fs::write(dir.path().join("open.csv"), open).unwrap();
     for (args, needle) in [
@@ -575,6 +607,10 @@ fn contours_command() {
                 "-1",
             ][..],
             "not a distance",
+        ),
+        (
+            &["contours", "single.csv", "-o", "bad.ply", "--cap", "flat"][..],
+            "a single section makes a closed surface only with an extension cap",
         ),
     ] {
         let out = isocube(dir.path(), args);

@@ -12,7 +12,8 @@
 //!   closure, configuration classes (binary 23/15/14, ternary 333/183), and the polygons of every
 //!   configuration obtained from its class representative.
 //! - [`field`]: sampled grids and built-in implicit sample functions.
-//! - [`contours`]: stacks of cross-section contours (validated) and their signed distance.
+//! - [`contours`]: stacks of cross-section contours (validated), their signed distance, and the
+//!   surface through them.
 //! - [`extract`]: watertight Marching Cubes with face ambiguities resolved by the asymptotic
 //!   decider.
 //! - [`extract`] also offers ternary Marching Cubes ([`extract::Method::Ternary`]): grid points on

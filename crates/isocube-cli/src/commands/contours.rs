@@ -4,8 +4,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args as ClapArgs;
-use isocube::contours::{reconstruct_with, Cap, Fidelity, PlaneGrid, SectionStack};
+use isocube::contours::{
+    reconstruct_with, Cap, Fidelity, PlaneGrid, ReconstructOptions, SectionStack,
+};
 use isocube::io::{read_contours, write_mesh, MeshWriteOptions};
+use isocube::quality::Strategy;
 
 use crate::Failure;
 
@@ -33,6 +36,11 @@ pub(crate) struct Args {
     /// contour points inserted (by default the mesh's cut by every section is the contour).
     #[arg(long)]
     plain: bool,
+    /// How each cell's polygon (with the contour points inserted in it) becomes triangles:
+    /// `local` (the local-change paper's rules), `optimal` (the largest smallest angle per
+    /// polygon, about 2.5× slower) or `fan` (from the polygon's centre).
+    #[arg(long, default_value = "local")]
+    triangulate: Strategy,
     /// Write ASCII PLY.
     #[arg(long)]
     ascii: bool,
@@ -114,10 +122,16 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         }
         (None, None) => PlaneGrid::across(&stack, 100),
     };
-    let points = plane.dims[0] * plane.dims[1] * (stack.sections().len() + 2);
-    if points > 1 << 31 {
+    // Only the cells the surface crosses are stored, but every grid row of every section has an
+    // entry, and indices along a row are 32-bit.
+    let rows = plane.dims[1].saturating_mul(stack.sections().len() + 2);
+    if plane.dims[0] > 1 << 30 || rows > 1 << 28 {
         return Err(Failure::input(anyhow::anyhow!(
-            "the grid would have {points} points; use a coarser --grid or a larger --cell"
+            "the plane grid would be {}×{} points over {} sections; use a coarser --grid or a \
+             larger --cell",
+            plane.dims[0],
+            plane.dims[1],
+            stack.sections().len()
         )));
     }
     let cap = cap(args, &stack)?;
@@ -127,7 +141,10 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     } else {
         Fidelity::Exact
     };
-    let r = reconstruct_with(&stack, &plane, cap, fidelity).map_err(Failure::input)?;
+    let options = ReconstructOptions::new(cap)
+        .with_fidelity(fidelity)
+        .with_triangulation(args.triangulate);
+    let r = reconstruct_with(&stack, &plane, &options).map_err(Failure::input)?;
     let elapsed = started.elapsed();
     write_mesh(
         &args.output,
@@ -156,16 +173,35 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             r.plane.dims[1],
             r.evaluated,
             r.points,
-            if r.unresolved_edges > 0 {
-                format!(
-                    "; {} grid edges are crossed twice by a contour (sharp corners), where the cut \
-                     cannot follow it",
-                    r.unresolved_edges
-                )
-            } else {
-                String::new()
-            }
+            unresolved_note(r.unresolved_edges, r.missed_contours)
         );
     }
     Ok(())
+}
+
+/// What the grid could not follow, for the summary line.
+fn unresolved_note(edges: usize, missed: usize) -> String {
+    let mut note = String::new();
+    if edges > 0 {
+        let what = if edges == 1 {
+            "grid edge is"
+        } else {
+            "grid edges are"
+        };
+        note += &format!(
+            "; {edges} {what} crossed by two parts of the contours closer than a cell, where the \
+             cut cannot follow them"
+        );
+    }
+    if missed > 0 {
+        note += &if missed == 1 {
+            "; 1 contour encloses no grid point and is missing".to_string()
+        } else {
+            format!("; {missed} contours enclose no grid point and are missing")
+        };
+    }
+    if !note.is_empty() {
+        note += " (use a finer --grid or --cell)";
+    }
+    note
 }

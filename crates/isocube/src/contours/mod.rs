@@ -21,13 +21,15 @@
 //! ```
 
 mod cap;
-mod exact;
 mod field;
 mod reconstruct;
+mod sectional;
+mod sparse;
 
 pub use field::{inside_flags, section_field, stacked_field, PlaneGrid, SectionField};
 pub use reconstruct::{
-    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, Fidelity, Reconstruction,
+    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, Fidelity, ReconstructOptions,
+    Reconstruction,
 };
 
 use thiserror::Error;

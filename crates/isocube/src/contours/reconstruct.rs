@@ -1,11 +1,12 @@
 //! Surfaces through a stack of sections: Marching Cubes (MC33 topology) on the stacked field,
 //! heights mapped back to the sections' own, unevenly spaced planes.
 
-use super::exact::{extract_exact, unresolved_edges};
-use super::field::{stacked_field, PlaneGrid};
+use super::field::PlaneGrid;
+use super::sectional::{extract_sectional, resolution};
 use super::SectionStack;
-use crate::extract::{extract, ExtractError, ExtractOptions};
+use crate::extract::ExtractError;
 use crate::mesh::Mesh;
+use crate::quality::Strategy;
 
 /// How the ends of the stack are closed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,30 +43,38 @@ pub struct Reconstruction {
     pub points: usize,
     /// Cells the surface passes through.
     pub active_cells: usize,
-    /// Grid edges a contour crosses more than once (wiggles smaller than a cell, which the mesh
-    /// cannot follow there; refine the grid to resolve them). Always 0 for [`Fidelity::Plain`].
+    /// Grid edges crossed more than once by parts of the contours that are not one excursion
+    /// across the edge and back (two contours, or two arms of one, closer than a cell): the cut
+    /// cannot follow the contours there; refine the grid. Always 0 for [`Fidelity::Plain`].
     pub unresolved_edges: usize,
+    /// Contours enclosing no grid point (smaller than a cell): the surface misses them; refine
+    /// the grid. Always 0 for [`Fidelity::Plain`].
+    pub missed_contours: usize,
     /// The plane grid used: the one asked for, or for [`Fidelity::Exact`] a shifted or slightly
     /// finer one where the asked grid has edges a contour crosses more than once.
     pub plane: PlaneGrid,
 }
 
-/// The grid to follow the contours on: `plane` if no grid edge is crossed twice by a contour,
-/// otherwise the first of a few shifted copies of it (then of grids with cells 15 % and 28 %
-/// smaller) that has none, or failing that the one with the fewest. The search is bounded on
-/// purpose: near-tangent bulges of long smooth contours cross some edge twice at any resolution,
-/// and chasing them would only multiply the grid.
+/// The grid to follow the contours on: `plane` if it resolves every contour (see
+/// [`Reconstruction::unresolved_edges`]), otherwise the first of a few shifted copies of it, then
+/// of grids with cells 15 % and 28 % smaller, that does, or failing that the one with the fewest
+/// unresolved places. The search is bounded on purpose: a grid much finer than asked is the
+/// caller's decision.
 fn resolving_plane(stack: &SectionStack, plane: &PlaneGrid) -> PlaneGrid {
-    let first = unresolved_edges(stack, plane);
+    let score = |p: &PlaneGrid| {
+        let r = resolution(stack, p);
+        r.unresolved_edges + r.missed_contours
+    };
+    let first = score(plane);
     if first == 0 {
         return *plane;
     }
     let shifts = [[1.3371, 1.6103], [1.5813, 1.2917], [1.8127, 1.4561]];
     let mut best = (first, *plane);
-    for scale in [1.0, 0.85, 0.72] {
+    for scale in [1.0, 0.85, 0.72, 0.6, 0.5] {
         for shift in shifts {
             let p = PlaneGrid::with_cell_and_shift(stack, plane.spacing * scale, shift);
-            let u = unresolved_edges(stack, &p);
+            let u = score(&p);
             if u == 0 {
                 return p;
             }
@@ -99,18 +108,70 @@ pub fn reconstruct(
     plane: &PlaneGrid,
     cap: Cap,
 ) -> Result<Reconstruction, ExtractError> {
-    reconstruct_with(stack, plane, cap, Fidelity::Exact)
+    reconstruct_with(stack, plane, &ReconstructOptions::new(cap))
 }
 
-/// [`reconstruct`] with a choice of [`Fidelity`].
+/// How to reconstruct: the caps, how closely to follow the contours, and how to triangulate each
+/// cell's polygons.
+///
+/// ```
+/// use isocube::contours::{Cap, Fidelity, ReconstructOptions};
+/// use isocube::quality::Strategy;
+/// let options = ReconstructOptions::new(Cap::Flat)
+///     .with_fidelity(Fidelity::Plain)
+///     .with_triangulation(Strategy::Optimal);
+/// assert_eq!(options.fidelity, Fidelity::Plain);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReconstructOptions {
+    /// How the ends are closed.
+    pub cap: Cap,
+    /// Exact contours (default) or the paper's plain crossings.
+    pub fidelity: Fidelity,
+    /// How each cell polygon (with its inserted contour points) is split into triangles:
+    /// [`Strategy::Local`] by default; [`Strategy::Optimal`] maximises each polygon's smallest
+    /// angle at about two and a half times the cost; [`Strategy::Fan`] fans from the polygon's
+    /// centroid.
+    pub triangulation: Strategy,
+}
+
+impl ReconstructOptions {
+    /// Exact fidelity and local triangulation, with these caps.
+    pub fn new(cap: Cap) -> Self {
+        ReconstructOptions {
+            cap,
+            fidelity: Fidelity::Exact,
+            triangulation: Strategy::Local,
+        }
+    }
+
+    /// With this fidelity.
+    pub fn with_fidelity(self, fidelity: Fidelity) -> Self {
+        ReconstructOptions { fidelity, ..self }
+    }
+
+    /// With this triangulation of the cell polygons.
+    pub fn with_triangulation(self, triangulation: Strategy) -> Self {
+        ReconstructOptions {
+            triangulation,
+            ..self
+        }
+    }
+}
+
+/// [`reconstruct`] with a choice of [`ReconstructOptions`].
 pub fn reconstruct_with(
     stack: &SectionStack,
     plane: &PlaneGrid,
-    cap: Cap,
-    fidelity: Fidelity,
+    options: &ReconstructOptions,
 ) -> Result<Reconstruction, ExtractError> {
+    let (cap, fidelity) = (options.cap, options.fidelity);
     if cap == Cap::Flat {
-        let mut r = reconstruct_with(stack, plane, Cap::Open, fidelity)?;
+        let open = ReconstructOptions {
+            cap: Cap::Open,
+            ..*options
+        };
+        let mut r = reconstruct_with(stack, plane, &open)?;
         let sections = stack.sections();
         for z in [sections[0].z(), sections[sections.len() - 1].z()] {
             super::cap::close_plane(&mut r.mesh, z as f32)
@@ -130,45 +191,24 @@ pub fn reconstruct_with(
             })
         }
     };
-    if fidelity == Fidelity::Exact {
-        let plane = resolving_plane(stack, plane);
-        let (mesh, stats) = extract_exact(stack, &plane, extend);
-        return Ok(Reconstruction {
-            mesh,
-            evaluated: stats.evaluated,
-            points: stats.points,
-            active_cells: stats.active_cells,
-            unresolved_edges: stats.unresolved_edges,
-            plane,
-        });
+    if stack.sections().len() < 2 && extend.is_none() {
+        return Err(ExtractError::Cap(
+            "a single section makes a closed surface only with an extension cap".into(),
+        ));
     }
-    let (field, heights) = stacked_field(stack, plane, extend);
-    let options = ExtractOptions::default()
-        .with_flip(true)
-        .with_normals(false);
-    let (mut mesh, _) = extract(&field.grid, &options)?;
-    // Grid z is the layer index: map it piecewise linearly onto the layers' heights. Crossings on
-    // vertical edges interpolate linearly in both, so this is exact.
-    let last = heights.len().saturating_sub(1);
-    for p in &mut mesh.positions {
-        let zi = f64::from(p[2]);
-        let k = (zi.floor().max(0.0) as usize).min(last.saturating_sub(1));
-        let t = zi - k as f64;
-        let z = if last == 0 {
-            heights[0]
-        } else {
-            heights[k] + t * (heights[k + 1] - heights[k])
-        };
-        p[2] = z as f32;
-    }
-    mesh.compute_normals();
+    let plane = match fidelity {
+        Fidelity::Exact => resolving_plane(stack, plane),
+        Fidelity::Plain => *plane,
+    };
+    let (mesh, stats) = extract_sectional(stack, &plane, extend, fidelity, options.triangulation);
     Ok(Reconstruction {
         mesh,
-        evaluated: field.evaluated,
-        points: field.grid.values().len(),
-        active_cells: field.active_cells,
-        unresolved_edges: 0,
-        plane: *plane,
+        evaluated: stats.evaluated,
+        points: stats.points,
+        active_cells: stats.active_cells,
+        unresolved_edges: stats.unresolved_edges,
+        missed_contours: stats.missed_contours,
+        plane,
     })
 }
 
@@ -261,16 +301,15 @@ mod tests {
             ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (z[1] - z[0]).powi(2)).sqrt();
         for cells in [20, 40, 160] {
             let plane = PlaneGrid::across(&stack, cells);
-            let exact =
-                reconstruct_with(&stack, &plane, Cap::Extend(6.0), Fidelity::Exact).unwrap();
+            let exact = reconstruct(&stack, &plane, Cap::Extend(6.0)).unwrap();
             let d = cut_distance(&exact.mesh, &stack);
             assert_eq!(exact.unresolved_edges, 0, "{cells}");
             assert!(
                 d.contour_to_cut <= 1e-6 * diag && d.cut_to_contour <= 1e-6 * diag,
                 "{cells}: {d:?}"
             );
-            let plain =
-                reconstruct_with(&stack, &plane, Cap::Extend(6.0), Fidelity::Plain).unwrap();
+            let options = ReconstructOptions::new(Cap::Extend(6.0)).with_fidelity(Fidelity::Plain);
+            let plain = reconstruct_with(&stack, &plane, &options).unwrap();
             let p = cut_distance(&plain.mesh, &stack);
             assert!(
                 p.contour_to_cut > 1e3 * d.contour_to_cut.max(1e-9),
@@ -296,13 +335,37 @@ mod tests {
         p
     }
 
-    proptest! {
-        #![proptest_config(ProptestConfig { cases: 60, failure_persistence: None, ..ProptestConfig::default() })]
+    /// A stack of 2–4 star contours (one or two lobes, sometimes a hole) at uneven spacing.
+    fn star_stack(layers: &[(f64, Vec<f64>, f64, u8)]) -> SectionStack {
+        let mut z = 0.0;
+        let mut sections = Vec::new();
+        for (dz, radii, phase, kind) in layers {
+            z += dz;
+            let mut contours = vec![star(0.0, 0.0, radii, *phase, false)];
+            if kind & 1 == 1 {
+                contours.push(star(5.0, 1.0, radii, phase + 1.0, false));
+            }
+            if kind & 2 == 2 {
+                let small: Vec<f64> = radii.iter().map(|r| 0.3 * r).collect();
+                contours.push(star(0.1, 0.0, &small, *phase, true));
+            }
+            sections.push((z, contours));
+        }
+        SectionStack::from_points(sections).unwrap()
+    }
 
-        /// Random stacks (2–4 sections, one or two lobes, sometimes a hole, uneven spacing,
-        /// random grids): watertight and oriented outward, and, wherever no contour crosses a
-        /// grid edge twice, every section's cut is its contours (Hausdorff both ways within 1e-6
-        /// of the bounding-box diagonal).
+    fn diagonal(stack: &SectionStack) -> f64 {
+        let (lo, hi, z) = stack.bounds();
+        ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (z[1] - z[0]).powi(2)).sqrt()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 300, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// Random stacks whose features are coarser than the grid but whose sharp corners poke
+        /// through grid edges all the time (almost every case folds excursions): watertight,
+        /// oriented outward, every contour followed, and every section's cut is its contours
+        /// (Hausdorff both ways within 1e-6 of the bounding-box diagonal).
         #[test]
         fn random_stacks_keep_their_contours(
             layers in proptest::collection::vec(
@@ -312,34 +375,114 @@ mod tests {
             cells in 12usize..48,
             flat: bool,
         ) {
-            let mut z = 0.0;
-            let mut sections = Vec::new();
-            for (dz, radii, phase, kind) in &layers {
-                z += dz;
-                let mut contours = vec![star(0.0, 0.0, radii, *phase, false)];
-                if kind & 1 == 1 {
-                    contours.push(star(5.0, 1.0, radii, phase + 1.0, false));
-                }
-                if kind & 2 == 2 {
-                    let small: Vec<f64> = radii.iter().map(|r| 0.3 * r).collect();
-                    contours.push(star(0.1, 0.0, &small, *phase, true));
-                }
-                sections.push((z, contours));
-            }
-            let stack = SectionStack::from_points(sections).unwrap();
-            let (lo, hi, zr) = stack.bounds();
-            let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (zr[1] - zr[0]).powi(2)).sqrt();
+            let stack = star_stack(&layers);
+            let diag = diagonal(&stack);
             let cap = if flat { Cap::Flat } else { Cap::Extend(0.5) };
-            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), cap).unwrap();
+            let asked = PlaneGrid::across(&stack, cells);
+            let r = reconstruct(&stack, &asked, cap).unwrap();
             let rep = r.mesh.report();
             prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
             prop_assert!(rep.volume.unwrap() > 0.0);
-            // A sharp corner poking through one grid edge cannot be followed (two crossings on
-            // one edge, at any resolution); everywhere else the cut is exact.
-            prop_assume!(r.unresolved_edges == 0);
+            prop_assert_eq!((r.unresolved_edges, r.missed_contours), (0, 0));
+            // The asked grid is kept whenever it resolves the contours.
+            let asked_resolution = resolution(&stack, &asked);
+            if asked_resolution.unresolved_edges + asked_resolution.missed_contours == 0 {
+                prop_assert_eq!(r.plane, asked);
+            }
             let d = cut_distance(&r.mesh, &stack);
             prop_assert!(d.contour_to_cut <= 1e-6 * diag && d.cut_to_contour <= 1e-6 * diag, "{:?}", d);
         }
+
+        /// Spiky stacks with needles thinner than a cell, which no grid of that size can follow
+        /// everywhere: the surface is still closed and oriented, and wherever the grid resolves
+        /// the contours the cut is exact.
+        #[test]
+        fn needles_thinner_than_a_cell_keep_the_surface_closed(
+            layers in proptest::collection::vec(
+                (0.5f64..3.0, proptest::collection::vec(0.6f64..1.3, 10..64), 0.0f64..6.3, 0u8..4),
+                2..5,
+            ),
+            cells in 12usize..48,
+        ) {
+            let stack = star_stack(&layers);
+            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), Cap::Extend(0.5)).unwrap();
+            let rep = r.mesh.report();
+            prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
+            prop_assert!(rep.volume.unwrap() > 0.0);
+            if r.unresolved_edges + r.missed_contours == 0 {
+                let diag = diagonal(&stack);
+                let d = cut_distance(&r.mesh, &stack);
+                prop_assert!(d.contour_to_cut <= 1e-6 * diag && d.cut_to_contour <= 1e-6 * diag, "{:?}", d);
+            }
+        }
+    }
+
+    /// A corner poking through a grid edge whose ends are both outside: the excursion is folded
+    /// into the piece it leaves from, the asked grid is kept, and the cut is exact.
+    #[test]
+    fn an_excursion_across_a_grid_edge_is_followed() {
+        // A square body with a thin spike whose tip crosses the grid line x = 2 between two
+        // grid points, then comes back.
+        let plane = PlaneGrid {
+            origin: [-2.0, -2.0],
+            spacing: 1.0,
+            dims: [6, 6],
+        };
+        let body = vec![
+            [-0.5, -0.5],
+            [1.5, -0.5],
+            [1.5, 0.3],
+            [2.3, 0.5],
+            [1.5, 0.7],
+            [1.5, 1.5],
+            [-0.5, 1.5],
+        ];
+        let stack =
+            SectionStack::from_points(vec![(0.0, vec![body.clone()]), (1.0, vec![body])]).unwrap();
+        let res = resolution(&stack, &plane);
+        assert_eq!(
+            (res.unresolved_edges, res.missed_contours, res.folded),
+            (0, 0, 2)
+        );
+        for cap in [Cap::Flat, Cap::Extend(0.5)] {
+            let r = reconstruct(&stack, &plane, cap).unwrap();
+            assert_eq!(r.plane, plane);
+            let rep = r.mesh.report();
+            assert!(
+                rep.watertight && rep.oriented && rep.volume.unwrap() > 0.0,
+                "{rep:?}"
+            );
+            let d = cut_distance(&r.mesh, &stack);
+            assert!(d.contour_to_cut < 1e-6 && d.cut_to_contour < 1e-6, "{d:?}");
+            // The spike's tip is a mesh vertex.
+            assert!(r.mesh.positions.iter().any(|p| p[0] == 2.3 && p[1] == 0.5));
+        }
+    }
+
+    /// Two contours closer than a cell cross one grid edge between them, and a contour smaller
+    /// than a cell encloses no grid point: both are reported, and a finer grid is chosen.
+    #[test]
+    fn what_a_grid_cannot_follow_is_reported() {
+        let plane = PlaneGrid {
+            origin: [-2.0, -2.0],
+            spacing: 1.0,
+            dims: [8, 6],
+        };
+        let a = vec![[-0.5, -0.5], [0.3, -0.5], [0.3, 1.5], [-0.5, 1.5]];
+        let b = vec![[0.6, -0.5], [2.5, -0.5], [2.5, 1.5], [0.6, 1.5]];
+        let tiny = vec![[3.2, 0.2], [3.6, 0.2], [3.6, 0.6], [3.2, 0.6]];
+        let stack = SectionStack::from_points(vec![
+            (0.0, vec![a.clone(), b.clone(), tiny.clone()]),
+            (1.0, vec![a, b, tiny]),
+        ])
+        .unwrap();
+        let res = resolution(&stack, &plane);
+        assert!(res.unresolved_edges > 0, "{res:?}");
+        assert_eq!(res.missed_contours, 2, "{res:?}");
+        let r = reconstruct(&stack, &plane, Cap::Flat).unwrap();
+        assert!(r.plane.spacing < plane.spacing);
+        let rep = r.mesh.report();
+        assert!(rep.watertight && rep.oriented, "{rep:?}");
     }
 
     #[test]
