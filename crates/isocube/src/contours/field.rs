@@ -111,7 +111,8 @@ pub fn stacked_field(
     let mut values: Vec<f32> = Vec::with_capacity(nx * ny * layers.max(2));
     for l in 0..layers {
         for j in 0..ny {
-            values.extend((0..nx).map(|i| sparse.value(l, i, j) as f32));
+            let partner = sparse.partner(l);
+            values.extend((0..nx).map(|i| sparse.value(l, partner, i, j) as f32));
         }
     }
     if layers == 1 {

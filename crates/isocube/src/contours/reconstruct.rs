@@ -360,7 +360,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig { cases: 300, failure_persistence: None, ..ProptestConfig::default() })]
+        #![proptest_config(ProptestConfig { cases: 400, failure_persistence: None, ..ProptestConfig::default() })]
 
         /// Random stacks whose features are coarser than the grid but whose sharp corners poke
         /// through grid edges all the time (almost every case folds excursions): watertight,
@@ -403,9 +403,11 @@ mod tests {
                 2..5,
             ),
             cells in 12usize..48,
+            flat: bool,
         ) {
             let stack = star_stack(&layers);
-            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), Cap::Extend(0.5)).unwrap();
+            let cap = if flat { Cap::Flat } else { Cap::Extend(0.5) };
+            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), cap).unwrap();
             let rep = r.mesh.report();
             prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
             prop_assert!(rep.volume.unwrap() > 0.0);
@@ -483,6 +485,124 @@ mod tests {
         assert!(r.plane.spacing < plane.spacing);
         let rep = r.mesh.report();
         assert!(rep.watertight && rep.oriented, "{rep:?}");
+    }
+
+    /// Found by the needle property: a grid point a hair inside a contour put vertical crossings
+    /// within single-precision rounding of the first section's plane, adding edges to its cut.
+    #[test]
+    fn crossings_next_to_a_section_stay_off_its_plane() {
+        let a: Vec<f64> = {
+            let mut v = vec![0.6; 51];
+            v[28] = 1.2665175580941979;
+            v[29] = 0.6824057746140384;
+            v[31] = 1.235053445738214;
+            v
+        };
+        let b: Vec<f64> = {
+            let mut v = vec![0.6; 26];
+            v[12] = 1.272585696967887;
+            v
+        };
+        let c: Vec<f64> = {
+            let mut v = vec![0.6; 44];
+            v[20] = 0.990271264530644;
+            v[34] = 1.2859655461294672;
+            v
+        };
+        let layers = vec![
+            (0.5, a, 0.8285119418228813, 1u8),
+            (0.5, b, 0.22351948150465245, 0),
+            (0.5, c, 0.47431296112946736, 1),
+        ];
+        let stack = star_stack(&layers);
+        let asked = PlaneGrid::across(&stack, 45);
+        let r = reconstruct(&stack, &asked, Cap::Extend(0.5)).unwrap();
+        assert_eq!((r.unresolved_edges, r.missed_contours), (0, 0));
+        let d = cut_distance(&r.mesh, &stack);
+        let diag = diagonal(&stack);
+        assert!(
+            d.contour_to_cut <= 1e-6 * diag && d.cut_to_contour <= 1e-6 * diag,
+            "{d:?}"
+        );
+        assert_eq!(r.mesh.report().degenerate, 0);
+    }
+
+    /// A section without contours ends the body: it closes between the last contour and it.
+    #[test]
+    fn an_empty_section_ends_the_body() {
+        for cap in [Cap::Flat, Cap::Extend(0.5), Cap::Open] {
+            let r = build(
+                vec![
+                    (0.0, vec![circle(0.0, 0.0, 2.0, 30)]),
+                    (1.0, vec![circle(0.0, 0.0, 2.0, 30)]),
+                    (2.0, vec![]),
+                ],
+                20,
+                cap,
+            );
+            let rep = r.mesh.report();
+            assert!(rep.oriented && rep.degenerate == 0, "{cap:?}: {rep:?}");
+            let top = r
+                .mesh
+                .positions
+                .iter()
+                .map(|p| p[2])
+                .fold(f32::MIN, f32::max);
+            assert!(top > 1.0 && top < 2.0, "{cap:?}: {top}");
+            if cap != Cap::Open {
+                assert!(rep.watertight && rep.genus == Some(0), "{cap:?}: {rep:?}");
+            }
+        }
+    }
+
+    /// Layer pairs are meshed in parallel; the mesh is the same with one thread or several.
+    #[test]
+    fn output_does_not_depend_on_the_thread_count() {
+        let stack = SectionStack::sample_orebody();
+        let plane = PlaneGrid::across(&stack, 60);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| reconstruct(&stack, &plane, Cap::Extend(6.0)).unwrap().mesh)
+        };
+        let one = run(1);
+        for threads in [2, 3] {
+            let many = run(threads);
+            assert_eq!(one.positions, many.positions, "{threads}");
+            assert_eq!(one.triangles, many.triangles, "{threads}");
+        }
+    }
+
+    /// Triangles passing through a section plane count in the cut: a box from z = −1 to 1 with
+    /// no vertex at z = 0 is cut along its square.
+    #[test]
+    fn cut_includes_triangles_through_the_plane() {
+        let mut mesh = Mesh::new();
+        for z in [-1.0f32, 1.0] {
+            for [x, y] in [[-1.0f32, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]] {
+                mesh.positions.push([x, y, z]);
+            }
+        }
+        for k in 0..4u32 {
+            let (a, b) = (k, (k + 1) % 4);
+            mesh.triangles.push([a, b, b + 4]);
+            mesh.triangles.push([a, b + 4, a + 4]);
+        }
+        let stack =
+            |s: f64| SectionStack::from_points(vec![(0.0, vec![square(0.0, 0.0, s)])]).unwrap();
+        let d = cut_distance(&mesh, &stack(1.0));
+        assert!(
+            d.contour_to_cut < 1e-12 && d.cut_to_contour < 1e-12,
+            "{d:?}"
+        );
+        let d = cut_distance(&mesh, &stack(0.75));
+        assert!((d.contour_to_cut - 0.25).abs() < 1e-12, "{d:?}");
+        assert!(
+            (d.cut_to_contour - 0.25 * 2f64.sqrt()).abs() < 1e-12,
+            "{d:?}"
+        );
     }
 
     #[test]
@@ -602,7 +722,7 @@ pub struct CutDistance {
 
 /// Measures [`CutDistance`] for every section and returns the worst. The cut at a section is
 /// made of the mesh edges in its plane that border a triangle leaving the plane (so the inside
-/// of a flat cap does not count).
+/// of a flat cap does not count), and of the segments where triangles pass through the plane.
 pub fn cut_distance(mesh: &Mesh, stack: &SectionStack) -> CutDistance {
     let mut worst = CutDistance {
         contour_to_cut: 0.0,
@@ -632,6 +752,26 @@ pub fn cut_distance(mesh: &Mesh, stack: &SectionStack) -> CutDistance {
                         [f64::from(p[0]), f64::from(p[1])],
                         [f64::from(q[0]), f64::from(q[1])],
                     ));
+                }
+            }
+            // A triangle passing through the plane (corners strictly on both sides) cuts it
+            // along a segment too.
+            let corners = t.map(|v| mesh.positions[v as usize].map(f64::from));
+            let side = corners.map(|c| (c[2] - f64::from(z)).signum() as i8);
+            if side.contains(&1) && side.contains(&-1) {
+                let zf = f64::from(z);
+                let mut ends = Vec::with_capacity(2);
+                for k in 0..3 {
+                    let (p, q) = (corners[k], corners[(k + 1) % 3]);
+                    if (p[2] - zf) * (q[2] - zf) < 0.0 {
+                        let u = (zf - p[2]) / (q[2] - p[2]);
+                        ends.push([p[0] + u * (q[0] - p[0]), p[1] + u * (q[1] - p[1])]);
+                    } else if p[2] == zf {
+                        ends.push([p[0], p[1]]);
+                    }
+                }
+                if let [a, b] = ends[..] {
+                    cut.push((a, b));
                 }
             }
         }

@@ -38,6 +38,11 @@ use crate::mesh::Mesh;
 use crate::quality::{triangulate, Strategy};
 use rayon::prelude::*;
 
+/// The closest a crossing on a vertical edge comes to either section, as a fraction of their
+/// distance (more where single precision needs it: far from the origin, or for very close
+/// sections).
+const VERTICAL_MARGIN: f64 = 1e-4;
+
 /// A grid edge in a section plane: (layer, axis 0 = x / 1 = y, i, j of its first point).
 type PlaneEdge = (usize, u8, usize, usize);
 
@@ -461,8 +466,10 @@ impl Context<'_> {
             for span in &field.active[l][j] {
                 let (first, last) = (span[0], span[1] + 1);
                 // The four point rows bounding this run of cells: (layer, row) by dz * 2 + dy.
-                let rows: [Option<(&[f64], f64)>; 4] =
-                    std::array::from_fn(|r| field.run(l + r / 2, j + r % 2, first, last));
+                let rows: [Option<(&[f64], f64)>; 4] = std::array::from_fn(|r| {
+                    let (layer, partner) = if r < 2 { (l, l + 1) } else { (l + 1, l) };
+                    field.run(layer, partner, j + r % 2, first, last)
+                });
                 for i in span[0]..=span[1] {
                     let v: [f32; 8] = std::array::from_fn(|c| {
                         let o = VERTICES[c];
@@ -471,7 +478,7 @@ impl Context<'_> {
                         let x = (i - first) as usize + dx;
                         let value = match rows[dz * 2 + dy] {
                             Some((values, drop)) => values[x] - drop,
-                            None => field.value(l + dz, i as usize + dx, j + dy),
+                            None => field.value(l + dz, l + 1 - dz, i as usize + dx, j + dy),
                         };
                         value as f32
                     });
@@ -556,7 +563,14 @@ impl Context<'_> {
             let o = VERTICES[usize::from(a)];
             let (pi, pj) = (i + usize::from(o[0]), j + usize::from(o[1]));
             let xy = self.plane.point(pi, pj);
-            let z = heights[l] + t * (heights[l + 1] - heights[l]);
+            // A grid point almost on a contour puts the crossing almost on the section plane;
+            // kept a hair off it, so that once written in single precision it is not on the
+            // plane, where it would add an edge to the cut that is not the contour.
+            let (z0, z1) = (heights[l], heights[l + 1]);
+            let ulps = 8.0 * f64::from(f32::EPSILON) * z0.abs().max(z1.abs()) / (z1 - z0);
+            let margin = VERTICAL_MARGIN.max(ulps).min(0.25);
+            let t = t.clamp(margin, 1.0 - margin);
+            let z = z0 + t * (z1 - z0);
             (Key::Vertical(pi, pj, l), [xy[0], xy[1], z], c.faces())
         }
     }

@@ -310,7 +310,15 @@ impl SegmentIndex {
     /// Exact distance to the nearest segment.
     fn distance(&self, p: Point2) -> f64 {
         let [nx, ny] = self.dims.map(|d| d as i64);
-        let c = [0, 1].map(|d| ((p[d] - self.origin[d]) / self.size).floor() as i64);
+        // Bucket coordinates, clamped to just beyond the rings' reach so that points far outside
+        // the grid do not overflow (their rings hold nothing anyway).
+        let c = [0, 1].map(|d| {
+            let b = ((p[d] - self.origin[d]) / self.size).floor();
+            b.clamp(
+                -(RINGS as f64) - 2.0,
+                (self.dims[d] as f64) + RINGS as f64 + 2.0,
+            ) as i64
+        });
         let mut best = f64::INFINITY;
         for r in 0..=RINGS {
             for y in c[1] - r..=c[1] + r {
@@ -359,8 +367,12 @@ struct LayerValues {
     /// Per row: (first point, last point, offset into `data`) of each run, sorted.
     rows: Vec<Vec<(u32, u32, u32)>>,
     data: Vec<f64>,
-    /// A virtual layer: the values of that layer lowered by this much.
-    source: Option<(usize, f64)>,
+    /// Whether the layer has no contour (a cap's virtual layer, or an empty section): then,
+    /// next to a layer with contours, it takes that layer's values lowered by [`Self::drop`].
+    empty: bool,
+    /// How far a layer with no contour next to this one lowers this one's values: a little more
+    /// than the deepest inside distance, so the body tapers to its innermost point there.
+    drop: f64,
 }
 
 /// The sparse sectional field of a stack on a plane grid.
@@ -448,33 +460,33 @@ impl SparseField {
         let evaluated: Vec<(LayerValues, usize)> = (0..layers)
             .into_par_iter()
             .map(|l| match field.section_of[l] {
-                Some(s) => field.evaluate(l, &sections[s], plane),
-                None => (
+                Some(s) if !sections[s].contours().is_empty() => {
+                    field.evaluate(l, &sections[s], plane)
+                }
+                _ => (
                     LayerValues {
                         rows: Vec::new(),
                         data: Vec::new(),
-                        source: None,
+                        empty: true,
+                        drop: 0.0,
                     },
                     0,
                 ),
             })
             .collect();
-        for (values, count) in evaluated {
+        for (mut values, count) in evaluated {
+            // Next to a layer with no contour every inside point of this one is a corner of an
+            // active cell, so this is the deepest inside distance of the whole section then.
+            let deepest = values
+                .data
+                .iter()
+                .copied()
+                .filter(|&v| v > 0.0)
+                .fold(0.0, f64::max);
+            // Strictly below zero everywhere, zero only in the limit at the deepest point.
+            values.drop = deepest * (1.0 + 1e-6) + 1e-12 * far;
             field.values.push(values);
             field.evaluated += count;
-        }
-        if extend.is_some() {
-            for (virtual_layer, end) in [(0, 1), (layers - 1, layers - 2)] {
-                let deepest = field.values[end]
-                    .data
-                    .iter()
-                    .copied()
-                    .filter(|&v| v > 0.0)
-                    .fold(0.0, f64::max);
-                // Strictly below zero everywhere, zero only in the limit at the deepest point.
-                let drop = deepest * (1.0 + 1e-6) + 1e-12 * far;
-                field.values[virtual_layer].source = Some((end, drop));
-            }
         }
         field
     }
@@ -523,18 +535,32 @@ impl SparseField {
             LayerValues {
                 rows,
                 data,
-                source: None,
+                empty: false,
+                drop: 0.0,
             },
             count,
         )
     }
 
-    /// The values of layer `l`, row `j`, points `first..=last`, as a slice and an amount to
-    /// subtract from each (non-zero on virtual layers); `None` if they were not evaluated.
-    pub(super) fn run(&self, l: usize, j: usize, first: u32, last: u32) -> Option<(&[f64], f64)> {
-        let layer = &self.values[l];
-        if let Some((source, drop)) = layer.source {
-            return self.run(source, j, first, last).map(|(v, d)| (v, d + drop));
+    /// The values of layer `l`, row `j`, points `first..=last`, as seen from the layer pair it
+    /// forms with `partner`: a slice and an amount to subtract from each (non-zero when `l` has
+    /// no contour and takes `partner`'s values); `None` if they were not evaluated.
+    pub(super) fn run(
+        &self,
+        l: usize,
+        partner: usize,
+        j: usize,
+        first: u32,
+        last: u32,
+    ) -> Option<(&[f64], f64)> {
+        let mut layer = &self.values[l];
+        let mut drop = 0.0;
+        if layer.empty {
+            let other = &self.values[partner];
+            if other.empty {
+                return None;
+            }
+            (layer, drop) = (other, other.drop);
         }
         let runs = layer.rows.get(j)?;
         let k = runs.partition_point(|r| r.0 <= first);
@@ -543,20 +569,32 @@ impl SparseField {
             return None;
         }
         let start = (offset + first - a) as usize;
-        Some((&layer.data[start..=start + (last - first) as usize], 0.0))
+        Some((&layer.data[start..=start + (last - first) as usize], drop))
     }
 
-    /// The value at point `(i, j)` of layer `l`: the signed distance where evaluated, otherwise
-    /// a placeholder of the right sign larger than any distance.
-    pub(super) fn value(&self, l: usize, i: usize, j: usize) -> f64 {
-        if let Some((v, d)) = self.run(l, j, i as u32, i as u32) {
+    /// The value at point `(i, j)` of layer `l` next to `partner` (see [`Self::run`]): the signed
+    /// distance where evaluated, otherwise a placeholder of the right sign larger than any
+    /// distance.
+    pub(super) fn value(&self, l: usize, partner: usize, i: usize, j: usize) -> f64 {
+        if let Some((v, d)) = self.run(l, partner, j, i as u32, i as u32) {
             return v[0] - d;
         }
-        // Virtual layers have no inside ranges: outside everywhere.
+        // Layers with no contour have no inside ranges: outside everywhere.
         if contains(&self.inside[l][j], i as u32) {
             self.far
         } else {
             -self.far
+        }
+    }
+
+    /// The layer a layer with no contour borrows its values from when it stands alone (the dense
+    /// view): the one below, or above at the bottom.
+    pub(super) fn partner(&self, l: usize) -> usize {
+        let layers = self.values.len();
+        if l > 0 && !self.values[l - 1].empty {
+            l - 1
+        } else {
+            (l + 1).min(layers - 1)
         }
     }
 }
