@@ -11,18 +11,6 @@ use isocube::contours::{
     reconstruct_with, Cap, Fidelity, PlaneGrid, ReconstructOptions, SectionStack,
 };
 
-fn padded(plane: PlaneGrid, factor: usize) -> PlaneGrid {
-    let pad = plane.dims.map(|d| (factor - 1) * d / 2);
-    PlaneGrid {
-        origin: [
-            plane.origin[0] - pad[0] as f64 * plane.spacing,
-            plane.origin[1] - pad[1] as f64 * plane.spacing,
-        ],
-        spacing: plane.spacing,
-        dims: [plane.dims[0] + 2 * pad[0], plane.dims[1] + 2 * pad[1]],
-    }
-}
-
 fn orebody(c: &mut Criterion) {
     let stack = SectionStack::sample_orebody();
     let mut group = c.benchmark_group("contours");
@@ -32,7 +20,7 @@ fn orebody(c: &mut Criterion) {
         ("160".to_string(), PlaneGrid::across(&stack, 160)),
         (
             "160-padded-x4".to_string(),
-            padded(PlaneGrid::across(&stack, 160), 4),
+            PlaneGrid::across(&stack, 160).padded(4),
         ),
     ] {
         for fidelity in [Fidelity::Plain, Fidelity::Exact] {

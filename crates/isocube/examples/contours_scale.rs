@@ -94,16 +94,7 @@ fn main() {
     header();
     let base = PlaneGrid::across(&stack, 256);
     for factor in [1usize, 2, 4] {
-        // Pad each side so the grid has `factor` times the points along each axis.
-        let pad = base.dims.map(|d| (factor - 1) * d / 2);
-        let plane = PlaneGrid {
-            origin: [
-                base.origin[0] - pad[0] as f64 * base.spacing,
-                base.origin[1] - pad[1] as f64 * base.spacing,
-            ],
-            spacing: base.spacing,
-            dims: [base.dims[0] + 2 * pad[0], base.dims[1] + 2 * pad[1]],
-        };
+        let plane = base.padded(factor);
         let (t, r) = run(&stack, &plane, Fidelity::Exact);
         row(
             &format!("256 across, padded ×{factor}"),

@@ -359,6 +359,21 @@ mod tests {
         ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (z[1] - z[0]).powi(2)).sqrt()
     }
 
+    /// Reconstructs with flat or extension caps and checks the surface is closed, oriented
+    /// outward.
+    fn closed(
+        stack: &SectionStack,
+        plane: &PlaneGrid,
+        flat: bool,
+    ) -> Result<Reconstruction, TestCaseError> {
+        let cap = if flat { Cap::Flat } else { Cap::Extend(0.5) };
+        let r = reconstruct(stack, plane, cap).unwrap();
+        let rep = r.mesh.report();
+        prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
+        prop_assert!(rep.volume.unwrap() > 0.0);
+        Ok(r)
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig { cases: 400, failure_persistence: None, ..ProptestConfig::default() })]
 
@@ -377,12 +392,8 @@ mod tests {
         ) {
             let stack = star_stack(&layers);
             let diag = diagonal(&stack);
-            let cap = if flat { Cap::Flat } else { Cap::Extend(0.5) };
             let asked = PlaneGrid::across(&stack, cells);
-            let r = reconstruct(&stack, &asked, cap).unwrap();
-            let rep = r.mesh.report();
-            prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
-            prop_assert!(rep.volume.unwrap() > 0.0);
+            let r = closed(&stack, &asked, flat)?;
             prop_assert_eq!((r.unresolved_edges, r.missed_contours), (0, 0));
             // The asked grid is kept whenever it resolves the contours.
             let asked_resolution = resolution(&stack, &asked);
@@ -406,11 +417,7 @@ mod tests {
             flat: bool,
         ) {
             let stack = star_stack(&layers);
-            let cap = if flat { Cap::Flat } else { Cap::Extend(0.5) };
-            let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), cap).unwrap();
-            let rep = r.mesh.report();
-            prop_assert!(rep.watertight && rep.oriented, "{:?}", rep);
-            prop_assert!(rep.volume.unwrap() > 0.0);
+            let r = closed(&stack, &PlaneGrid::across(&stack, cells), flat)?;
             if r.unresolved_edges + r.missed_contours == 0 {
                 let diag = diagonal(&stack);
                 let d = cut_distance(&r.mesh, &stack);
