@@ -620,3 +620,103 @@ fn contours_command() {
         assert!(!dir.path().join("bad.ply").exists());
     }
 }
+
+#[test]
+fn subdivide_command() {
+    let dir = tempfile::tempdir().unwrap();
+    for (holes, name) in [("smooth", "plate-smooth.obj"), ("sharp", "plate-sharp.obj")] {
+        ok(
+            dir.path(),
+            &[
+                "subdivide",
+                "sample:plate",
+                "-o",
+                name,
+                "--levels",
+                "2",
+                "--holes",
+                holes,
+            ],
+        );
+        let r = info(dir.path(), name);
+        assert_eq!(
+            (r["watertight"].clone(), r["genus"].clone()),
+            (true.into(), 1.into()),
+            "{holes}"
+        );
+    }
+    // The sharp method keeps faces with inner loops, written with isocube's tag.
+    let text = std::fs::read_to_string(dir.path().join("plate-sharp.obj")).unwrap();
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.starts_with("t innerloop"))
+            .count(),
+        2
+    );
+    // A mesh that extract wrote: 2 levels give 16 quads per triangle, written as triangles.
+    ok(dir.path(), &["extract", "sample:torus:12", "-o", "t.ply"]);
+    let before = info(dir.path(), "t.ply")["triangles"].as_u64().unwrap();
+    ok(
+        dir.path(),
+        &[
+            "subdivide",
+            "t.ply",
+            "-o",
+            "t2.ply",
+            "--levels",
+            "2",
+            "--limit",
+        ],
+    );
+    let r = info(dir.path(), "t2.ply");
+    assert_eq!(r["triangles"].as_u64().unwrap(), before * 3 * 4 * 2);
+    assert_eq!(
+        (r["watertight"].clone(), r["genus"].clone()),
+        (true.into(), 1.into())
+    );
+    // A boundary rule override on an open cage, and a file's tags.
+    let open = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nt crease 2/1/0 0 1 10\n";
+    std::fs::write(dir.path().join("open.obj"), open).unwrap();
+    for rule in ["edge-only", "edge-and-corner", "none"] {
+        ok(
+            dir.path(),
+            &[
+                "subdivide",
+                "open.obj",
+                "-o",
+                "open2.obj",
+                "--boundary",
+                rule,
+            ],
+        );
+    }
+    std::fs::write(dir.path().join("bad.obj"), "v 0 0 0\nv 1 0 0\nf 1 2 7\n").unwrap();
+    for (args, needle) in [
+        (
+            &["subdivide", "sample:teapot", "-o", "out.obj"][..],
+            "unknown sample cage 'teapot'",
+        ),
+        (
+            &["subdivide", "bad.obj", "-o", "out.obj"][..],
+            "vertex 7 does not exist",
+        ),
+        (
+            &[
+                "subdivide",
+                "sample:cube",
+                "-o",
+                "out.obj",
+                "--levels",
+                "40",
+            ][..],
+            "--levels 40",
+        ),
+    ] {
+        let out = isocube(dir.path(), args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!dir.path().join("out.obj").exists());
+    }
+}

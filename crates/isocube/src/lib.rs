@@ -12,6 +12,8 @@
 //!   closure, configuration classes (binary 23/15/14, ternary 333/183), and the polygons of every
 //!   configuration obtained from its class representative.
 //! - [`field`]: sampled grids and built-in implicit sample functions.
+//! - [`subdiv`]: polygon meshes with creases, corners, holes and faces with inner loops;
+//!   Catmull–Clark subdivision as OpenSubdiv defines it.
 //! - [`contours`]: stacks of cross-section contours (validated), their signed distance, and the
 //!   surface through them.
 //! - [`extract`]: watertight Marching Cubes with face ambiguities resolved by the asymptotic
@@ -47,6 +49,7 @@ pub mod field;
 pub mod io;
 pub mod mesh;
 pub mod quality;
+pub mod subdiv;
 
 /// The README's Rust examples, compiled and run as doctests so they stay true.
 #[cfg(doctest)]

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
-use isocube::io::read_mesh;
+use isocube::io::{read_mesh, read_poly_mesh};
 use isocube::mesh::MeshReport;
 use serde_json::json;
 
@@ -19,7 +19,15 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(args: &Args) -> Result<(), Failure> {
-    let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
+    // OBJ may hold polygons with inner loops and hole tags: read it as a polygon mesh.
+    let mesh =
+        if isocube::io::MeshFormat::from_path(&args.mesh) == Some(isocube::io::MeshFormat::Obj) {
+            let poly = read_poly_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
+            poly.triangulate()
+                .map_err(|e| Failure::input(anyhow::anyhow!("{}: {e}", args.mesh.display())))?
+        } else {
+            read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?
+        };
     let r = mesh.report();
     if args.json {
         println!("{}", to_json(&r));

@@ -9,7 +9,7 @@ fn cross(o: P2, a: P2, b: P2) -> f64 {
     (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 }
 
-fn area(poly: &[P2]) -> f64 {
+pub(crate) fn area(poly: &[P2]) -> f64 {
     let n = poly.len();
     (0..n)
         .map(|i| {
@@ -131,7 +131,11 @@ pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, String> {
 
 /// Joins a hole to the ring by a two-way cut from the hole's rightmost vertex to a ring vertex
 /// it can see.
-fn bridge(ring: &[u32], hole: &[u32], xy: &dyn Fn(u32) -> P2) -> Result<Vec<u32>, String> {
+pub(crate) fn bridge(
+    ring: &[u32],
+    hole: &[u32],
+    xy: &dyn Fn(u32) -> P2,
+) -> Result<Vec<u32>, String> {
     let (hi, &h) = hole
         .iter()
         .enumerate()
@@ -180,8 +184,11 @@ fn bridge(ring: &[u32], hole: &[u32], xy: &dyn Fn(u32) -> P2) -> Result<Vec<u32>
     Ok(out)
 }
 
+/// Rings up to this many vertices are clipped best ear first.
+const BEST_EAR_RING: usize = 400;
+
 /// Ear clipping of a (weakly) simple ring whose orientation has the sign `orientation`.
-fn ear_clip(
+pub(crate) fn ear_clip(
     ring: &[u32],
     xy: &dyn Fn(u32) -> P2,
     orientation: f64,
@@ -189,14 +196,32 @@ fn ear_clip(
     let mut v: Vec<u32> = ring.to_vec();
     let mut out = Vec::with_capacity(v.len());
     let mut guard = 0usize;
+    // The smallest angle of a triangle, for choosing among ears.
+    let smallest = |pa: P2, pb: P2, pc: P2| {
+        let angle = |o: P2, a: P2, b: P2| {
+            let (u, w) = ([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]]);
+            (u[0] * w[1] - u[1] * w[0])
+                .abs()
+                .atan2(u[0] * w[0] + u[1] * w[1])
+        };
+        angle(pa, pb, pc)
+            .min(angle(pb, pc, pa))
+            .min(angle(pc, pa, pb))
+    };
     while v.len() > 3 {
         let n = v.len();
-        let mut clipped = false;
+        // Small rings take the best-shaped ear (quadratic per ear); large ones, as dense
+        // contours make, the first (keeping the whole linear per ear).
+        let choose = n <= BEST_EAR_RING;
+        let mut best: Option<(f64, usize)> = None;
         for i in 0..n {
             let (a, b, c) = (v[(i + n - 1) % n], v[i], v[(i + 1) % n]);
             let (pa, pb, pc) = (xy(a), xy(b), xy(c));
             let turn = cross(pa, pb, pc) * orientation;
-            if turn <= 0.0 {
+            // Not convex, or straight up to rounding (refined edges and dense contours have runs
+            // of collinear points): clipping there would leave a flat triangle.
+            let scale = (pb[0] - pa[0]).hypot(pb[1] - pa[1]) * (pc[0] - pb[0]).hypot(pc[1] - pb[1]);
+            if turn <= 1e-9 * scale {
                 continue;
             }
             // No other ring point inside or on the ear (bridge duplicates share positions).
@@ -216,17 +241,22 @@ fn ear_clip(
             if blocked {
                 continue;
             }
-            out.push([a, b, c]);
-            v.remove(i);
-            clipped = true;
-            break;
+            let q = if choose { smallest(pa, pb, pc) } else { 0.0 };
+            if best.map_or(true, |(bq, _)| q > bq) {
+                best = Some((q, i));
+            }
+            if !choose {
+                break;
+            }
         }
-        if !clipped {
-            return Err("the cap polygon could not be triangulated".into());
-        }
+        let Some((_, i)) = best else {
+            return Err("the polygon could not be triangulated".into());
+        };
+        out.push([v[(i + n - 1) % n], v[i], v[(i + 1) % n]]);
+        v.remove(i);
         guard += 1;
         if guard > 4 * ring.len() + 16 {
-            return Err("the cap polygon could not be triangulated".into());
+            return Err("the polygon could not be triangulated".into());
         }
     }
     if v.len() == 3 && cross(xy(v[0]), xy(v[1]), xy(v[2])) * orientation > 0.0 {

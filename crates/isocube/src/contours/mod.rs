@@ -20,7 +20,7 @@
 //! assert_eq!(section.signed_distance([2.0, 0.5]), 0.0);
 //! ```
 
-mod cap;
+pub(crate) mod cap;
 mod field;
 mod reconstruct;
 mod sectional;

@@ -65,6 +65,17 @@ pub fn write_mesh(path: &Path, mesh: &Mesh, options: &MeshWriteOptions) -> Resul
     mesh.validate().map_err(|reason| {
         IoError::format(path, Position::File, format!("invalid mesh: {reason}"))
     })?;
+    write_atomic(path, &mut |w| {
+        write_mesh_to(&mut &mut *w, format, mesh, options)
+    })
+}
+
+/// Writes a file atomically: a temporary file beside the target, synced, renamed over it; on
+/// any error the target is untouched and the temporary file removed.
+pub(crate) fn write_atomic(
+    path: &Path,
+    write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), IoError> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -77,7 +88,7 @@ pub fn write_mesh(path: &Path, mesh: &Mesh, options: &MeshWriteOptions) -> Resul
         .map_err(|e| IoError::os(path, e))?;
     {
         let mut w = BufWriter::new(tmp.as_file());
-        write_mesh_to(&mut w, format, mesh, options).map_err(|e| IoError::os(path, e))?;
+        write(&mut w).map_err(|e| IoError::os(path, e))?;
         w.flush().map_err(|e| IoError::os(path, e))?;
     }
     tmp.as_file().sync_all().map_err(|e| IoError::os(path, e))?;

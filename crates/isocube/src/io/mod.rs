@@ -20,6 +20,7 @@ mod contours;
 mod mesh_io;
 mod npy;
 mod nrrd;
+mod poly;
 mod raw;
 
 use std::fmt;
@@ -33,6 +34,7 @@ pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
 pub use mesh_io::{read_mesh, write_mesh, write_mesh_to, MeshFormat, MeshWriteOptions};
 pub use npy::{read_npy, NpyAxes};
 pub use nrrd::read_nrrd;
+pub use poly::{read_poly_mesh, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
 
 /// Where in a file a problem was found.

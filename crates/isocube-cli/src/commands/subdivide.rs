@@ -1,0 +1,123 @@
+//! `isocube subdivide MESH -o OUT --levels N [--holes smooth|sharp]
+//! [--boundary edge-only|edge-and-corner|none] [--limit]`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::{Args as ClapArgs, ValueEnum};
+use isocube::io::{read_poly_mesh, write_poly_mesh, MeshWriteOptions};
+use isocube::subdiv::{
+    limit_positions, samples, subdivide, BoundaryRule, HoleMethod, SubdivOptions,
+};
+
+use crate::Failure;
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Boundary {
+    EdgeOnly,
+    EdgeAndCorner,
+    None,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Holes {
+    Smooth,
+    Sharp,
+}
+
+#[derive(Debug, ClapArgs)]
+pub(crate) struct Args {
+    /// The cage: .obj (polygons, with OpenSubdiv's `t crease`, `t corner`, `t hole`,
+    /// `t interpolateboundary` tags and isocube's `t innerloop`), a .ply/.stl triangle mesh
+    /// such as `extract` writes, or a built-in cage `sample:cube|plate|box-hole|boss`.
+    mesh: String,
+    /// Output: .obj keeps polygons and tags; .ply or .stl get triangles.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Refinement levels.
+    #[arg(long, default_value_t = 1)]
+    levels: usize,
+    /// Faces with inner loops: `smooth` (the loops are joined and rounded over) or `sharp`
+    /// (the loops stay sharp and the face keeps its holes).
+    #[arg(long, default_value = "smooth")]
+    holes: Holes,
+    /// Boundary rule; overrides the file's `interpolateboundary` tag (default: the tag, else
+    /// edge-only).
+    #[arg(long)]
+    boundary: Option<Boundary>,
+    /// Move the refined vertices to their limit positions.
+    #[arg(long)]
+    limit: bool,
+    /// Write ASCII PLY.
+    #[arg(long)]
+    ascii: bool,
+}
+
+/// Refinement multiplies faces by about 4 per level; beyond this many the output would not fit
+/// in memory anyway.
+const MAX_FACES: usize = 1 << 28;
+
+pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
+    crate::check_mesh_output(&args.output)?;
+    let cage = match args.mesh.strip_prefix("sample:") {
+        Some(name) => samples::sample(name).ok_or_else(|| {
+            Failure::input(anyhow::anyhow!(
+                "unknown sample cage '{name}' (expected one of {})",
+                samples::SAMPLES.join(", ")
+            ))
+        })?,
+        None => read_poly_mesh(Path::new(&args.mesh)).map_err(|e| crate::io_failure(e, true))?,
+    };
+    let sides: usize = cage.faces.iter().map(|f| f.outer.len()).sum();
+    let expected =
+        sides.saturating_mul(4usize.saturating_pow(args.levels.saturating_sub(1) as u32));
+    if args.levels > 0 && expected > MAX_FACES {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--levels {}: about {expected} faces; at most {MAX_FACES} are supported",
+            args.levels
+        )));
+    }
+    let options = SubdivOptions {
+        boundary: args.boundary.map(|b| match b {
+            Boundary::EdgeOnly => BoundaryRule::EdgeOnly,
+            Boundary::EdgeAndCorner => BoundaryRule::EdgeAndCorner,
+            Boundary::None => BoundaryRule::None,
+        }),
+        holes: match args.holes {
+            Holes::Smooth => HoleMethod::Smooth,
+            Holes::Sharp => HoleMethod::Sharp,
+        },
+    };
+    let started = Instant::now();
+    let mut fine = subdivide(&cage, args.levels, &options)
+        .map_err(|e| Failure::input(anyhow::anyhow!("{}: {e}", args.mesh)))?;
+    if args.limit {
+        if let Some(b) = options.boundary {
+            fine.boundary = Some(b);
+        }
+        fine.positions =
+            limit_positions(&fine).map_err(|e| Failure::input(anyhow::anyhow!("--limit: {e}")))?;
+    }
+    let elapsed = started.elapsed();
+    write_poly_mesh(
+        &args.output,
+        &fine,
+        &MeshWriteOptions {
+            ascii: args.ascii,
+            normals: true,
+        },
+    )
+    .map_err(|e| crate::io_failure(e, false))?;
+    if !quiet {
+        eprintln!(
+            "{}: {} vertices, {} faces ({} levels from {} faces) in {:.1} ms",
+            args.output.display(),
+            fine.positions.len(),
+            fine.faces.len(),
+            args.levels,
+            cage.faces.len(),
+            elapsed.as_secs_f64() * 1e3
+        );
+    }
+    Ok(())
+}
