@@ -4,35 +4,8 @@
 //! `cargo bench -p isocube --bench subdiv`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use isocube::subdiv::{subdivide, Face, PolyMesh, SubdivOptions};
-
-/// A torus of `nu × nv` quads, or twice as many triangles.
-fn torus(nu: usize, nv: usize, triangles: bool) -> PolyMesh {
-    let mut m = PolyMesh::default();
-    for i in 0..nu {
-        for j in 0..nv {
-            let (u, v) = (
-                2.0 * std::f64::consts::PI * i as f64 / nu as f64,
-                2.0 * std::f64::consts::PI * j as f64 / nv as f64,
-            );
-            let r = 3.0 + v.cos();
-            m.positions.push([r * u.cos(), r * u.sin(), v.sin()]);
-        }
-    }
-    let at = |i: usize, j: usize| ((i % nu) * nv + j % nv) as u32;
-    for i in 0..nu {
-        for j in 0..nv {
-            let q = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
-            if triangles {
-                m.faces.push(Face::new(vec![q[0], q[1], q[2]]));
-                m.faces.push(Face::new(vec![q[0], q[2], q[3]]));
-            } else {
-                m.faces.push(Face::new(q.to_vec()));
-            }
-        }
-    }
-    m
-}
+use isocube::subdiv::samples::torus;
+use isocube::subdiv::{subdivide, SubdivOptions};
 
 fn refine(c: &mut Criterion) {
     let mut group = c.benchmark_group("subdivide");

@@ -4,32 +4,11 @@
 
 use std::time::Instant;
 
-use isocube::subdiv::{subdivide, Face, PolyMesh, SubdivOptions};
+use isocube::subdiv::samples::torus;
+use isocube::subdiv::{subdivide, SubdivOptions};
 
 fn main() {
-    let (nu, nv) = (200, 150);
-    let mut m = PolyMesh::default();
-    for i in 0..nu {
-        for j in 0..nv {
-            let (u, v) = (
-                2.0 * std::f64::consts::PI * i as f64 / nu as f64,
-                2.0 * std::f64::consts::PI * j as f64 / nv as f64,
-            );
-            let r = 3.0 + v.cos();
-            m.positions.push([r * u.cos(), r * u.sin(), v.sin()]);
-        }
-    }
-    let at = |i: usize, j: usize| ((i % nu) * nv + j % nv) as u32;
-    for i in 0..nu {
-        for j in 0..nv {
-            m.faces.push(Face::new(vec![
-                at(i, j),
-                at(i + 1, j),
-                at(i + 1, j + 1),
-                at(i, j + 1),
-            ]));
-        }
-    }
+    let m = torus(200, 150, false);
     let mut best = f64::INFINITY;
     let mut faces = 0;
     for _ in 0..10 {

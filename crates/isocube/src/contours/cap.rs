@@ -49,39 +49,15 @@ pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, String> {
         }
     }
     let on = |v: u32| mesh.positions[v as usize][2] == z;
-    let mut next: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
     let mut open: Vec<(u32, u32)> = half
         .keys()
         .copied()
         .filter(|&(a, b)| !half.contains_key(&(b, a)) && on(a) && on(b))
+        // The cap runs each edge the other way.
+        .map(|(a, b)| (b, a))
         .collect();
     open.sort_unstable();
-    for &(a, b) in &open {
-        // The cap runs the edge b → a.
-        if next.insert(b, a).is_some() {
-            return Err("the boundary on the end plane branches".into());
-        }
-    }
-    let mut loops: Vec<Vec<u32>> = Vec::new();
-    let mut seen = std::collections::HashSet::new();
-    for &(_, start) in &open {
-        if seen.contains(&start) {
-            continue;
-        }
-        let mut l = vec![start];
-        seen.insert(start);
-        let mut v = next[&start];
-        while v != start {
-            if !seen.insert(v) {
-                return Err("the boundary on the end plane is not a set of simple loops".into());
-            }
-            l.push(v);
-            v = *next
-                .get(&v)
-                .ok_or("the boundary on the end plane is not closed")?;
-        }
-        loops.push(l);
-    }
+    let loops = chain_loops(&open).map_err(|e| format!("the boundary on the end plane {e}"))?;
     let xy = |v: u32| {
         let p = mesh.positions[v as usize];
         [f64::from(p[0]), f64::from(p[1])]
@@ -127,6 +103,36 @@ pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, String> {
         mesh.triangles.extend(tris);
     }
     Ok(added)
+}
+
+/// Chains directed edges (sorted, for a deterministic result) into closed loops, each edge
+/// followed by the one leaving its end. Errors say how the edges fail to form simple loops.
+pub(crate) fn chain_loops(edges: &[(u32, u32)]) -> Result<Vec<Vec<u32>>, String> {
+    let mut next: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    for &(a, b) in edges {
+        if next.insert(a, b).is_some() {
+            return Err("branches".into());
+        }
+    }
+    let mut loops: Vec<Vec<u32>> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for &(start, _) in edges {
+        if seen.contains(&start) {
+            continue;
+        }
+        let mut l = vec![start];
+        seen.insert(start);
+        let mut v = next[&start];
+        while v != start {
+            if !seen.insert(v) {
+                return Err("is not a set of simple loops".into());
+            }
+            l.push(v);
+            v = *next.get(&v).ok_or("is not closed")?;
+        }
+        loops.push(l);
+    }
+    Ok(loops)
 }
 
 /// Joins a hole to the ring by a two-way cut from the hole's rightmost vertex to a ring vertex

@@ -123,31 +123,8 @@ impl Level {
             .map(|v| mesh.corners.get(&v).copied().unwrap_or(0.0))
             .collect();
         let holes = (0..mesh.faces.len()).map(|f| mesh.is_hole(f)).collect();
-        Level::with_adjacency(
-            mesh.positions.clone(),
-            start,
-            verts,
-            corner_edge,
-            edges,
-            edge_tag,
-            vertex_tag,
-            holes,
-        )
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn with_adjacency(
-        positions: Vec<[f64; 3]>,
-        start: Vec<u32>,
-        verts: Vec<u32>,
-        corner_edge: Vec<u32>,
-        edges: Vec<[u32; 2]>,
-        edge_tag: Vec<f32>,
-        vertex_tag: Vec<f32>,
-        holes: Vec<bool>,
-    ) -> Level {
         Level {
-            positions,
+            positions: mesh.positions.clone(),
             start,
             verts,
             corner_edge,
@@ -375,7 +352,7 @@ impl Level {
         }
         let mut vertex_tag = vec![0.0f32; nf + ne];
         vertex_tag.extend(self.vertex_tag.iter().map(|&s| decrement(s)));
-        Level::with_adjacency(
+        Level {
             positions,
             start,
             verts,
@@ -384,7 +361,8 @@ impl Level {
             edge_tag,
             vertex_tag,
             holes,
-        )
+            adjacency: std::sync::OnceLock::new(),
+        }
     }
 
     /// The vertex point of `v`, blending the rules of this level and the next where they differ.

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::{Face, PolyMesh, SubdivError, INFINITELY_SHARP};
-use crate::contours::cap::{area, bridge, ear_clip};
+use crate::contours::cap::{area, bridge, chain_loops, ear_clip};
 
 /// How faces with inner loops are subdivided.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -225,45 +225,16 @@ pub(super) fn restore_inner_loops(
                 *directed.entry((lp[i], lp[(i + 1) % lp.len()])).or_insert(0) += 1;
             }
         }
-        let mut next: HashMap<u32, u32> = HashMap::new();
         let mut outline: Vec<(u32, u32)> = directed
             .keys()
             .copied()
             .filter(|&(a, b)| !directed.contains_key(&(b, a)))
             .collect();
         outline.sort_unstable();
-        for &(a, b) in &outline {
-            if next.insert(a, b).is_some() {
-                return Err(SubdivError::Holes {
-                    face: o,
-                    reason: "the refined pieces' outline touches itself".into(),
-                });
-            }
-        }
-        let mut loops: Vec<Vec<u32>> = Vec::new();
-        let mut used = std::collections::HashSet::new();
-        for &(start, _) in &outline {
-            if used.contains(&start) {
-                continue;
-            }
-            let mut lp = vec![start];
-            used.insert(start);
-            let mut v = next[&start];
-            while v != start {
-                if !used.insert(v) {
-                    return Err(SubdivError::Holes {
-                        face: o,
-                        reason: "the refined pieces' outline is not a set of loops".into(),
-                    });
-                }
-                lp.push(v);
-                v = *next.get(&v).ok_or(SubdivError::Holes {
-                    face: o,
-                    reason: "the refined pieces' outline is open".into(),
-                })?;
-            }
-            loops.push(lp);
-        }
+        let mut loops = chain_loops(&outline).map_err(|e| SubdivError::Holes {
+            face: o,
+            reason: format!("the refined pieces' outline {e}"),
+        })?;
         // The outer loop: the one with the largest area in the face's plane.
         let project = projector(&refined.positions, &loops[0]);
         let signed = |lp: &Vec<u32>| {
