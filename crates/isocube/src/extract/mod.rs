@@ -69,6 +69,7 @@
 //! assert_eq!(report.euler, 2);
 //! ```
 
+mod binary;
 mod classify;
 mod place;
 
@@ -287,95 +288,7 @@ fn extract_cells(
         ternary.mesh(options, mesh, &mut stats, progress)?;
         return Ok(stats);
     }
-    let table = CaseTable::binary();
-    let [nx, ny, nz] = grid.dims();
-    let level = options.level;
-    let mut stats = ExtractStats {
-        cells: grid.cell_count(),
-        ..ExtractStats::default()
-    };
-    let mut cache = EdgeCache::new(nx, ny);
-    let placer = Placer::new(grid, options);
-    let values = grid.values();
-    let (sy, sz) = (nx, nx * ny);
-    // Offsets of the cube vertices from the cell's first point, in the numbering of `cube`.
-    let corner_offsets = [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz];
-    for k in 0..nz - 1 {
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                let base = grid.index(i, j, k);
-                let v = corner_offsets.map(|o| values[base + o]);
-                if v.iter().any(|x| !x.is_finite()) {
-                    stats.skipped_cells += 1;
-                    continue;
-                }
-                let config = cell_config(&v, level);
-                if config == 0 || config == 255 {
-                    continue;
-                }
-                stats.active_cells += 1;
-                let decisions = face_decisions(&v, level, table.ambiguous_faces(config));
-                let tunnel = if options.topology == Topology::Mc33
-                    && table.has_tunnel_candidates(config, decisions)
-                {
-                    choose_tunnel(table, config, decisions, &v, level)
-                } else {
-                    None
-                };
-                stats.tunnels += usize::from(tunnel.is_some());
-                if options.triangulation != Strategy::Fan && tunnel.is_none() {
-                    let bounds = (grid.point(i, j, k), grid.point(i + 1, j + 1, k + 1));
-                    for polygon in table.polygons(config, decisions) {
-                        emit_polygon(
-                            polygon,
-                            [i, j, k],
-                            bounds,
-                            options,
-                            &mut cache,
-                            &placer,
-                            mesh,
-                            &mut stats,
-                        )?;
-                    }
-                    continue;
-                }
-                let cell = table.cell_triangles(config, decisions, options.topology, tunnel);
-                let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
-                for tri in cell.triangles {
-                    let mut ids = [0u32; 3];
-                    for (slot, &corner) in ids.iter_mut().zip(tri) {
-                        *slot = if let Some(e) = corner.as_edge() {
-                            cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?
-                        } else {
-                            let p = usize::from(
-                                corner
-                                    .as_interior()
-                                    .expect("binary cells have edge and interior corners"),
-                            );
-                            if interior[p] == u32::MAX {
-                                interior[p] = place_interior(
-                                    cell.interior_support(p),
-                                    &mut cache,
-                                    &placer,
-                                    mesh,
-                                    [i, j, k],
-                                )?;
-                                stats.interior_vertices += 1;
-                            }
-                            interior[p]
-                        };
-                    }
-                    if options.flip {
-                        ids.swap(1, 2);
-                    }
-                    mesh.triangles.push(ids);
-                }
-            }
-        }
-        cache.next_layer();
-        progress(k + 1, nz - 1);
-    }
-    Ok(stats)
+    binary::extract_binary(grid, options, mesh, progress)
 }
 
 /// How one cell is classified: its configuration, the decisions on its ambiguous faces and, under

@@ -44,6 +44,25 @@ impl<'a> Placer<'a> {
         self.vertex_on_edge(p0, axis, t, mesh)
     }
 
+    /// [`Placer::edge_vertex`] with the cell's eight values at hand (cube vertex order), saving
+    /// the two lookups.
+    #[inline]
+    pub(super) fn edge_vertex_of(
+        &self,
+        cell: [usize; 3],
+        v: &[f32; 8],
+        e: u8,
+        mesh: &mut Mesh,
+    ) -> Result<u32, ExtractError> {
+        let [a, b] = EDGES[usize::from(e)];
+        let off = VERTICES[usize::from(a)];
+        let p0 = [0, 1, 2].map(|d| cell[d] + usize::from(off[d]));
+        let axis = usize::from(EDGE_AXIS[usize::from(e)]);
+        let (v0, v1) = (f64::from(v[usize::from(a)]), f64::from(v[usize::from(b)]));
+        let t = ((self.level - v0) / (v1 - v0)).clamp(0.0, 1.0);
+        self.vertex_on_edge(p0, axis, t, mesh)
+    }
+
     /// The position at fraction `t` along the grid edge from `p0` along `axis`.
     pub(super) fn edge_point(&self, p0: [usize; 3], axis: usize, t: f64) -> [f32; 3] {
         let mut x = self.grid.point(p0[0], p0[1], p0[2]);

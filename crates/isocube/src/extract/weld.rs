@@ -12,10 +12,16 @@ const NONE: u32 = u32::MAX;
 
 pub(super) struct EdgeCache {
     nx: usize,
+    ny: usize,
     /// x-edges and y-edges of the bottom and top slices, z-edges of the layer.
     bottom: [Vec<u32>; 2],
     top: [Vec<u32>; 2],
     vertical: Vec<u32>,
+    /// Slots set in each (`axis · nx · ny + index`, index alone for vertical), in the order
+    /// they were set: clearing costs what was used, not the slice.
+    bottom_set: Vec<u32>,
+    top_set: Vec<u32>,
+    vertical_set: Vec<u32>,
 }
 
 impl EdgeCache {
@@ -23,9 +29,13 @@ impl EdgeCache {
         let n = nx * ny;
         EdgeCache {
             nx,
+            ny,
             bottom: [vec![NONE; n], vec![NONE; n]],
             top: [vec![NONE; n], vec![NONE; n]],
             vertical: vec![NONE; n],
+            bottom_set: Vec::new(),
+            top_set: Vec::new(),
+            vertical_set: Vec::new(),
         }
     }
 
@@ -41,28 +51,61 @@ impl EdgeCache {
     ) -> Result<u32, ExtractError> {
         let start = VERTICES[usize::from(EDGES[usize::from(e)][0])];
         let index = i + usize::from(start[0]) + self.nx * (j + usize::from(start[1]));
-        let slot = match EDGE_AXIS[usize::from(e)] {
-            2 => &mut self.vertical[index],
+        let plane = self.nx * self.ny;
+        let (slot, set, key) = match EDGE_AXIS[usize::from(e)] {
+            2 => (&mut self.vertical[index], &mut self.vertical_set, index),
             axis => {
-                let slice = if start[2] == 0 {
-                    &mut self.bottom
+                let (slice, set) = if start[2] == 0 {
+                    (&mut self.bottom, &mut self.bottom_set)
                 } else {
-                    &mut self.top
+                    (&mut self.top, &mut self.top_set)
                 };
-                &mut slice[usize::from(axis)][index]
+                let a = usize::from(axis);
+                (&mut slice[a][index], set, a * plane + index)
             }
         };
         if *slot == NONE {
             *slot = make()?;
+            set.push(key as u32);
         }
         Ok(*slot)
     }
 
+    /// The vertices made on the bottom (or top) slice of the current layer, as (slot, vertex)
+    /// with slot `axis · nx · ny + index`, in the order they were made.
+    pub(super) fn plane_entries(&self, top: bool) -> Vec<(u32, u32)> {
+        let plane = self.nx * self.ny;
+        let (slices, set) = if top {
+            (&self.top, &self.top_set)
+        } else {
+            (&self.bottom, &self.bottom_set)
+        };
+        set.iter()
+            .map(|&key| {
+                let k = key as usize;
+                (key, slices[k / plane][k % plane])
+            })
+            .collect()
+    }
+
+    /// Forgets every vertex (as new, without touching the whole slices).
+    pub(super) fn reset(&mut self) {
+        self.next_layer();
+        self.next_layer();
+    }
+
     pub(super) fn next_layer(&mut self) {
+        let plane = self.nx * self.ny;
         std::mem::swap(&mut self.bottom, &mut self.top);
-        for a in &mut self.top {
-            a.fill(NONE);
+        std::mem::swap(&mut self.bottom_set, &mut self.top_set);
+        for &key in &self.top_set {
+            let k = key as usize;
+            self.top[k / plane][k % plane] = NONE;
         }
-        self.vertical.fill(NONE);
+        self.top_set.clear();
+        for &k in &self.vertical_set {
+            self.vertical[k as usize] = NONE;
+        }
+        self.vertical_set.clear();
     }
 }
