@@ -11,9 +11,17 @@ use isocube::mesh::Mesh;
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let normals = args.iter().any(|a| a == "--normals");
-    let specs: Vec<String> = args.iter().filter(|a| !a.starts_with("--")).cloned().collect();
+    let specs: Vec<String> = args
+        .iter()
+        .filter(|a| !a.starts_with("--"))
+        .cloned()
+        .collect();
     let specs = if specs.is_empty() {
-        vec!["sample:tangle:256".to_string(), "sample:sphere:256".into(), "sample:gyroid:256".into()]
+        vec![
+            "sample:tangle:256".to_string(),
+            "sample:sphere:256".into(),
+            "sample:gyroid:256".into(),
+        ]
     } else {
         specs
     };
@@ -23,7 +31,11 @@ fn main() {
         let grid = spec.grid();
         let mut mesh = Mesh::new();
         let mut best = f64::INFINITY;
-        let runs = if args.iter().any(|a| a == "--long") { 60 } else { 7 };
+        let runs = if args.iter().any(|a| a == "--long") {
+            60
+        } else {
+            7
+        };
         for _ in 0..runs {
             let t = Instant::now();
             extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).expect("extracts");

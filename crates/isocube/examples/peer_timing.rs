@@ -12,6 +12,10 @@ use isocube::io::{read_npy, NpyAxes};
 use isocube::mesh::Mesh;
 use rayon::prelude::*;
 
+// The same allocator as the `isocube` command.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn best(runs: usize, mut f: impl FnMut()) -> f64 {
     (0..runs)
         .map(|_| {
@@ -37,7 +41,9 @@ fn main() {
                 .map(|c| c.iter().map(|&v| f64::from(v)).sum::<f64>())
                 .sum();
         });
-        let options = ExtractOptions::default().with_level(level).with_normals(false);
+        let options = ExtractOptions::default()
+            .with_level(level)
+            .with_normals(false);
         let mut mesh = Mesh::new();
         let extract_ms = best(7, || {
             extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).expect("extracts");

@@ -50,12 +50,8 @@ impl Masks {
             let full = row.chunks_exact(64);
             let tail = full.remainder();
             for (w, chunk) in full.enumerate() {
-                let mut bits = 0u64;
-                for (b, &v) in chunk.iter().enumerate() {
-                    bits |= u64::from(v >= level) << b;
-                    probe += v * 0.0;
-                }
-                out[w] = bits;
+                out[w] = pack_above(chunk, level);
+                probe += chunk.iter().map(|&v| v * 0.0).sum::<f32>();
             }
             if !tail.is_empty() {
                 let mut bits = 0u64;
@@ -130,6 +126,22 @@ impl Masks {
     }
 }
 
+/// Bit `b` set when `values[b]` is at or above the level, for 64 values: the comparisons go to
+/// bytes (which vectorises), and each 8 bytes of 0/1 are gathered into 8 bits by one multiply.
+#[inline]
+fn pack_above(values: &[f32], level: f32) -> u64 {
+    let mut bytes = [0u8; 64];
+    for (o, &v) in bytes.iter_mut().zip(values) {
+        *o = u8::from(v >= level);
+    }
+    let mut bits = 0u64;
+    for (k, eight) in bytes.chunks_exact(8).enumerate() {
+        let x = u64::from_le_bytes(eight.try_into().expect("8 bytes"));
+        bits |= (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * k);
+    }
+    bits
+}
+
 /// One slab's mesh, with the vertices on its bottom and top planes by edge slot.
 struct Slab {
     mesh: Mesh,
@@ -138,10 +150,13 @@ struct Slab {
     top: Vec<(u32, u32)>,
 }
 
-/// Cell layers per slab: about 16 slabs, enough to balance the cores on any grid and few enough
-/// that joining stays cheap; a function of the grid's size only, for determinism.
-fn slab_height(nz: usize) -> usize {
-    nz.div_ceil(16).max(4)
+/// Cell layers per slab: at least 16 slabs to balance the cores, and a slab's planes within
+/// about 8 MiB, so the values its masks read are still cached when its cells read them again;
+/// a function of the grid's size only, for determinism.
+fn slab_height(nx: usize, ny: usize, nz: usize) -> usize {
+    let plane = nx * ny * std::mem::size_of::<f32>();
+    let fit = (8 << 20) / plane.max(1);
+    fit.min(nz.div_ceil(16)).max(4)
 }
 
 pub(super) fn extract_binary(
@@ -150,7 +165,8 @@ pub(super) fn extract_binary(
     mesh: &mut Mesh,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ExtractStats, ExtractError> {
-    let height = slab_height(grid.dims()[2] - 1);
+    let [nx, ny, nz] = grid.dims();
+    let height = slab_height(nx, ny, nz - 1);
     extract_in_slabs(grid, options, mesh, progress, height)
 }
 
@@ -479,6 +495,24 @@ mod tests {
     use super::*;
     use crate::field::Sample;
 
+    #[test]
+    fn packed_masks_match_the_comparisons() {
+        let mut seed = 5u64;
+        for _ in 0..2000 {
+            let values: Vec<f32> = (0..64)
+                .map(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+                    ((seed >> 40) % 7) as f32 - 3.0
+                })
+                .collect();
+            let naive = values
+                .iter()
+                .enumerate()
+                .fold(0u64, |m, (b, &v)| m | u64::from(v >= 0.0) << b);
+            assert_eq!(pack_above(&values, 0.0), naive);
+        }
+    }
+
     fn run(grid: &Grid, options: &ExtractOptions, threads: usize, height: usize) -> Mesh {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -518,7 +552,13 @@ mod tests {
                 let nz = grid.dims()[2] - 1;
                 let one = run(grid, &options, 1, nz);
                 assert!(!one.triangles.is_empty());
-                for (threads, height) in [(1, 4), (2, 4), (2, 7), (3, 1), (2, slab_height(nz))] {
+                for (threads, height) in [
+                    (1, 4),
+                    (2, 4),
+                    (2, 7),
+                    (3, 1),
+                    (2, slab_height(grid.dims()[0], grid.dims()[1], nz)),
+                ] {
                     let other = run(grid, &options, threads, height);
                     assert_eq!(one.positions, other.positions, "{threads} {height}");
                     assert_eq!(one.normals, other.normals, "{threads} {height}");
