@@ -31,21 +31,17 @@ impl<'a> Placer<'a> {
         e: u8,
         mesh: &mut Mesh,
     ) -> Result<u32, ExtractError> {
-        let [a, _] = EDGES[usize::from(e)];
-        let off = VERTICES[usize::from(a)];
-        let p0 = [0, 1, 2].map(|d| cell[d] + usize::from(off[d]));
-        let axis = usize::from(EDGE_AXIS[usize::from(e)]);
-        let mut p1 = p0;
-        p1[axis] += 1;
-        let v0 = f64::from(self.grid.value(p0[0], p0[1], p0[2]));
-        let v1 = f64::from(self.grid.value(p1[0], p1[1], p1[2]));
-        // One end is at or above the level and the other below, so v1 ≠ v0.
-        let t = ((self.level - v0) / (v1 - v0)).clamp(0.0, 1.0);
-        self.vertex_on_edge(p0, axis, t, mesh)
+        let v = VERTICES.map(|o| {
+            self.grid.value(
+                cell[0] + usize::from(o[0]),
+                cell[1] + usize::from(o[1]),
+                cell[2] + usize::from(o[2]),
+            )
+        });
+        self.edge_vertex_of(cell, &v, e, mesh)
     }
 
-    /// [`Placer::edge_vertex`] with the cell's eight values at hand (cube vertex order), saving
-    /// the two lookups.
+    /// [`Placer::edge_vertex`] with the cell's eight values at hand (cube vertex order).
     #[inline]
     pub(super) fn edge_vertex_of(
         &self,
@@ -59,6 +55,7 @@ impl<'a> Placer<'a> {
         let p0 = [0, 1, 2].map(|d| cell[d] + usize::from(off[d]));
         let axis = usize::from(EDGE_AXIS[usize::from(e)]);
         let (v0, v1) = (f64::from(v[usize::from(a)]), f64::from(v[usize::from(b)]));
+        // One end is at or above the level and the other below, so v1 ≠ v0.
         let t = ((self.level - v0) / (v1 - v0)).clamp(0.0, 1.0);
         self.vertex_on_edge(p0, axis, t, mesh)
     }
