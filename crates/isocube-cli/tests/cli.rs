@@ -690,6 +690,13 @@ fn subdivide_command() {
             ],
         );
     }
+    // `info` still reports an OBJ that is no valid cage (a face repeating a vertex).
+    std::fs::write(
+        dir.path().join("degenerate.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 3\n",
+    )
+    .unwrap();
+    assert_eq!(info(dir.path(), "degenerate.obj")["vertices"], 3);
     std::fs::write(dir.path().join("bad.obj"), "v 0 0 0\nv 1 0 0\nf 1 2 7\n").unwrap();
     for (args, needle) in [
         (

@@ -19,15 +19,16 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(args: &Args) -> Result<(), Failure> {
-    // OBJ may hold polygons with inner loops and hole tags: read it as a polygon mesh.
-    let mesh =
-        if isocube::io::MeshFormat::from_path(&args.mesh) == Some(isocube::io::MeshFormat::Obj) {
-            let poly = read_poly_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
-            poly.triangulate()
-                .map_err(|e| Failure::input(anyhow::anyhow!("{}: {e}", args.mesh.display())))?
-        } else {
-            read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?
-        };
+    // OBJ may hold polygons with inner loops and hole tags: read it as a polygon mesh when it can
+    // be one (a file with, say, a face repeating a vertex is still reported, as triangles).
+    let obj = isocube::io::MeshFormat::from_path(&args.mesh) == Some(isocube::io::MeshFormat::Obj);
+    let mesh = match obj.then(|| read_poly_mesh(&args.mesh)) {
+        Some(Ok(poly)) => match poly.triangulate() {
+            Ok(mesh) => mesh,
+            Err(_) => read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?,
+        },
+        _ => read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?,
+    };
     let r = mesh.report();
     if args.json {
         println!("{}", to_json(&r));
