@@ -1,12 +1,14 @@
 //! Times extraction alone (grid already in memory) on built-in samples, best of several runs.
 //!
-//! `cargo run --release -p isocube --example extract_speed -- [tangle:256 …] [--normals]`
+//! `cargo run --release -p isocube --example extract_speed -- [sample:tangle:256 …] [--normals]
+//! [--local | --optimal]`
 
 use std::time::Instant;
 
 use isocube::extract::{extract_into, ExtractOptions};
 use isocube::field::SampleSpec;
 use isocube::mesh::Mesh;
+use isocube::quality::Strategy;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -25,7 +27,15 @@ fn main() {
     } else {
         specs
     };
-    let options = ExtractOptions::default().with_normals(normals);
+    let mut options = ExtractOptions::default().with_normals(normals);
+    for (flag, strategy) in [
+        ("--local", Strategy::Local),
+        ("--optimal", Strategy::Optimal),
+    ] {
+        if args.iter().any(|a| a == flag) {
+            options = options.with_triangulation(strategy);
+        }
+    }
     for spec in specs {
         let spec: SampleSpec = spec.parse().expect("a sample");
         let grid = spec.grid();

@@ -562,10 +562,12 @@ fn local(
     // (2) An interior vertex for pentagons and larger, and for long quads — unless diagonals
     // alone do better: in a sliver (two close, long sides) a vertex in the middle only makes
     // needles with a near-180° angle.
-    let star_q = star_quality(&q, weighted_interior_point(&q), normal);
-    let split_better =
-        best_by_diagonals(&q, &sub_allowed, normal).is_some_and(|(qd, _)| qd >= star_q);
-    if interior_wanted && star_q > 0.0 && !split_better {
+    let star_wins = || {
+        let star_q = star_quality(&q, weighted_interior_point(&q), normal);
+        star_q > 0.0
+            && !best_by_diagonals(&q, &sub_allowed, normal).is_some_and(|(qd, _)| qd >= star_q)
+    };
+    if interior_wanted && star_wins() {
         let x = with_interior(&mut out);
         return Some(PolygonTriangles {
             triangles: out,
@@ -581,8 +583,9 @@ fn local(
     }
     // (3) Split the largest angle toward the corner two edges away, trying the larger angles
     // first; fall back to the exact search over the remaining polygon.
+    let angles: Vec<f64> = (0..m).map(|k| corner_angle(&q, k)).collect();
     let mut order: Vec<usize> = (0..m).collect();
-    order.sort_by(|&a, &b| corner_angle(&q, b).total_cmp(&corner_angle(&q, a)));
+    order.sort_by(|&a, &b| angles[b].total_cmp(&angles[a]));
     if m == 4 {
         for k in order {
             let (a, b) = (k, (k + 2) % 4);
