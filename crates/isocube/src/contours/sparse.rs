@@ -607,13 +607,8 @@ mod tests {
     /// The active cells from ranges equal the cells whose corners disagree, found densely.
     #[test]
     fn active_cells_match_the_dense_definition() {
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as u32
-        };
+        let mut rng = crate::TestRng::new(7);
+        let mut next = || (rng.next_u64() >> 33) as u32;
         for _ in 0..2000 {
             let cells = 1 + next() % 20;
             let rows: Vec<Vec<Span>> = (0..4)

@@ -497,13 +497,10 @@ mod tests {
 
     #[test]
     fn packed_masks_match_the_comparisons() {
-        let mut seed = 5u64;
+        let mut rng = crate::TestRng::new(5);
         for _ in 0..2000 {
             let values: Vec<f32> = (0..64)
-                .map(|_| {
-                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-                    ((seed >> 40) % 7) as f32 - 3.0
-                })
+                .map(|_| ((rng.next_u64() >> 40) % 7) as f32 - 3.0)
                 .collect();
             let naive = values
                 .iter()

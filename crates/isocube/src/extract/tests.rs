@@ -177,14 +177,9 @@ fn closed_grid() -> impl Strategy<Value = Grid> {
 /// the same quarters occur.
 fn quantised_values(dims: [usize; 3], seed: u64) -> Vec<f32> {
     let n: usize = dims.iter().product();
-    let mut state = seed;
+    let mut rng = crate::TestRng::new(seed);
     (0..n)
-        .map(|_| {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 40) % 9) as f32 / 4.0 - 1.0
-        })
+        .map(|_| ((rng.next_u64() >> 40) % 9) as f32 / 4.0 - 1.0)
         .collect()
 }
 

@@ -631,13 +631,8 @@ mod tests {
     /// The one-arctangent smallest angle equals the smallest of the three corner angles.
     #[test]
     fn quality_is_the_smallest_corner_angle() {
-        let mut seed = 11u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = crate::TestRng::new(11);
+        let mut next = || rng.unit() - 0.5;
         for _ in 0..10_000 {
             let p: [[f64; 3]; 3] = std::array::from_fn(|_| [next(), next(), 0.1 * next()]);
             let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
@@ -717,13 +712,8 @@ mod tests {
     /// is never worse than the full star (one of its candidates), on irregular polygons.
     #[test]
     fn interior_vertex_triangulations_tile_and_beat_the_star() {
-        let mut state = 7u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::TestRng::new(7);
+        let mut next = || rng.unit();
         let any = |_: usize, _: usize| true;
         for n in 4..=12 {
             for _ in 0..20 {
