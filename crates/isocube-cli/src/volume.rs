@@ -4,7 +4,9 @@ use std::path::Path;
 
 use clap::Args;
 use isocube::field::{Grid, SampleSpec};
-use isocube::io::{read_volume, Endian, NpyAxes, RawOptions, ScalarType, VolumeOptions};
+use isocube::io::{
+    read_volume, Endian, MappedVolume, NpyAxes, RawOptions, ScalarType, VolumeOptions,
+};
 
 use crate::Failure;
 
@@ -67,6 +69,19 @@ impl VolumeArgs {
             }
             return Ok(grid);
         }
+        let options = self.file_options()?;
+        read_volume(Path::new(&self.volume), &options)
+            .map_err(|e| crate::io_failure(e, true))
+            .map_err(|f| Failure {
+                error: f.error.context("cannot read the volume"),
+                ..f
+            })
+    }
+}
+
+impl VolumeArgs {
+    /// How to read the volume file (not a sample).
+    pub(crate) fn file_options(&self) -> Result<VolumeOptions, Failure> {
         let raw = match (self.dims, self.scalar) {
             (Some(dims), Some(scalar)) => Some(RawOptions {
                 endian: self.endian,
@@ -80,18 +95,39 @@ impl VolumeArgs {
                 )))
             }
         };
-        let options = VolumeOptions {
+        Ok(VolumeOptions {
             raw,
             npy_axes: self.axes,
             spacing: self.spacing,
             origin: self.origin,
-        };
-        read_volume(Path::new(&self.volume), &options)
+        })
+    }
+
+    /// Maps the volume file for slab-wise reading (raw or .npy).
+    pub(crate) fn map(&self) -> Result<MappedVolume, Failure> {
+        MappedVolume::open(Path::new(&self.volume), &self.file_options()?)
             .map_err(|e| crate::io_failure(e, true))
             .map_err(|f| Failure {
                 error: f.error.context("cannot read the volume"),
                 ..f
             })
+    }
+
+    /// Whether the volume can be mapped: a .npy file, or a raw file (dims and type given).
+    pub(crate) fn mappable(&self) -> bool {
+        if SampleSpec::is_sample(&self.volume) {
+            return false;
+        }
+        let ext = Path::new(&self.volume)
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        match ext.as_str() {
+            "npy" => true,
+            "nrrd" | "nhdr" => false,
+            _ => self.dims.is_some() && self.scalar.is_some(),
+        }
     }
 }
 

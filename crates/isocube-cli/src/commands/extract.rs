@@ -5,9 +5,12 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{extract_into, ExtractOptions, Method, SnapPosition, Snapping};
+use isocube::extract::{
+    extract_into, extract_streamed, ExtractOptions, Method, SnapPosition, Snapping, StreamError,
+};
+use isocube::field::PlaneSource;
 use isocube::field::SampleSpec;
-use isocube::io::{write_mesh, MeshWriteOptions};
+use isocube::io::{write_mesh, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter};
 use isocube::mesh::Mesh;
 use isocube::quality::{relax, Implicit, Strategy};
 
@@ -63,7 +66,16 @@ pub(crate) struct Args {
     /// Write ASCII PLY.
     #[arg(long)]
     ascii: bool,
+    /// Extract slab by slab from the memory-mapped file (raw or .npy) straight into a binary PLY:
+    /// memory stays at a few slabs whatever the volume's size. Chosen by itself for volumes whose
+    /// values take more than 1 GiB as f32, when the options allow it (binary PLY output, `mc`,
+    /// no relaxation). The mesh is the same, byte for byte.
+    #[arg(long)]
+    stream: bool,
 }
+
+/// Volumes whose values take more than this as `f32` are extracted slab by slab when they can.
+const STREAM_ABOVE: u64 = 1 << 30;
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
@@ -73,27 +85,15 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             args.output.display()
         )));
     }
+    if let Some(volume) = streamable(args)? {
+        return run_streamed(args, &volume, quiet);
+    }
     let grid = args.volume.load()?;
     let exact = SampleSpec::is_sample(&args.volume.volume)
         .then(|| args.volume.volume.parse::<SampleSpec>().ok())
         .flatten()
         .map(|s| s.sample);
-    let options = ExtractOptions::default()
-        .with_level(args.level)
-        .with_flip(args.flip)
-        .with_normals(!args.no_normals)
-        .with_topology(args.topology)
-        .with_triangulation(args.triangulate)
-        // Built-in samples relax on their exact function, after extraction; files in extract.
-        .with_relax(if exact.is_some() { 0 } else { args.relax })
-        .with_method(match args.method.as_str() {
-            "ternary" => Method::Ternary(Snapping {
-                zero_threshold: args.zero_threshold,
-                snap: args.snap,
-                position: args.snap_position,
-            }),
-            _ => Method::MarchingCubes,
-        });
+    let options = options(args, exact.is_some());
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
@@ -154,4 +154,89 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// The mapped volume, when extraction goes slab by slab: asked for with --stream (an error if
+/// the options need the whole volume), or chosen for a large volume whose options allow it.
+fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
+    let obstacle = if !args.volume.mappable() {
+        Some("the volume must be a raw or .npy file")
+    } else if MeshFormat::from_path(&args.output) != Some(MeshFormat::Ply) || args.ascii {
+        Some("the output must be a binary .ply")
+    } else if args.method != "mc" {
+        Some("ternary extraction needs the whole volume")
+    } else if args.relax > 0 {
+        Some("relaxation needs the whole mesh")
+    } else {
+        None
+    };
+    match (args.stream, obstacle) {
+        (true, Some(why)) => Err(Failure::input(anyhow::anyhow!(
+            "--stream cannot be used here: {why}"
+        ))),
+        (false, Some(_)) => Ok(None),
+        (stream, None) => {
+            let volume = args.volume.map()?;
+            let points: u64 = PlaneSource::dims(&volume)
+                .iter()
+                .map(|&d| d as u64)
+                .product();
+            Ok((stream || points.saturating_mul(4) > STREAM_ABOVE).then_some(volume))
+        }
+    }
+}
+
+fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), Failure> {
+    let options = options(args, false);
+    let started = Instant::now();
+    let mut ply = PlyWriter::create(&args.output, !args.no_normals)
+        .map_err(|e| crate::io_failure(e, false))?;
+    let mut progress = Progress::new("extracting (streamed)", quiet);
+    let stats = extract_streamed(volume, &options, &mut ply, &mut |d, t| {
+        progress.update(d, t)
+    })
+    .map_err(|e| match e {
+        StreamError::Extract(e) => Failure::input(e),
+        StreamError::Sink(e) => crate::io_failure(e, false),
+    })?;
+    progress.finish();
+    let (vertices, triangles) = (ply.vertex_count(), ply.triangle_count());
+    ply.finish().map_err(|e| crate::io_failure(e, false))?;
+    if !quiet {
+        eprintln!(
+            "{}: {vertices} vertices, {triangles} triangles in {:.1} ms, streamed slab by slab from {} ({} of {} cells active, {} tunnels{})",
+            args.output.display(),
+            started.elapsed().as_secs_f64() * 1e3,
+            volume.path().display(),
+            stats.active_cells,
+            stats.cells,
+            stats.tunnels,
+            if stats.skipped_cells > 0 {
+                format!(", {} skipped for NaN/Inf values", stats.skipped_cells)
+            } else {
+                String::new()
+            },
+        );
+    }
+    Ok(())
+}
+
+/// The library's options from the arguments; `exact`: the volume is a built-in sample (which
+/// relaxes on its exact function after extraction, not in it).
+fn options(args: &Args, exact: bool) -> ExtractOptions {
+    ExtractOptions::default()
+        .with_level(args.level)
+        .with_flip(args.flip)
+        .with_normals(!args.no_normals)
+        .with_topology(args.topology)
+        .with_triangulation(args.triangulate)
+        .with_relax(if exact { 0 } else { args.relax })
+        .with_method(match args.method.as_str() {
+            "ternary" => Method::Ternary(Snapping {
+                zero_threshold: args.zero_threshold,
+                snap: args.snap,
+                position: args.snap_position,
+            }),
+            _ => Method::MarchingCubes,
+        })
 }

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 
 use super::place::Placer;
 use super::weld::EdgeCache;
+use super::window::Window;
 use super::{
     cell_config, choose_tunnel, emit_polygon, face_decisions, place_interior, ExtractError,
     ExtractOptions, ExtractStats,
@@ -36,10 +37,10 @@ struct Masks {
 
 impl Masks {
     /// Masks of the point planes `k0..=k1` (rows indexed from `k0`).
-    fn new(grid: &Grid, level: f32, k0: usize, k1: usize) -> Masks {
-        let [nx, ny, _] = grid.dims();
+    fn new(window: &Window, level: f32, k0: usize, k1: usize) -> Masks {
+        let [nx, ny, _] = window.dims();
         let words = nx.div_ceil(64);
-        let values = &grid.values()[k0 * nx * ny..(k1 + 1) * nx * ny];
+        let values = window.planes(k0, k1);
         let rows = ny * (k1 + 1 - k0);
         let mut above = vec![0u64; rows * words];
         let mut invalid = false;
@@ -143,17 +144,17 @@ fn pack_above(values: &[f32], level: f32) -> u64 {
 }
 
 /// One slab's mesh, with the vertices on its bottom and top planes by edge slot.
-struct Slab {
-    mesh: Mesh,
-    stats: ExtractStats,
-    bottom: Vec<(u32, u32)>,
-    top: Vec<(u32, u32)>,
+pub(super) struct Slab {
+    pub(super) mesh: Mesh,
+    pub(super) stats: ExtractStats,
+    pub(super) bottom: Vec<(u32, u32)>,
+    pub(super) top: Vec<(u32, u32)>,
 }
 
 /// Cell layers per slab: at least 16 slabs to balance the cores, and a slab's planes within
 /// about 8 MiB, so the values its masks read are still cached when its cells read them again;
 /// a function of the grid's size only, for determinism.
-fn slab_height(nx: usize, ny: usize, nz: usize) -> usize {
+pub(super) fn slab_height(nx: usize, ny: usize, nz: usize) -> usize {
     let plane = nx * ny * std::mem::size_of::<f32>();
     let fit = (8 << 20) / plane.max(1);
     fit.min(nz.div_ceil(16)).max(4)
@@ -187,7 +188,7 @@ fn extract_in_slabs(
                 let k0 = s * height;
                 let k1 = ((s + 1) * height).min(nz - 1);
                 cache.reset();
-                mesh_slab(grid, options, cache, k0, k1)
+                mesh_slab(Window::whole(grid), options, cache, k0, k1)
             },
         )
         .collect();
@@ -336,9 +337,10 @@ fn join(
     Ok(stats)
 }
 
-/// Meshes cell layers `k0..k1`.
-fn mesh_slab(
-    grid: &Grid,
+/// Meshes cell layers `k0..k1` (the window must hold point planes `k0 − 1..=k1 + 1` where the
+/// grid has them: normals read one plane beyond the cells).
+pub(super) fn mesh_slab(
+    grid: Window,
     options: &ExtractOptions,
     cache: &mut EdgeCache,
     k0: usize,
@@ -355,7 +357,7 @@ fn mesh_slab(
     // Offsets of the cube vertices from the cell's first point, in the numbering of `cube`.
     let corner_offsets = [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz];
     // The slab's own masks: its planes are read once, just before their cells are visited.
-    let masks = Masks::new(grid, level, k0, k1);
+    let masks = Masks::new(&grid, level, k0, k1);
     let mut visit = vec![0u64; masks.words];
     // Room for what the slab will make (about one vertex and two triangles per cell visited),
     // so the arrays are not copied as they grow.
@@ -397,7 +399,7 @@ fn mesh_slab(
                         [i, j, k],
                         &v,
                         config,
-                        grid,
+                        &grid,
                         &placer,
                         cache,
                         &mut mesh,
@@ -429,7 +431,7 @@ fn mesh_cell(
     [i, j, k]: [usize; 3],
     v: &[f32; 8],
     config: u8,
-    grid: &Grid,
+    grid: &Window,
     placer: &Placer,
     cache: &mut EdgeCache,
     mesh: &mut Mesh,

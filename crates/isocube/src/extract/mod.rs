@@ -57,7 +57,13 @@
 //! - Watertight, edge-manifold and consistently oriented when the surface does not reach the
 //!   grid boundary — including integer data with many values exactly at the level. Where it does,
 //!   open edges lie only on the grid's boundary faces.
-//! - Deterministic: the same input gives the same bytes.
+//! - Deterministic: the same input gives the same bytes, whatever the number of threads.
+//!
+//! # Volumes larger than memory
+//! [`extract_streamed`] reads planes from a [`crate::field::PlaneSource`] (a grid, or a mapped
+//! file: `io::MappedVolume`) a batch of slabs at a time and hands the mesh to a [`MeshSink`] (a
+//! [`Mesh`], or a PLY file written piece by piece: `io::PlyWriter`) in order; the result is
+//! exactly [`extract`]'s.
 //!
 //! ```
 //! use isocube::extract::{extract, ExtractOptions};
@@ -74,8 +80,12 @@ mod classify;
 mod place;
 
 pub(crate) use classify::{cell_config, face_decisions};
+mod stream;
 mod ternary;
 mod weld;
+mod window;
+
+pub use stream::{extract_streamed, MeshSink, StreamError};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
 
@@ -230,6 +240,12 @@ pub enum ExtractError {
     /// The ends of a contour reconstruction could not be closed flat.
     #[error("cannot close the ends flat: {0}")]
     Cap(String),
+    /// The grid has too few points or too many.
+    #[error(transparent)]
+    Grid(#[from] crate::field::GridError),
+    /// Slab-wise extraction was asked for something that needs the whole volume.
+    #[error("ternary extraction and relaxation need the whole volume in memory, not slab by slab")]
+    WholeVolume,
     /// The mesh would need more than `u32::MAX` vertices.
     #[error("the mesh would have more than {} vertices", u32::MAX)]
     TooManyVertices,

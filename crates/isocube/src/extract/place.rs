@@ -2,20 +2,20 @@
 //! interpolated central-difference gradient.
 
 use crate::cube::{EDGES, EDGE_AXIS, VERTICES};
-use crate::field::Grid;
 use crate::mesh::Mesh;
 
+use super::window::Window;
 use super::{ExtractError, ExtractOptions};
 
 pub(super) struct Placer<'a> {
-    grid: &'a Grid,
+    grid: Window<'a>,
     level: f64,
     normals: bool,
     flip: bool,
 }
 
 impl<'a> Placer<'a> {
-    pub(super) fn new(grid: &'a Grid, options: &ExtractOptions) -> Placer<'a> {
+    pub(super) fn new(grid: Window<'a>, options: &ExtractOptions) -> Placer<'a> {
         Placer {
             grid,
             level: f64::from(options.level),

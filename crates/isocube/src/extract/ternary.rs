@@ -737,7 +737,7 @@ impl<'a> Ternary<'a> {
         stats: &mut ExtractStats,
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<(), ExtractError> {
-        let placer = Placer::new(self.grid, options);
+        let placer = Placer::new(super::window::Window::whole(self.grid), options);
         let [nx, ny, nz] = self.grid.dims();
         let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
         let mut patch = Patch::default();

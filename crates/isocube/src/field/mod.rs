@@ -7,6 +7,8 @@
 
 mod grid;
 mod samples;
+mod source;
 
 pub use grid::{Grid, GridError};
 pub use samples::{Sample, SampleSpec};
+pub use source::PlaneSource;

@@ -1,10 +1,11 @@
 //! Mesh files: PLY, OBJ and STL, chosen by extension.
 
 use std::collections::HashMap;
-use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
 
 use super::{read_file, IoError, Position};
+use crate::extract::MeshSink;
 use crate::mesh::Mesh;
 
 /// A mesh file format.
@@ -76,16 +77,7 @@ pub(crate) fn write_atomic(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), IoError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("mesh");
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(|e| IoError::os(path, e))?;
+    let tmp = temp_beside(path, "").map_err(|e| IoError::os(path, e))?;
     {
         let mut w = BufWriter::new(tmp.as_file());
         write(&mut w).map_err(|e| IoError::os(path, e))?;
@@ -117,14 +109,13 @@ fn write_ply(w: &mut impl Write, mesh: &Mesh, normals: bool, ascii: bool) -> std
     } else {
         "binary_little_endian"
     };
-    writeln!(w, "ply\nformat {format} 1.0\ncomment isocube")?;
-    writeln!(w, "element vertex {}", mesh.positions.len())?;
-    writeln!(w, "property float x\nproperty float y\nproperty float z")?;
-    if normals {
-        writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
-    }
-    writeln!(w, "element face {}", mesh.triangles.len())?;
-    writeln!(w, "property list uchar uint vertex_indices\nend_header")?;
+    ply_header(
+        w,
+        format,
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        normals,
+    )?;
     for (i, p) in mesh.positions.iter().enumerate() {
         let n = if normals { Some(mesh.normals[i]) } else { None };
         if ascii {
@@ -150,6 +141,158 @@ fn write_ply(w: &mut impl Write, mesh: &Mesh, normals: bool, ascii: bool) -> std
         }
     }
     Ok(())
+}
+
+fn ply_header(
+    w: &mut impl Write,
+    format: &str,
+    vertices: usize,
+    faces: usize,
+    normals: bool,
+) -> std::io::Result<()> {
+    writeln!(w, "ply\nformat {format} 1.0\ncomment isocube")?;
+    writeln!(w, "element vertex {vertices}")?;
+    writeln!(w, "property float x\nproperty float y\nproperty float z")?;
+    if normals {
+        writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
+    }
+    writeln!(w, "element face {faces}")?;
+    writeln!(w, "property list uchar uint vertex_indices\nend_header")
+}
+
+/// A binary PLY file written piece by piece, as a [`MeshSink`] for
+/// [`crate::extract::extract_streamed`]: meshes larger than memory go straight to disk.
+///
+/// Vertices and triangles go to two temporary files beside the target; [`PlyWriter::finish`]
+/// writes the header (whose counts are known only then) and both parts into a third, syncs it
+/// and renames it over the target. The bytes are those [`write_mesh`] writes for the same mesh
+/// (binary, little-endian). If anything fails, or the writer is dropped unfinished, the target
+/// is untouched and the temporary files are removed.
+pub struct PlyWriter {
+    path: PathBuf,
+    normals: bool,
+    vertices: BufWriter<tempfile::NamedTempFile>,
+    faces: BufWriter<tempfile::NamedTempFile>,
+    vertex_count: usize,
+    face_count: usize,
+}
+
+impl PlyWriter {
+    /// Starts a binary PLY file at `path`, with per-vertex normals if `normals`.
+    pub fn create(path: &Path, normals: bool) -> Result<PlyWriter, IoError> {
+        let part = |what: &str| {
+            temp_beside(path, what)
+                .map(|f| BufWriter::with_capacity(1 << 20, f))
+                .map_err(|e| IoError::os(path, e))
+        };
+        Ok(PlyWriter {
+            path: path.to_path_buf(),
+            normals,
+            vertices: part("vertices")?,
+            faces: part("faces")?,
+            vertex_count: 0,
+            face_count: 0,
+        })
+    }
+
+    /// Vertices written so far.
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    /// Triangles written so far.
+    pub fn triangle_count(&self) -> usize {
+        self.face_count
+    }
+
+    /// Writes the file and renames it over the target.
+    pub fn finish(self) -> Result<(), IoError> {
+        let path = self.path;
+        let os = |e| IoError::os(&path, e);
+        let mut parts = [self.vertices, self.faces]
+            .into_iter()
+            .map(|w| w.into_inner().map_err(|e| os(e.into_error())))
+            .collect::<Result<Vec<_>, _>>()?;
+        let out = temp_beside(&path, "").map_err(os)?;
+        {
+            let mut w = BufWriter::new(out.as_file());
+            ply_header(
+                &mut w,
+                "binary_little_endian",
+                self.vertex_count,
+                self.face_count,
+                self.normals,
+            )
+            .map_err(os)?;
+            w.flush().map_err(os)?;
+        }
+        for part in &mut parts {
+            let file = part.as_file_mut();
+            file.seek(SeekFrom::Start(0)).map_err(os)?;
+            std::io::copy(file, &mut out.as_file()).map_err(os)?;
+        }
+        out.as_file().sync_all().map_err(os)?;
+        out.persist(&path)
+            .map_err(|e| IoError::os(&path, e.error))?;
+        Ok(())
+    }
+}
+
+/// A temporary file in `path`'s directory, named after it.
+fn temp_beside(path: &Path, what: &str) -> std::io::Result<tempfile::NamedTempFile> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("mesh");
+    let prefix = if what.is_empty() {
+        format!(".{name}.")
+    } else {
+        format!(".{name}.{what}.")
+    };
+    tempfile::Builder::new()
+        .prefix(&prefix)
+        .suffix(".tmp")
+        .tempfile_in(dir)
+}
+
+impl MeshSink for PlyWriter {
+    type Error = IoError;
+
+    fn vertices(&mut self, positions: &[[f32; 3]], normals: &[[f32; 3]]) -> Result<(), IoError> {
+        let mut record = [0u8; 24];
+        let width = if self.normals { 24 } else { 12 };
+        for (i, p) in positions.iter().enumerate() {
+            for (c, x) in p.iter().enumerate() {
+                record[4 * c..4 * c + 4].copy_from_slice(&x.to_le_bytes());
+            }
+            if self.normals {
+                let n = normals.get(i).copied().unwrap_or([0.0; 3]);
+                for (c, x) in n.iter().enumerate() {
+                    record[12 + 4 * c..16 + 4 * c].copy_from_slice(&x.to_le_bytes());
+                }
+            }
+            self.vertices
+                .write_all(&record[..width])
+                .map_err(|e| IoError::os(&self.path, e))?;
+        }
+        self.vertex_count += positions.len();
+        Ok(())
+    }
+
+    fn triangles(&mut self, triangles: &[[u32; 3]]) -> Result<(), IoError> {
+        let mut record = [3u8; 13];
+        for t in triangles {
+            for (c, v) in t.iter().enumerate() {
+                record[1 + 4 * c..5 + 4 * c].copy_from_slice(&v.to_le_bytes());
+            }
+            self.faces
+                .write_all(&record)
+                .map_err(|e| IoError::os(&self.path, e))?;
+        }
+        self.face_count += triangles.len();
+        Ok(())
+    }
 }
 
 fn write_obj(w: &mut impl Write, mesh: &Mesh, normals: bool) -> std::io::Result<()> {

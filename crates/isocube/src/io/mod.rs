@@ -9,6 +9,10 @@
 //! file extension. Readers accept PLY (ASCII and both binary byte orders), OBJ and STL (binary or
 //! ASCII, welded by exact position) and fan-triangulate polygons.
 //!
+//! Volumes larger than memory: [`MappedVolume`] maps a raw or `.npy` file and hands out planes;
+//! [`PlyWriter`] writes a binary PLY piece by piece; together with
+//! [`crate::extract::extract_streamed`] the volume is never held whole.
+//!
 //! Writes are atomic: the mesh goes to a temporary file in the target's directory, is flushed to
 //! disk, then renamed over the target. A failed write leaves the target as it was.
 //!
@@ -17,6 +21,7 @@
 //! Every error names the file, the position (line, byte or header field) and the reason.
 
 mod contours;
+mod mapped;
 mod mesh_io;
 mod npy;
 mod nrrd;
@@ -31,7 +36,8 @@ use thiserror::Error;
 use crate::field::{Grid, GridError};
 
 pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
-pub use mesh_io::{read_mesh, write_mesh, write_mesh_to, MeshFormat, MeshWriteOptions};
+pub use mapped::MappedVolume;
+pub use mesh_io::{read_mesh, write_mesh, write_mesh_to, MeshFormat, MeshWriteOptions, PlyWriter};
 pub use npy::{read_npy, NpyAxes};
 pub use nrrd::read_nrrd;
 pub use poly::{read_poly_mesh, write_poly_mesh};

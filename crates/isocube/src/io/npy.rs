@@ -11,7 +11,7 @@
 use std::path::Path;
 use std::str::FromStr;
 
-use super::raw::{Endian, ScalarType};
+use super::raw::{decode_into, Endian, ScalarType};
 use super::{read_file, IoError, Position};
 use crate::field::Grid;
 
@@ -44,10 +44,57 @@ struct Header {
     data_offset: usize,
 }
 
+/// Where an array's values are in a `.npy` file and how x, y, z map to them.
+pub(super) struct Layout {
+    pub(super) scalar: ScalarType,
+    pub(super) endian: Endian,
+    pub(super) dims: [usize; 3],
+    /// Distance in elements between neighbours along x, y and z.
+    pub(super) strides: [usize; 3],
+    /// Byte offset of the first element.
+    pub(super) data_offset: usize,
+}
+
 /// Reads a 3-D `.npy` array (unit spacing, zero origin).
 pub fn read_npy(path: &Path, axes: NpyAxes) -> Result<Grid, IoError> {
     let bytes = read_file(path)?;
-    let h = parse_header(path, &bytes)?;
+    let layout = layout(path, &bytes, axes)?;
+    let [nx, ny, nz] = layout.dims;
+    let size = layout.scalar.size();
+    let data = &bytes[layout.data_offset..];
+    let [sx, sy, sz] = layout.strides;
+    let mut values = Vec::with_capacity(nx * ny * nz);
+    if sx == 1 {
+        let mut row = vec![0.0f32; nx];
+        for k in 0..nz {
+            for j in 0..ny {
+                let at = (j * sy + k * sz) * size;
+                decode_into(
+                    &data[at..at + nx * size],
+                    layout.scalar,
+                    layout.endian,
+                    &mut row,
+                );
+                values.extend_from_slice(&row);
+            }
+        }
+    } else {
+        for k in 0..nz {
+            for j in 0..ny {
+                let row = j * sy + k * sz;
+                for i in 0..nx {
+                    let at = (row + i * sx) * size;
+                    values.push(layout.scalar.decode(&data[at..at + size], layout.endian) as f32);
+                }
+            }
+        }
+    }
+    Grid::new(layout.dims, values).map_err(|e| IoError::grid(path, e))
+}
+
+/// Parses the header of a `.npy` file's bytes and checks the data fit it.
+pub(super) fn layout(path: &Path, bytes: &[u8], axes: NpyAxes) -> Result<Layout, IoError> {
+    let h = parse_header(path, bytes)?;
     if h.shape.len() != 3 {
         return Err(IoError::unsupported(
             path,
@@ -62,19 +109,17 @@ pub fn read_npy(path: &Path, axes: NpyAxes) -> Result<Grid, IoError> {
     };
     let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
     let size = h.scalar.size();
-    let data = &bytes[h.data_offset..];
+    let data_len = bytes.len() - h.data_offset;
     let need = count
         .checked_mul(size)
         .ok_or_else(|| IoError::format(path, Position::Field("shape".into()), "shape overflows"))?;
-    if data.len() != need {
+    if data_len != need {
         return Err(IoError::format(
             path,
             Position::Byte(h.data_offset as u64),
             format!(
                 "shape {:?} of {} needs {need} data bytes, the file has {}",
-                h.shape,
-                h.scalar,
-                data.len()
+                h.shape, h.scalar, data_len
             ),
         ));
     }
@@ -84,22 +129,17 @@ pub fn read_npy(path: &Path, axes: NpyAxes) -> Result<Grid, IoError> {
     } else {
         [shape[1] * shape[2], shape[2], 1]
     };
-    // Stride of x, y and z.
-    let xyz = match axes {
+    let strides = match axes {
         NpyAxes::Xyz => strides,
         NpyAxes::Zyx => [strides[2], strides[1], strides[0]],
     };
-    let mut values = Vec::with_capacity(count);
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            let row = j * xyz[1] + k * xyz[2];
-            for i in 0..dims[0] {
-                let at = (row + i * xyz[0]) * size;
-                values.push(h.scalar.decode(&data[at..at + size], h.endian) as f32);
-            }
-        }
-    }
-    Grid::new(dims, values).map_err(|e| IoError::grid(path, e))
+    Ok(Layout {
+        scalar: h.scalar,
+        endian: h.endian,
+        dims,
+        strides,
+        data_offset: h.data_offset,
+    })
 }
 
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {

@@ -216,8 +216,43 @@ pub fn read_raw(path: &Path, options: &RawOptions) -> Result<Grid, IoError> {
 
 /// Decodes consecutive values (the slice length must be a multiple of the type size).
 pub(crate) fn decode_all(bytes: &[u8], scalar: ScalarType, endian: Endian) -> Vec<f32> {
-    bytes
-        .chunks_exact(scalar.size())
-        .map(|b| scalar.decode(b, endian) as f32)
-        .collect()
+    let mut out = vec![0.0f32; bytes.len() / scalar.size()];
+    decode_into(bytes, scalar, endian, &mut out);
+    out
+}
+
+/// Decodes `out.len()` consecutive values into `out`, exactly as [`ScalarType::decode`]
+/// rounded to `f32` (through `f64`, so 64-bit integers round once in the same way), with the
+/// type resolved once rather than per value.
+pub(crate) fn decode_into(bytes: &[u8], scalar: ScalarType, endian: Endian, out: &mut [f32]) {
+    macro_rules! run {
+        ($t:ty) => {{
+            const N: usize = std::mem::size_of::<$t>();
+            let chunks = bytes.chunks_exact(N);
+            match endian {
+                Endian::Little => {
+                    for (o, b) in out.iter_mut().zip(chunks) {
+                        *o = <$t>::from_le_bytes(b.try_into().expect("value width")) as f64 as f32;
+                    }
+                }
+                Endian::Big => {
+                    for (o, b) in out.iter_mut().zip(chunks) {
+                        *o = <$t>::from_be_bytes(b.try_into().expect("value width")) as f64 as f32;
+                    }
+                }
+            }
+        }};
+    }
+    match scalar {
+        ScalarType::U8 => run!(u8),
+        ScalarType::I8 => run!(i8),
+        ScalarType::U16 => run!(u16),
+        ScalarType::I16 => run!(i16),
+        ScalarType::U32 => run!(u32),
+        ScalarType::I32 => run!(i32),
+        ScalarType::U64 => run!(u64),
+        ScalarType::I64 => run!(i64),
+        ScalarType::F32 => run!(f32),
+        ScalarType::F64 => run!(f64),
+    }
 }

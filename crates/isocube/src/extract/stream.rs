@@ -1,0 +1,286 @@
+//! Slab-wise extraction for volumes larger than memory: planes read from a [`PlaneSource`] a
+//! batch of slabs at a time, slabs meshed in parallel, and the mesh handed to a [`MeshSink`] in
+//! order, slab by slab. Memory holds a batch of slabs and their meshes, never the volume; the
+//! vertices and triangles are the ones [`super::extract`] makes on the same grid, in the same
+//! order, to the bit.
+
+use std::convert::Infallible;
+
+use rayon::prelude::*;
+use thiserror::Error;
+
+use super::binary::{mesh_slab, slab_height, Slab};
+use super::weld::EdgeCache;
+use super::window::Window;
+use super::{ExtractError, ExtractOptions, ExtractStats, Method};
+use crate::field::{Grid, PlaneSource};
+use crate::mesh::Mesh;
+
+/// Where [`extract_streamed`] puts the mesh: vertices and triangles in order, a slab at a time.
+///
+/// Vertices are numbered in the order they are given, from 0; triangles only use vertices
+/// given before them.
+pub trait MeshSink {
+    /// Why the sink failed (a write error, for a file).
+    type Error;
+    /// New vertices; `normals` is empty or as long as `positions`.
+    fn vertices(&mut self, positions: &[[f32; 3]], normals: &[[f32; 3]])
+        -> Result<(), Self::Error>;
+    /// Triangles over the vertices given so far.
+    fn triangles(&mut self, triangles: &[[u32; 3]]) -> Result<(), Self::Error>;
+}
+
+/// Collects the whole mesh in memory.
+impl MeshSink for Mesh {
+    type Error = Infallible;
+
+    fn vertices(&mut self, positions: &[[f32; 3]], normals: &[[f32; 3]]) -> Result<(), Infallible> {
+        self.positions.extend_from_slice(positions);
+        self.normals.extend_from_slice(normals);
+        Ok(())
+    }
+
+    fn triangles(&mut self, triangles: &[[u32; 3]]) -> Result<(), Infallible> {
+        self.triangles.extend_from_slice(triangles);
+        Ok(())
+    }
+}
+
+/// Why [`extract_streamed`] failed.
+#[derive(Debug, Error)]
+pub enum StreamError<E> {
+    /// The extraction itself (options, too many vertices).
+    #[error(transparent)]
+    Extract(#[from] ExtractError),
+    /// The sink refused the mesh.
+    #[error("{0}")]
+    Sink(E),
+}
+
+/// Extracts the isosurface slab by slab from `source` into `sink`, calling `progress(done,
+/// total)` per slab of cell layers.
+///
+/// Binary Marching Cubes only (MC33 or classic, any [`crate::quality::Strategy`], normals or
+/// not): ternary extraction and relaxation need the whole volume and are refused. The output is
+/// exactly what [`super::extract`] makes from the same values.
+///
+/// ```
+/// use isocube::extract::{extract, extract_streamed, ExtractOptions};
+/// use isocube::field::Sample;
+/// use isocube::mesh::Mesh;
+/// let grid = Sample::Tangle.grid(30);
+/// let options = ExtractOptions::default();
+/// let mut streamed = Mesh::new();
+/// extract_streamed(&grid, &options, &mut streamed, &mut |_, _| {}).unwrap();
+/// assert_eq!(streamed, extract(&grid, &options).unwrap().0);
+/// ```
+pub fn extract_streamed<S: MeshSink>(
+    source: &dyn PlaneSource,
+    options: &ExtractOptions,
+    sink: &mut S,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ExtractStats, StreamError<S::Error>> {
+    if !options.level.is_finite() {
+        return Err(ExtractError::Level(options.level).into());
+    }
+    if options.method != Method::MarchingCubes || options.relax > 0 {
+        return Err(ExtractError::WholeVolume.into());
+    }
+    let dims = source.dims();
+    Grid::point_count(dims).map_err(ExtractError::Grid)?;
+    let (spacing, origin) = (source.spacing(), source.origin());
+    let [nx, ny, nz] = dims;
+    let height = slab_height(nx, ny, nz - 1);
+    let slabs = (nz - 1).div_ceil(height);
+    // Slabs in flight: enough to keep every core busy; memory is this many windows and meshes.
+    let batch = (2 * rayon::current_num_threads()).max(2);
+    let mut states: Vec<(EdgeCache, Vec<f32>)> = (0..batch.min(slabs))
+        .map(|_| (EdgeCache::new(nx, ny), Vec::new()))
+        .collect();
+    let mut joiner = Joiner::default();
+    let mut stats = ExtractStats {
+        cells: dims.iter().map(|d| d - 1).product(),
+        ..ExtractStats::default()
+    };
+    for first in (0..slabs).step_by(batch) {
+        let last = (first + batch).min(slabs);
+        let parts: Vec<Result<Slab, ExtractError>> = states[..last - first]
+            .par_iter_mut()
+            .zip(first..last)
+            .map(|((cache, buffer), s)| {
+                let k0 = s * height;
+                let k1 = ((s + 1) * height).min(nz - 1);
+                // One plane beyond the cells on each side, for the normals' differences.
+                let p0 = k0.saturating_sub(1);
+                let p1 = (k1 + 1).min(nz - 1);
+                buffer.resize((p1 + 1 - p0) * nx * ny, 0.0);
+                source.read_planes(p0, buffer);
+                let window = Window::new(dims, spacing, origin, p0, buffer);
+                cache.reset();
+                mesh_slab(window, options, cache, k0, k1)
+            })
+            .collect();
+        for (s, part) in (first..).zip(parts) {
+            joiner.push(part?, sink, &mut stats)?;
+            progress(((s + 1) * height).min(nz - 1), nz - 1);
+        }
+        source.release_before((last * height).saturating_sub(1));
+    }
+    Ok(stats)
+}
+
+/// Numbers each slab's vertices after the earlier slabs', reusing the previous slab's
+/// top-plane vertices for its bottom plane (as [`super::binary`]'s join does for slabs in
+/// memory).
+#[derive(Default)]
+struct Joiner {
+    next: u64,
+    /// The previous slab's top-plane vertices: (edge slot, global index), by slot.
+    top: Vec<(u32, u32)>,
+    remap: Vec<u32>,
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl Joiner {
+    fn push<S: MeshSink>(
+        &mut self,
+        part: Slab,
+        sink: &mut S,
+        stats: &mut ExtractStats,
+    ) -> Result<(), StreamError<S::Error>> {
+        let mesh = &part.mesh;
+        self.remap.clear();
+        self.remap.resize(mesh.positions.len(), u32::MAX);
+        for &(slot, local) in &part.bottom {
+            if let Ok(k) = self.top.binary_search_by_key(&slot, |e| e.0) {
+                self.remap[local as usize] = self.top[k].1;
+            }
+        }
+        self.positions.clear();
+        self.normals.clear();
+        for (local, r) in self.remap.iter_mut().enumerate() {
+            if *r == u32::MAX {
+                if self.next >= u64::from(u32::MAX) {
+                    return Err(ExtractError::TooManyVertices.into());
+                }
+                *r = self.next as u32;
+                self.next += 1;
+                self.positions.push(mesh.positions[local]);
+                if let Some(n) = mesh.normals.get(local) {
+                    self.normals.push(*n);
+                }
+            }
+        }
+        sink.vertices(&self.positions, &self.normals)
+            .map_err(StreamError::Sink)?;
+        self.triangles.clear();
+        self.triangles.extend(
+            mesh.triangles
+                .iter()
+                .map(|t| t.map(|v| self.remap[v as usize])),
+        );
+        sink.triangles(&self.triangles).map_err(StreamError::Sink)?;
+        self.top.clear();
+        self.top.extend(
+            part.top
+                .iter()
+                .map(|&(slot, local)| (slot, self.remap[local as usize])),
+        );
+        self.top.sort_unstable();
+        stats.active_cells += part.stats.active_cells;
+        stats.skipped_cells += part.stats.skipped_cells;
+        stats.interior_vertices += part.stats.interior_vertices;
+        stats.tunnels += part.stats.tunnels;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cube::Topology;
+    use crate::field::Sample;
+    use crate::quality::Strategy;
+    use proptest::prelude::*;
+
+    fn streamed(grid: &Grid, options: &ExtractOptions, threads: usize) -> Mesh {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut mesh = Mesh::new();
+        pool.install(|| extract_streamed(grid, options, &mut mesh, &mut |_, _| {}))
+            .unwrap();
+        mesh
+    }
+
+    /// The streamed mesh is the in-memory one, to the bit: several slabs (tall grids), NaN
+    /// values, normals or none, classic and MC33, quality triangulation, 1 and 2 threads.
+    #[test]
+    fn streamed_equals_in_memory() {
+        let mut holey = Sample::Gyroid.grid(30);
+        let values: Vec<f32> = holey
+            .values()
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| if i % 811 == 0 { f32::NAN } else { v })
+            .collect();
+        holey = Grid::new(holey.dims(), values).unwrap();
+        let tall = Grid::from_fn([20, 17, 150], [0.1; 3], [-1.0, -0.8, -7.5], |p| {
+            (p[0] * 3.0).sin() + (p[1] * 2.0).cos() + (p[2] * 1.3).sin() - 0.2
+        });
+        for grid in [Sample::Tangle.grid(36), holey, tall] {
+            for options in [
+                ExtractOptions::default(),
+                ExtractOptions::default()
+                    .with_topology(Topology::Classic)
+                    .with_normals(false)
+                    .with_flip(true),
+                ExtractOptions::default().with_triangulation(Strategy::Local),
+            ] {
+                let whole = super::super::extract(&grid, &options).unwrap().0;
+                assert!(!whole.triangles.is_empty());
+                for threads in [1, 2] {
+                    assert_eq!(streamed(&grid, &options, threads), whole, "{threads}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn whole_volume_methods_are_refused() {
+        let grid = Sample::Sphere.grid(8);
+        let mut mesh = Mesh::new();
+        for options in [
+            ExtractOptions::default().with_relax(2),
+            ExtractOptions::default().with_method(Method::Ternary(Default::default())),
+            ExtractOptions::default().with_level(f32::NAN),
+        ] {
+            assert!(matches!(
+                extract_streamed(&grid, &options, &mut mesh, &mut |_, _| {}),
+                Err(StreamError::Extract(_))
+            ));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Random small integer fields (many ties at the level, sign changes everywhere):
+        /// streamed and in-memory agree.
+        #[test]
+        fn random_fields_stream_the_same(
+            nx in 2usize..9, ny in 2usize..9, nz in 2usize..40, seed in any::<u64>(),
+        ) {
+            let mut rng = crate::TestRng::new(seed);
+            let values: Vec<f32> = (0..nx * ny * nz)
+                .map(|_| ((rng.next_u64() >> 40) % 5) as f32 - 2.0)
+                .collect();
+            let grid = Grid::new([nx, ny, nz], values).unwrap();
+            let options = ExtractOptions::default();
+            let whole = super::super::extract(&grid, &options).unwrap().0;
+            prop_assert_eq!(streamed(&grid, &options, 2), whole);
+        }
+    }
+}

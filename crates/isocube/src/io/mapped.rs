@@ -1,0 +1,398 @@
+//! Memory-mapped volumes: raw and `.npy` files read plane by plane, for extraction slab by slab
+//! ([`crate::extract::extract_streamed`]) from volumes larger than memory.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+
+use super::npy::layout;
+use super::raw::{decode_into, Endian, ScalarType};
+use super::{IoError, Position, VolumeOptions};
+use crate::field::{Grid, PlaneSource};
+
+/// A raw or `.npy` volume mapped into memory, decoded to `f32` a few planes at a time.
+///
+/// The file is checked when opened (header, size against the dimensions); the operating system
+/// pages its bytes in as slabs read them, and [`PlaneSource::release_before`] lets it drop the
+/// planes already meshed, so resident memory stays at a few slabs whatever the file's size.
+/// Files whose `z` planes are contiguous (raw files; `.npy` arrays in C order read as `zyx`, or
+/// in Fortran order read as `xyz`) are read in one sweep; other `.npy` layouts are gathered
+/// value by value, which is correct but touches the whole file for every slab.
+///
+/// As with any mapped file, the file must not be truncated while it is mapped.
+///
+/// ```no_run
+/// use isocube::extract::{extract_streamed, ExtractOptions};
+/// use isocube::io::{MappedVolume, PlyWriter, RawOptions, ScalarType, VolumeOptions};
+/// use std::path::Path;
+/// let options = VolumeOptions {
+///     raw: Some(RawOptions::new([1024, 1024, 1024], ScalarType::U16)),
+///     ..VolumeOptions::default()
+/// };
+/// let volume = MappedVolume::open(Path::new("ct.raw"), &options)?;
+/// let mut ply = PlyWriter::create(Path::new("ct.ply"), true)?;
+/// let extract = ExtractOptions::default().with_level(1200.0);
+/// extract_streamed(&volume, &extract, &mut ply, &mut |_, _| {})?;
+/// ply.finish()?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct MappedVolume {
+    path: PathBuf,
+    map: Mmap,
+    scalar: ScalarType,
+    endian: Endian,
+    dims: [usize; 3],
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    /// Element strides of x, y and z.
+    strides: [usize; 3],
+    data_offset: usize,
+}
+
+impl MappedVolume {
+    /// Maps a `.npy` file, or a raw file laid out as [`VolumeOptions::raw`] says (other
+    /// formats are compressed or small enough to read: use [`super::read_volume`]).
+    pub fn open(path: &Path, options: &VolumeOptions) -> Result<MappedVolume, IoError> {
+        let file = File::open(path).map_err(|e| IoError::os(path, e))?;
+        // SAFETY: the map is read-only; the documented condition is that the file is not
+        // truncated meanwhile, as for every reader of a mapped file.
+        let map = unsafe { Mmap::map(&file) }.map_err(|e| IoError::os(path, e))?;
+        let is_npy = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+        let (scalar, endian, dims, strides, data_offset) = if is_npy {
+            let l = layout(path, &map, options.npy_axes)?;
+            (l.scalar, l.endian, l.dims, l.strides, l.data_offset)
+        } else {
+            let raw = options.raw.as_ref().ok_or_else(|| {
+                IoError::unsupported(
+                    path,
+                    Position::File,
+                    "only raw (with dims and type) and .npy volumes can be mapped",
+                )
+            })?;
+            let count = Grid::point_count(raw.dims).map_err(|e| IoError::grid(path, e))?;
+            let need = (count as u64)
+                .checked_mul(raw.scalar.size() as u64)
+                .and_then(|n| n.checked_add(raw.header_bytes))
+                .ok_or_else(|| IoError::format(path, Position::File, "dimensions overflow"))?;
+            if map.len() as u64 != need {
+                return Err(IoError::format(
+                    path,
+                    Position::File,
+                    format!(
+                        "{:?} {} values need {need} bytes{}, the file has {}",
+                        raw.dims,
+                        raw.scalar,
+                        if raw.header_bytes > 0 {
+                            format!(" (with {} header bytes)", raw.header_bytes)
+                        } else {
+                            String::new()
+                        },
+                        map.len()
+                    ),
+                ));
+            }
+            let [nx, ny, _] = raw.dims;
+            (
+                raw.scalar,
+                raw.endian,
+                raw.dims,
+                [1, nx, nx * ny],
+                raw.header_bytes as usize,
+            )
+        };
+        let (mut spacing, mut origin) = match (&options.raw, is_npy) {
+            (Some(raw), false) => (raw.spacing, raw.origin),
+            _ => ([1.0; 3], [0.0; 3]),
+        };
+        if let Some(s) = options.spacing {
+            spacing = s;
+        }
+        if let Some(o) = options.origin {
+            origin = o;
+        }
+        // The same checks as a grid's.
+        Grid::new([2, 2, 2], vec![0.0; 8])
+            .and_then(|g| g.with_spacing(spacing))
+            .and_then(|g| g.with_origin(origin))
+            .map_err(|e| IoError::grid(path, e))?;
+        if strides[2] == dims[0] * dims[1] {
+            let _ = map.advise(memmap2::Advice::Sequential);
+        }
+        Ok(MappedVolume {
+            path: path.to_path_buf(),
+            map,
+            scalar,
+            endian,
+            dims,
+            spacing,
+            origin,
+            strides,
+            data_offset,
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The stored value type.
+    pub fn scalar(&self) -> ScalarType {
+        self.scalar
+    }
+
+    /// Whether each `z` plane is one contiguous run of the file (read in one sweep).
+    pub fn planes_contiguous(&self) -> bool {
+        self.strides[0] == 1 && self.strides[2] == self.dims[0] * self.dims[1]
+    }
+
+    fn data(&self) -> &[u8] {
+        &self.map[self.data_offset..]
+    }
+}
+
+impl PlaneSource for MappedVolume {
+    fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    fn spacing(&self) -> [f64; 3] {
+        self.spacing
+    }
+
+    fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    fn read_planes(&self, first: usize, out: &mut [f32]) {
+        let size = self.scalar.size();
+        let [nx, ny, _] = self.dims;
+        let [sx, sy, sz] = self.strides;
+        let data = self.data();
+        if self.planes_contiguous() {
+            let at = first * sz * size;
+            decode_into(
+                &data[at..at + out.len() * size],
+                self.scalar,
+                self.endian,
+                out,
+            );
+            return;
+        }
+        for (p, plane) in out.chunks_exact_mut(nx * ny).enumerate() {
+            let k = first + p;
+            for (j, row) in plane.chunks_exact_mut(nx).enumerate() {
+                let base = j * sy + k * sz;
+                if sx == 1 {
+                    let at = base * size;
+                    decode_into(&data[at..at + nx * size], self.scalar, self.endian, row);
+                } else {
+                    for (i, o) in row.iter_mut().enumerate() {
+                        let at = (base + i * sx) * size;
+                        *o = self.scalar.decode(&data[at..at + size], self.endian) as f32;
+                    }
+                }
+            }
+        }
+    }
+
+    fn release_before(&self, plane: usize) {
+        if !self.planes_contiguous() || plane == 0 {
+            return;
+        }
+        let len = plane * self.strides[2] * self.scalar.size();
+        // SAFETY: the map is a read-only shared file mapping: dropped pages are read again from
+        // the file if touched, with the same bytes; nothing refers into the released range.
+        let _ = unsafe {
+            self.map.unchecked_advise_range(
+                memmap2::UncheckedAdvice::DontNeed,
+                self.data_offset,
+                len,
+            )
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extract::{extract, extract_streamed, ExtractOptions};
+    use crate::io::{read_volume, write_mesh, MeshWriteOptions, NpyAxes, PlyWriter, RawOptions};
+
+    /// A u16 volume with blobs and integer ties at the level.
+    fn values(dims: [usize; 3]) -> Vec<u16> {
+        let mut out = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let p = [i, j, k].map(|c| c as f64);
+                    let v = 1000.0
+                        + 400.0 * (p[0] * 0.31).sin() * (p[1] * 0.23).cos()
+                        + 300.0 * (p[2] * 0.17).sin();
+                    out.push(v.round() as u16);
+                }
+            }
+        }
+        out
+    }
+
+    fn npy(shape: [usize; 3], fortran: bool, data: &[u16]) -> Vec<u8> {
+        let dict = format!(
+            "{{'descr': '<u2', 'fortran_order': {}, 'shape': ({}, {}, {}), }}",
+            if fortran { "True" } else { "False" },
+            shape[0],
+            shape[1],
+            shape[2]
+        );
+        let mut header = dict.into_bytes();
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(b' ');
+        }
+        header.push(b'\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        out.extend_from_slice(&header);
+        for v in data {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    /// Every mappable layout streams to the same PLY bytes as reading the volume, extracting in
+    /// memory and writing the mesh.
+    #[test]
+    fn streamed_ply_equals_in_memory_ply() {
+        let dir = tempfile::tempdir().unwrap();
+        let dims = [23, 19, 41];
+        let v = values(dims);
+        // The same field in x-fastest order, and transposed to x-slowest (C-order `xyz`).
+        let mut xyz = vec![0u16; v.len()];
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    xyz[(i * dims[1] + j) * dims[2] + k] = v[i + dims[0] * (j + dims[1] * k)];
+                }
+            }
+        }
+        let raw_bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let cases: Vec<(&str, Vec<u8>, VolumeOptions, bool)> = vec![
+            (
+                "v.raw",
+                raw_bytes,
+                VolumeOptions {
+                    raw: Some(RawOptions {
+                        spacing: [0.5, 0.7, 1.25],
+                        origin: [-3.0, 2.0, 10.0],
+                        ..RawOptions::new(dims, ScalarType::U16)
+                    }),
+                    ..VolumeOptions::default()
+                },
+                true,
+            ),
+            (
+                "zyx.npy",
+                npy([dims[2], dims[1], dims[0]], false, &v),
+                VolumeOptions {
+                    npy_axes: NpyAxes::Zyx,
+                    spacing: Some([1.0, 1.0, 2.5]),
+                    ..VolumeOptions::default()
+                },
+                true,
+            ),
+            (
+                "fortran.npy",
+                npy(dims, true, &v),
+                VolumeOptions::default(),
+                true,
+            ),
+            (
+                "c.npy",
+                npy(dims, false, &xyz),
+                VolumeOptions::default(),
+                false,
+            ),
+        ];
+        let extract_options = ExtractOptions::default().with_level(1000.0);
+        let mut reference: Option<Vec<u8>> = None;
+        for (name, bytes, options, contiguous) in cases {
+            let input = dir.path().join(name);
+            std::fs::write(&input, bytes).unwrap();
+            let grid = read_volume(&input, &options).unwrap();
+            let mesh = extract(&grid, &extract_options).unwrap().0;
+            assert!(mesh.triangle_count() > 1000);
+            let memory = dir.path().join("memory.ply");
+            write_mesh(&memory, &mesh, &MeshWriteOptions::default()).unwrap();
+            let volume = MappedVolume::open(&input, &options).unwrap();
+            assert_eq!(volume.planes_contiguous(), contiguous, "{name}");
+            assert_eq!(PlaneSource::dims(&volume), grid.dims());
+            let out = dir.path().join("streamed.ply");
+            let mut ply = PlyWriter::create(&out, true).unwrap();
+            extract_streamed(&volume, &extract_options, &mut ply, &mut |_, _| {}).unwrap();
+            ply.finish().unwrap();
+            let streamed = std::fs::read(&out).unwrap();
+            assert_eq!(streamed, std::fs::read(&memory).unwrap(), "{name}");
+            // Same field, same mesh, whatever the layout (geometry aside).
+            if name.ends_with(".npy") && options.spacing.is_none() {
+                match &reference {
+                    Some(r) => assert_eq!(&streamed, r, "{name}"),
+                    None => reference = Some(streamed),
+                }
+            }
+            volume.release_before(10);
+        }
+        // Only the outputs and inputs are left: no temporary files.
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
+    }
+
+    #[test]
+    fn bad_files_are_refused_before_mapping_is_used() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("short.raw");
+        std::fs::write(&input, vec![0u8; 99]).unwrap();
+        let options = VolumeOptions {
+            raw: Some(RawOptions::new([5, 5, 2], ScalarType::U16)),
+            ..VolumeOptions::default()
+        };
+        let e = MappedVolume::open(&input, &options)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("short.raw") && e.contains("need 100 bytes"),
+            "{e}"
+        );
+        let e = MappedVolume::open(&input, &VolumeOptions::default())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("only raw"), "{e}");
+        let npy_path = dir.path().join("bad.npy");
+        std::fs::write(&npy_path, b"\x93NUMPY\x01\x00\x05\x00{}").unwrap();
+        assert!(MappedVolume::open(&npy_path, &VolumeOptions::default()).is_err());
+        let missing = dir.path().join("missing.raw");
+        assert!(MappedVolume::open(&missing, &options).is_err());
+    }
+
+    /// A failed stream (the writer dropped before `finish`) leaves the target as it was.
+    #[test]
+    fn unfinished_stream_leaves_target_untouched() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("keep.ply");
+        std::fs::write(&out, b"old").unwrap();
+        {
+            let mut ply = PlyWriter::create(&out, false).unwrap();
+            let grid = crate::field::Sample::Sphere.grid(12);
+            extract_streamed(&grid, &ExtractOptions::default(), &mut ply, &mut |_, _| {}).unwrap();
+        }
+        assert_eq!(std::fs::read(&out).unwrap(), b"old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}
