@@ -92,23 +92,28 @@ impl Corner {
     }
 
     /// The faces this corner lies on, as a bit mask.
+    #[inline]
     pub fn faces(self) -> u8 {
-        let mut mask = 0;
-        for f in 0..6 {
-            let on = if let Some(e) = self.as_edge() {
-                FACE_EDGES[f].contains(&e)
-            } else if let Some(v) = self.as_vertex() {
-                FACES[f].contains(&v)
-            } else {
-                false
-            };
-            if on {
-                mask |= 1 << f;
-            }
-        }
-        mask
+        CORNER_FACES.get(usize::from(self.0)).copied().unwrap_or(0)
     }
 }
+
+/// [`Corner::faces`] for every edge crossing (codes 0..12) and cube vertex (12..20); interior
+/// points are on no face.
+const CORNER_FACES: [u8; 20] = {
+    let mut out = [0u8; 20];
+    let mut f = 0;
+    while f < 6 {
+        let mut k = 0;
+        while k < 4 {
+            out[FACE_EDGES[f][k] as usize] |= 1 << f;
+            out[12 + FACES[f][k] as usize] |= 1 << f;
+            k += 1;
+        }
+        f += 1;
+    }
+    out
+};
 
 /// The faces of a binary configuration that have four crossings (ambiguous faces), as a mask.
 pub fn ambiguous_faces(config: u8) -> u8 {

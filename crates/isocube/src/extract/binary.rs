@@ -453,6 +453,7 @@ fn mesh_cell(
             emit_polygon(
                 polygon,
                 [i, j, k],
+                v,
                 bounds,
                 options,
                 cache,

@@ -95,7 +95,8 @@ use crate::cube::triangulate::{may_join, safe_triangulation};
 use crate::cube::{CaseTable, Corner, Topology};
 use crate::field::Grid;
 use crate::mesh::Mesh;
-use crate::quality::{triangulate, Strategy};
+use crate::quality::Strategy;
+use crate::quality::{triangulate_polygon, Chords, MAX_CORNERS};
 
 use classify::interior_links;
 use place::Placer;
@@ -382,6 +383,7 @@ fn choose_tunnel(
 fn emit_polygon(
     polygon: &[Corner],
     [i, j, k]: [usize; 3],
+    values: &[f32; 8],
     bounds: ([f64; 3], [f64; 3]),
     options: &ExtractOptions,
     cache: &mut EdgeCache,
@@ -389,16 +391,30 @@ fn emit_polygon(
     mesh: &mut Mesh,
     stats: &mut ExtractStats,
 ) -> Result<(), ExtractError> {
-    let mut ids = Vec::with_capacity(polygon.len());
-    for c in polygon {
-        let e = c.as_edge().expect("binary polygons have edge corners");
-        ids.push(cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?);
+    let n = polygon.len();
+    if n > MAX_CORNERS {
+        // Never for cell loops (at most 12 corners); kept total all the same.
+        return emit_polygon_fallback(polygon, [i, j, k], cache, placer, mesh, stats, options);
     }
-    let positions: Vec<[f64; 3]> = ids
-        .iter()
-        .map(|&v| mesh.positions[v as usize].map(f64::from))
-        .collect();
-    let allowed = |a: usize, b: usize| may_join(polygon[a], polygon[b]);
+    let mut ids = [0u32; MAX_CORNERS];
+    let mut positions = [[0.0f64; 3]; MAX_CORNERS];
+    for (slot, c) in polygon.iter().enumerate() {
+        let e = c.as_edge().expect("binary polygons have edge corners");
+        ids[slot] = cache.vertex(i, j, e, || {
+            placer.edge_vertex_of([i, j, k], values, e, mesh)
+        })?;
+        positions[slot] = mesh.positions[ids[slot] as usize].map(f64::from);
+    }
+    let ids = &ids[..n];
+    if n == 3 {
+        let mut t = [ids[0], ids[1], ids[2]];
+        if options.flip {
+            t.swap(1, 2);
+        }
+        mesh.triangles.push(t);
+        return Ok(());
+    }
+    let chords = Chords::new(n, &|a, b| may_join(polygon[a], polygon[b]));
     let push = |t: [u32; 3], mesh: &mut Mesh| {
         let mut t = t;
         if options.flip {
@@ -406,38 +422,74 @@ fn emit_polygon(
         }
         mesh.triangles.push(t);
     };
-    match triangulate(&positions, &allowed, options.triangulation, bounds) {
-        Some(result) => {
-            let interior = match result.interior {
+    match triangulate_polygon(&positions[..n], &chords, options.triangulation, bounds) {
+        Some((triangles, interior)) => {
+            let interior = match interior {
                 Some(x) => {
                     stats.interior_vertices += 1;
-                    placer.interior_vertex(x, &ids, mesh)?
+                    placer.interior_vertex(x, ids, mesh)?
                 }
                 None => u32::MAX,
             };
-            for t in result.triangles {
+            for t in triangles.as_slice() {
                 let id = |c: u8| ids.get(usize::from(c)).copied().unwrap_or(interior);
                 push(t.map(id), mesh);
             }
         }
-        None => match safe_triangulation(polygon) {
-            Some(tris) => {
-                for t in tris {
-                    let id =
-                        |c: Corner| ids[polygon.iter().position(|&x| x == c).expect("a corner")];
-                    push(t.map(id), mesh);
-                }
-            }
-            None => {
-                stats.interior_vertices += 1;
-                let centre = placer.centroid_vertex(&ids, mesh)?;
-                for a in 0..ids.len() {
-                    push([ids[a], ids[(a + 1) % ids.len()], centre], mesh);
-                }
-            }
-        },
+        None => table_triangles(polygon, ids, placer, mesh, stats, options)?,
     }
     Ok(())
+}
+
+/// The table's triangulation of a loop (or a star around its centroid if it has none).
+fn table_triangles(
+    polygon: &[Corner],
+    ids: &[u32],
+    placer: &Placer,
+    mesh: &mut Mesh,
+    stats: &mut ExtractStats,
+    options: &ExtractOptions,
+) -> Result<(), ExtractError> {
+    let push = |t: [u32; 3], mesh: &mut Mesh| {
+        let mut t = t;
+        if options.flip {
+            t.swap(1, 2);
+        }
+        mesh.triangles.push(t);
+    };
+    match safe_triangulation(polygon) {
+        Some(tris) => {
+            for t in tris {
+                let id = |c: Corner| ids[polygon.iter().position(|&x| x == c).expect("a corner")];
+                push(t.map(id), mesh);
+            }
+        }
+        None => {
+            stats.interior_vertices += 1;
+            let centre = placer.centroid_vertex(ids, mesh)?;
+            for a in 0..ids.len() {
+                push([ids[a], ids[(a + 1) % ids.len()], centre], mesh);
+            }
+        }
+    }
+    Ok(())
+}
+
+fn emit_polygon_fallback(
+    polygon: &[Corner],
+    [i, j, k]: [usize; 3],
+    cache: &mut EdgeCache,
+    placer: &Placer,
+    mesh: &mut Mesh,
+    stats: &mut ExtractStats,
+    options: &ExtractOptions,
+) -> Result<(), ExtractError> {
+    let mut ids = Vec::with_capacity(polygon.len());
+    for c in polygon {
+        let e = c.as_edge().expect("binary polygons have edge corners");
+        ids.push(cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?);
+    }
+    table_triangles(polygon, &ids, placer, mesh, stats, options)
 }
 
 fn place_interior(

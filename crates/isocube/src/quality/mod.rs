@@ -18,6 +18,7 @@ pub mod triangulate;
 
 pub use relax::{relax, Field, Implicit, Trilinear};
 pub use triangulate::{triangulate, PolygonTriangles, Strategy};
+pub(crate) use triangulate::{triangulate_polygon, Chords, MAX_CORNERS};
 
 use crate::mesh::{cross, dot, sub, Mesh};
 

@@ -76,20 +76,116 @@ pub fn triangulate(
     bounds: ([f64; 3], [f64; 3]),
 ) -> Option<PolygonTriangles> {
     let n = corners.len();
-    if !(3..=16).contains(&n) {
+    if !(3..=MAX_CORNERS).contains(&n) {
+        return None;
+    }
+    triangulate_polygon(corners, &Chords::new(n, allowed), strategy, bounds).map(
+        |(triangles, interior)| PolygonTriangles {
+            triangles: triangles.as_slice().to_vec(),
+            interior,
+        },
+    )
+}
+
+/// Polygons with more corners are left to the caller (cell loops have at most 12).
+pub(crate) const MAX_CORNERS: usize = 16;
+
+/// The triangles of one polygon, kept on the stack: at most two per corner (corners cut off,
+/// then a star around an interior vertex).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Triangles {
+    list: [[u8; 3]; 2 * MAX_CORNERS],
+    len: usize,
+}
+
+impl Triangles {
+    fn new() -> Triangles {
+        Triangles {
+            list: [[0; 3]; 2 * MAX_CORNERS],
+            len: 0,
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, t: [u8; 3]) {
+        self.list[self.len] = t;
+        self.len += 1;
+    }
+
+    /// The triangles, over corner indices (`n` the interior vertex).
+    pub(crate) fn as_slice(&self) -> &[[u8; 3]] {
+        &self.list[..self.len]
+    }
+}
+
+/// Which corners may be joined: the polygon's sides always, diagonals as the caller allows; one
+/// bit per pair, both ways.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Chords {
+    bits: [u16; MAX_CORNERS],
+}
+
+impl Chords {
+    /// The chords of an `n`-gon (`n ≤ MAX_CORNERS`) whose diagonal `(i, j)`, `i < j`, may be drawn
+    /// when `allowed(i, j)`.
+    pub(crate) fn new(n: usize, allowed: &dyn Fn(usize, usize) -> bool) -> Chords {
+        let mut bits = [0u16; MAX_CORNERS];
+        for i in 0..n {
+            for j in i + 1..n {
+                if j == i + 1 || (i == 0 && j == n - 1) || allowed(i, j) {
+                    bits[i] |= 1 << j;
+                    bits[j] |= 1 << i;
+                }
+            }
+        }
+        Chords { bits }
+    }
+
+    #[inline]
+    fn has(&self, i: usize, j: usize) -> bool {
+        self.bits[i] >> j & 1 == 1
+    }
+
+    /// The chords of the sub-polygon through corners `rest` (in order): its own sides, and the
+    /// chords between its corners.
+    fn sub(&self, rest: &[u8]) -> Chords {
+        let m = rest.len();
+        Chords::new(m, &|a, b| {
+            self.has(usize::from(rest[a]), usize::from(rest[b]))
+        })
+    }
+}
+
+/// [`triangulate`] with the chords given and the triangles on the stack: `None` when nothing
+/// is found, else the triangles and the interior vertex if one is used.
+pub(crate) fn triangulate_polygon(
+    corners: &[[f64; 3]],
+    chords: &Chords,
+    strategy: Strategy,
+    bounds: ([f64; 3], [f64; 3]),
+) -> Option<(Triangles, Option<[f64; 3]>)> {
+    let n = corners.len();
+    if !(3..=MAX_CORNERS).contains(&n) {
         return None;
     }
     if n == 3 {
-        return Some(PolygonTriangles {
-            triangles: vec![[0, 1, 2]],
-            interior: None,
-        });
+        let mut t = Triangles::new();
+        t.push([0, 1, 2]);
+        return Some((t, None));
     }
     match strategy {
         Strategy::Fan => None,
-        Strategy::Local => local(corners, allowed, bounds),
-        Strategy::Optimal => optimal(corners, allowed, bounds),
+        Strategy::Local => local(corners, chords, bounds),
+        Strategy::Optimal => optimal(corners, chords, bounds),
     }
+}
+
+fn triangles_of(list: &[[u8; 3]]) -> Triangles {
+    let mut t = Triangles::new();
+    for &x in list {
+        t.push(x);
+    }
+    t
 }
 
 /// Newell's normal of a polygon (not normalised).
@@ -106,6 +202,7 @@ fn polygon_normal(p: &[[f64; 3]]) -> [f64; 3] {
 
 /// The smallest angle of a triangle in radians, or −1 when it is degenerate or faces against
 /// `normal` (a fold).
+#[cfg(test)]
 fn quality(a: [f64; 3], b: [f64; 3], c: [f64; 3], normal: [f64; 3]) -> f64 {
     smallest_angle_cot(a, b, c, normal).map_or(-1.0, |cot| 1f64.atan2(cot))
 }
@@ -151,6 +248,14 @@ fn smallest_angle_cot(a: [f64; 3], b: [f64; 3], c: [f64; 3], normal: [f64; 3]) -
     Some(cosine_side / dot(n, n).sqrt())
 }
 
+/// Whether a triangle has positive area and faces along `normal`: [`smallest_angle_cot`] is
+/// `Some` exactly then.
+#[inline]
+fn valid(a: [f64; 3], b: [f64; 3], c: [f64; 3], normal: [f64; 3]) -> bool {
+    let n = cross(sub(b, a), sub(c, a));
+    dot(n, n) != 0.0 && dot(n, normal) > 0.0
+}
+
 /// Angle at corner `i` of the polygon, radians.
 fn corner_angle(p: &[[f64; 3]], i: usize) -> f64 {
     let n = p.len();
@@ -165,28 +270,42 @@ fn length(a: [f64; 3], b: [f64; 3]) -> f64 {
     dot(d, d).sqrt()
 }
 
-/// Exact max–min-angle triangulation by diagonals (dynamic programming over sub-polygons).
+/// Exact max–min-angle triangulation by diagonals (dynamic programming over sub-polygons):
+/// the best [`rank`] and its triangles.
 fn best_by_diagonals(
     p: &[[f64; 3]],
-    allowed: &dyn Fn(usize, usize) -> bool,
+    chords: &Chords,
     normal: [f64; 3],
-) -> Option<(f64, Vec<[u8; 3]>)> {
+) -> Option<(f64, Triangles)> {
+    // Tables sized to the polygon: most cell loops have 4 to 6 corners.
+    match p.len() {
+        0..=6 => best_by_diagonals_within::<6>(p, chords, normal),
+        7..=10 => best_by_diagonals_within::<10>(p, chords, normal),
+        _ => best_by_diagonals_within::<MAX_CORNERS>(p, chords, normal),
+    }
+}
+
+/// [`best_by_diagonals`] for polygons of at most `N` corners.
+fn best_by_diagonals_within<const N: usize>(
+    p: &[[f64; 3]],
+    chords: &Chords,
+    normal: [f64; 3],
+) -> Option<(f64, Triangles)> {
     let n = p.len();
-    let chord = |i: usize, j: usize| j == i + 1 || (i == 0 && j == n - 1) || allowed(i, j);
     // best[i][j]: the best smallest angle triangulating corners i..=j (chord i–j closing it).
-    let mut best = vec![vec![f64::NEG_INFINITY; n]; n];
-    let mut split = vec![vec![usize::MAX; n]; n];
+    let mut best = [[f64::NEG_INFINITY; N]; N];
+    let mut split = [[0u8; N]; N];
     for i in 0..n - 1 {
         best[i][i + 1] = f64::INFINITY;
     }
     for len in 2..n {
         for i in 0..n - len {
             let j = i + len;
-            if !chord(i, j) {
+            if !chords.has(i, j) {
                 continue;
             }
             for k in i + 1..j {
-                if !chord(i, k) || !chord(k, j) {
+                if !chords.has(i, k) || !chords.has(k, j) {
                     continue;
                 }
                 let q = rank(p[i], p[k], p[j], normal)
@@ -194,7 +313,7 @@ fn best_by_diagonals(
                     .min(best[k][j]);
                 if q > best[i][j] {
                     best[i][j] = q;
-                    split[i][j] = k;
+                    split[i][j] = k as u8;
                 }
             }
         }
@@ -202,25 +321,40 @@ fn best_by_diagonals(
     if best[0][n - 1] == f64::NEG_INFINITY {
         return None;
     }
-    let mut out = Vec::with_capacity(n - 2);
-    let mut stack = vec![(0, n - 1)];
-    while let Some((i, j)) = stack.pop() {
+    let mut out = Triangles::new();
+    let mut stack = [(0usize, 0usize); 2 * MAX_CORNERS];
+    stack[0] = (0, n - 1);
+    let mut top = 1;
+    while top > 0 {
+        top -= 1;
+        let (i, j) = stack[top];
         if j <= i + 1 {
             continue;
         }
-        let k = split[i][j];
+        let k = usize::from(split[i][j]);
         out.push([i as u8, k as u8, j as u8]);
-        stack.push((i, k));
-        stack.push((k, j));
+        stack[top] = (i, k);
+        stack[top + 1] = (k, j);
+        top += 2;
     }
-    Some((angle_of_rank(best[0][n - 1]), out))
+    Some((best[0][n - 1], out))
+}
+
+/// The [`rank`] of the star joining every side of `p` to `x` (its worst triangle).
+fn star_rank(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3]) -> f64 {
+    let n = p.len();
+    let mut worst = f64::INFINITY;
+    for i in 0..n {
+        worst = worst.min(rank(p[i], p[(i + 1) % n], x, normal));
+        if worst == f64::NEG_INFINITY {
+            break;
+        }
+    }
+    worst
 }
 
 fn star_quality(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3]) -> f64 {
-    let n = p.len();
-    (0..n)
-        .map(|i| quality(p[i], p[(i + 1) % n], x, normal))
-        .fold(f64::INFINITY, f64::min)
+    angle_of_rank(star_rank(p, x, normal))
 }
 
 /// [`star_quality`] if it is above `bar`, found without an arctangent per triangle and given up
@@ -255,10 +389,19 @@ fn star(n: usize) -> Vec<[u8; 3]> {
 /// the short sides.
 pub fn weighted_interior_point(p: &[[f64; 3]]) -> [f64; 3] {
     let n = p.len();
-    let lse: Vec<f64> = (0..n)
-        .map(|i| length(p[i], p[(i + 1) % n]).min(length(p[i], p[(i + n - 1) % n])))
-        .collect();
-    let slme: f64 = lse.iter().sum();
+    let sides: Vec<f64> = (0..n).map(|i| length(p[i], p[(i + 1) % n])).collect();
+    weighted_point(p, &sides)
+}
+
+/// [`weighted_interior_point`] with the side lengths at hand (`sides[i]`: from corner `i` to
+/// `i + 1`).
+fn weighted_point(p: &[[f64; 3]], sides: &[f64]) -> [f64; 3] {
+    let n = p.len();
+    let mut lse = [0.0f64; MAX_CORNERS];
+    for i in 0..n {
+        lse[i] = sides[i].min(sides[(i + n - 1) % n]);
+    }
+    let slme: f64 = lse[..n].iter().sum();
     let mut x = [0.0; 3];
     let mut total = 0.0;
     for i in 0..n {
@@ -327,43 +470,35 @@ fn best_star(p: &[[f64; 3]], normal: [f64; 3], bounds: ([f64; 3], [f64; 3])) -> 
 
 fn optimal(
     p: &[[f64; 3]],
-    allowed: &dyn Fn(usize, usize) -> bool,
+    chords: &Chords,
     bounds: ([f64; 3], [f64; 3]),
-) -> Option<PolygonTriangles> {
+) -> Option<(Triangles, Option<[f64; 3]>)> {
     let normal = polygon_normal(p);
-    let by_diagonals = best_by_diagonals(p, allowed, normal);
+    let by_diagonals =
+        best_by_diagonals(p, chords, normal).map(|(rank, t)| (angle_of_rank(rank), t));
     // A star splits every corner's angle in two, so its smallest angle is at most half the
     // polygon's smallest corner angle: when the diagonals reach that, no star can do better.
     let half_corner = (0..p.len())
         .map(|i| corner_angle(p, i))
         .fold(f64::INFINITY, f64::min)
         / 2.0;
-    if let Some((qd, tris)) = &by_diagonals {
-        if *qd >= half_corner {
-            return Some(PolygonTriangles {
-                triangles: tris.clone(),
-                interior: None,
-            });
+    if let Some((qd, tris)) = by_diagonals {
+        if qd >= half_corner {
+            return Some((tris, None));
         }
     }
     let (qs, x) = best_star(p, normal, bounds);
     // At that interior vertex, the best triangulation joining it to any three or more corners
     // (the rest split by diagonals): exact over the choice of corners; the full star is one.
-    let with_point = best_with_point(p, allowed, normal, x).filter(|(q, _)| *q >= qs);
-    let (qs, star_tris) = with_point.unwrap_or((qs, star(p.len())));
+    let with_point = best_with_point(p, chords, normal, x).filter(|(q, _)| *q >= qs);
+    let (qs, star_tris) = match with_point {
+        Some((q, t)) => (q, triangles_of(&t)),
+        None => (qs, triangles_of(&star(p.len()))),
+    };
     match by_diagonals {
-        Some((qd, tris)) if qd >= qs => Some(PolygonTriangles {
-            triangles: tris,
-            interior: None,
-        }),
-        _ if qs > 0.0 => Some(PolygonTriangles {
-            triangles: star_tris,
-            interior: Some(x),
-        }),
-        Some((_, tris)) => Some(PolygonTriangles {
-            triangles: tris,
-            interior: None,
-        }),
+        Some((qd, tris)) if qd >= qs => Some((tris, None)),
+        _ if qs > 0.0 => Some((star_tris, Some(x))),
+        Some((_, tris)) => Some((tris, None)),
         None => None,
     }
 }
@@ -373,16 +508,13 @@ fn optimal(
 /// by dynamic programming over cyclic corner intervals.
 fn best_with_point(
     p: &[[f64; 3]],
-    allowed: &dyn Fn(usize, usize) -> bool,
+    chords: &Chords,
     normal: [f64; 3],
     x: [f64; 3],
 ) -> Option<(f64, Vec<[u8; 3]>)> {
     let n = p.len();
     let at = |i: usize, len: usize| (i + len) % n;
-    let chord = |i: usize, j: usize| {
-        let d = (j + n - i) % n;
-        d == 1 || d == n - 1 || allowed(i.min(j), i.max(j))
-    };
+    let chord = |i: usize, j: usize| chords.has(i, j);
     // pocket[i][len]: best smallest angle triangulating corners i, i+1, …, i+len (cyclic) by
     // diagonals, closed by the chord from i to i+len; len 1 is a polygon side (nothing to split).
     let mut pocket = vec![vec![f64::NEG_INFINITY; n]; n];
@@ -508,120 +640,206 @@ fn best_with_point(
 
 fn local(
     p: &[[f64; 3]],
-    allowed: &dyn Fn(usize, usize) -> bool,
+    chords: &Chords,
     bounds: ([f64; 3], [f64; 3]),
-) -> Option<PolygonTriangles> {
+) -> Option<(Triangles, Option<[f64; 3]>)> {
     let normal = polygon_normal(p);
-    let bad = LOCAL_BAD_ANGLE_DEGREES.to_radians();
+    // A corner angle θ < 30° exactly when its cosine side is positive and tan θ below tan 30°:
+    // corners are compared by tan θ = |u × v| / (u · v), no arctangent.
+    let tan_bad = LOCAL_BAD_ANGLE_DEGREES.to_radians().tan();
+    let n = p.len();
     // Remaining corners, by index into `p`.
-    let mut rest: Vec<usize> = (0..p.len()).collect();
-    let mut out: Vec<[u8; 3]> = Vec::new();
-    // (1) Cut off corners with a bad angle, smallest first, while the cut is allowed and valid.
-    loop {
-        if rest.len() <= 3 {
-            break;
-        }
-        let q: Vec<[f64; 3]> = rest.iter().map(|&i| p[i]).collect();
-        let m = rest.len();
-        let mut candidates: Vec<(f64, usize)> = (0..m)
-            .map(|k| (corner_angle(&q, k), k))
-            .filter(|&(a, _)| a < bad)
-            .collect();
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let cut = candidates.into_iter().find(|&(_, k)| {
-            let (a, b, c) = (rest[(k + m - 1) % m], rest[k], rest[(k + 1) % m]);
-            allowed(a.min(c), a.max(c)) && quality(p[a], p[b], p[c], normal) > 0.0
-        });
-        match cut {
-            Some((_, k)) => {
-                let (a, b, c) = (rest[(k + m - 1) % m], rest[k], rest[(k + 1) % m]);
-                out.push([a as u8, b as u8, c as u8]);
-                rest.remove(k);
-            }
-            None => break,
-        }
+    let mut rest = [0u8; MAX_CORNERS];
+    for (k, r) in rest.iter_mut().enumerate().take(n) {
+        *r = k as u8;
     }
-    let q: Vec<[f64; 3]> = rest.iter().map(|&i| p[i]).collect();
-    let m = rest.len();
-    let sides: Vec<f64> = (0..m).map(|k| length(q[k], q[(k + 1) % m])).collect();
+    let mut m = n;
+    let mut out = Triangles::new();
+    let corner = |rest: &[u8], k: usize| {
+        let m = rest.len();
+        (
+            usize::from(rest[(k + m - 1) % m]),
+            usize::from(rest[k]),
+            usize::from(rest[(k + 1) % m]),
+        )
+    };
+    // (1) Cut off corners with a bad angle, smallest first, while the cut is allowed and valid.
+    while m > 3 {
+        let mut candidates = [(0.0f64, 0usize); MAX_CORNERS];
+        let mut count = 0;
+        for k in 0..m {
+            let (a, b, c) = corner(&rest[..m], k);
+            let (u, v) = (sub(p[a], p[b]), sub(p[c], p[b]));
+            let w = cross(u, v);
+            let (sine, cosine) = (dot(w, w).sqrt(), dot(u, v));
+            if cosine > 0.0 && sine < tan_bad * cosine {
+                // Insertion keeps equal angles in corner order.
+                let key = sine / cosine;
+                let mut at = count;
+                while at > 0 && candidates[at - 1].0 > key {
+                    candidates[at] = candidates[at - 1];
+                    at -= 1;
+                }
+                candidates[at] = (key, k);
+                count += 1;
+            }
+        }
+        let cut = candidates[..count].iter().find(|&&(_, k)| {
+            let (a, b, c) = corner(&rest[..m], k);
+            chords.has(a, c) && valid(p[a], p[b], p[c], normal)
+        });
+        let Some(&(_, k)) = cut else { break };
+        let (a, b, c) = corner(&rest[..m], k);
+        out.push([a as u8, b as u8, c as u8]);
+        rest.copy_within(k + 1..m, k);
+        m -= 1;
+    }
+    let rest = &rest[..m];
+    let mut q = [[0.0f64; 3]; MAX_CORNERS];
+    let mut sides = [0.0f64; MAX_CORNERS];
+    for k in 0..m {
+        q[k] = p[usize::from(rest[k])];
+    }
+    let q = &q[..m];
+    for k in 0..m {
+        sides[k] = length(q[k], q[(k + 1) % m]);
+    }
+    let sides = &sides[..m];
     let ratio = sides.iter().copied().fold(0.0, f64::max)
         / sides.iter().copied().fold(f64::INFINITY, f64::min);
     let interior_wanted = m >= 5 || (m == 4 && ratio > LOCAL_QUAD_RATIO);
-    let with_interior = |out: &mut Vec<[u8; 3]>| {
-        let x = clamp_to(weighted_interior_point(&q), bounds);
-        let n = p.len() as u8;
+    let with_interior = |mut out: Triangles, weighted: [f64; 3]| {
+        let x = clamp_to(weighted, bounds);
         for k in 0..m {
-            out.push([rest[k] as u8, rest[(k + 1) % m] as u8, n]);
+            out.push([rest[k], rest[(k + 1) % m], n as u8]);
         }
-        x
+        Some((out, Some(x)))
     };
-    let sub_allowed = |i: usize, j: usize| {
-        let (a, b) = (rest[i], rest[j]);
-        allowed(a.min(b), a.max(b))
-    };
+    // With no corner cut, the remaining polygon is the polygon.
+    let inner = if m == n { *chords } else { chords.sub(rest) };
     // (2) An interior vertex for pentagons and larger, and for long quads — unless diagonals
     // alone do better: in a sliver (two close, long sides) a vertex in the middle only makes
     // needles with a near-180° angle.
-    let star_wins = || {
-        let star_q = star_quality(&q, weighted_interior_point(&q), normal);
-        star_q > 0.0
-            && !best_by_diagonals(&q, &sub_allowed, normal).is_some_and(|(qd, _)| qd >= star_q)
-    };
-    if interior_wanted && star_wins() {
-        let x = with_interior(&mut out);
-        return Some(PolygonTriangles {
-            triangles: out,
-            interior: Some(x),
-        });
+    // The exact search by diagonals, run at most once.
+    let mut by_diagonals: Option<Option<(f64, Triangles)>> = None;
+    if interior_wanted {
+        let weighted = weighted_point(q, sides);
+        let star = star_rank(q, weighted, normal);
+        if star > f64::NEG_INFINITY
+            && (ears_below(q, &inner, normal, star)
+                || !by_diagonals
+                    .get_or_insert_with(|| best_by_diagonals(q, &inner, normal))
+                    .is_some_and(|(qd, _)| qd >= star))
+        {
+            return with_interior(out, weighted);
+        }
     }
     if m == 3 {
-        out.push([rest[0] as u8, rest[1] as u8, rest[2] as u8]);
-        return Some(PolygonTriangles {
-            triangles: out,
-            interior: None,
-        });
+        out.push([rest[0], rest[1], rest[2]]);
+        return Some((out, None));
     }
     // (3) Split the largest angle toward the corner two edges away, trying the larger angles
-    // first; fall back to the exact search over the remaining polygon.
-    let angles: Vec<f64> = (0..m).map(|k| corner_angle(&q, k)).collect();
-    let mut order: Vec<usize> = (0..m).collect();
-    order.sort_by(|&a, &b| angles[b].total_cmp(&angles[a]));
+    // first (equal angles in corner order); fall back to the exact search over the remaining
+    // polygon.
     if m == 4 {
+        // A diagonal is tried from its larger corner, the diagonal with the larger such corner
+        // first; the triangles' order follows that corner.
+        let cosines = [0, 1, 2, 3].map(|k| corner_cosine(q, k));
+        let larger_first =
+            |a: usize, b: usize| compare_corner_angles(q, &cosines, a, b).then(b.cmp(&a));
+        let best0 = if larger_first(2, 0).is_gt() { 2 } else { 0 };
+        let best1 = if larger_first(3, 1).is_gt() { 3 } else { 1 };
+        let order = if larger_first(best1, best0).is_gt() {
+            [best1, best0]
+        } else {
+            [best0, best1]
+        };
         for k in order {
             let (a, b) = (k, (k + 2) % 4);
-            let (ia, ib) = (rest[a], rest[b]);
-            if !allowed(ia.min(ib), ia.max(ib)) {
+            let (ia, ib) = (usize::from(rest[a]), usize::from(rest[b]));
+            if !chords.has(ia, ib) {
                 continue;
             }
             let t1 = [rest[a], rest[(a + 1) % 4], rest[b]];
             let t2 = [rest[b], rest[(b + 1) % 4], rest[a]];
-            if quality(p[t1[0]], p[t1[1]], p[t1[2]], normal) > 0.0
-                && quality(p[t2[0]], p[t2[1]], p[t2[2]], normal) > 0.0
-            {
-                out.push(t1.map(|i| i as u8));
-                out.push(t2.map(|i| i as u8));
-                return Some(PolygonTriangles {
-                    triangles: out,
-                    interior: None,
-                });
+            let fits = |t: [u8; 3]| {
+                let [x, y, z] = t.map(usize::from);
+                valid(p[x], p[y], p[z], normal)
+            };
+            if fits(t1) && fits(t2) {
+                out.push(t1);
+                out.push(t2);
+                return Some((out, None));
             }
         }
     }
-    if let Some((_, tris)) = best_by_diagonals(&q, &sub_allowed, normal) {
-        out.extend(tris.iter().map(|t| t.map(|k| rest[usize::from(k)] as u8)));
-        return Some(PolygonTriangles {
-            triangles: out,
-            interior: None,
-        });
+    if let Some((_, tris)) =
+        by_diagonals.unwrap_or_else(|| best_by_diagonals(q, &inner, normal))
+    {
+        for t in tris.as_slice() {
+            out.push(t.map(|k| rest[usize::from(k)]));
+        }
+        return Some((out, None));
     }
-    if star_quality(&q, weighted_interior_point(&q), normal) > 0.0 {
-        let x = with_interior(&mut out);
-        return Some(PolygonTriangles {
-            triangles: out,
-            interior: Some(x),
-        });
+    let weighted = weighted_point(q, sides);
+    if star_rank(q, weighted, normal) > f64::NEG_INFINITY {
+        return with_interior(out, weighted);
     }
     None
+}
+
+/// Whether no triangulation of `p` by diagonals can reach `rank`, known from its ears alone:
+/// every such triangulation has two ears (triangles cutting off one corner), so its worst
+/// triangle is no better than the second-best ear. A margin far above rounding keeps the
+/// answer the one the exact search would give.
+fn ears_below(p: &[[f64; 3]], chords: &Chords, normal: [f64; 3], rank_to_reach: f64) -> bool {
+    let n = p.len();
+    let (mut first, mut second) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for c in 0..n {
+        let (a, b) = ((c + n - 1) % n, (c + 1) % n);
+        if !chords.has(a, b) {
+            continue;
+        }
+        let r = rank(p[a], p[c], p[b], normal);
+        if r > first {
+            second = first;
+            first = r;
+        } else if r > second {
+            second = r;
+        }
+    }
+    second + 1e-9 * (1.0 + rank_to_reach.abs()) < rank_to_reach
+}
+
+/// The cosine of the angle at corner `i` (1 for a corner with a zero-length side, whose angle
+/// is 0).
+fn corner_cosine(p: &[[f64; 3]], i: usize) -> f64 {
+    let n = p.len();
+    let (u, v) = (sub(p[(i + n - 1) % n], p[i]), sub(p[(i + 1) % n], p[i]));
+    let norm = (dot(u, u) * dot(v, v)).sqrt();
+    if norm > 0.0 {
+        dot(u, v) / norm
+    } else {
+        1.0
+    }
+}
+
+/// How the angles at corners `a` and `b` of a polygon compare, exactly as their arctangents
+/// ([`corner_angle`]) do, but by their cosines when those are clearly apart (nearly always), so
+/// without arctangents.
+fn compare_corner_angles(
+    p: &[[f64; 3]],
+    cosines: &[f64],
+    a: usize,
+    b: usize,
+) -> std::cmp::Ordering {
+    let (ca, cb) = (cosines[a], cosines[b]);
+    // Cosines are in error by a few ulps; angles are apart by at least their cosines' difference.
+    if (ca - cb).abs() > 1e-12 {
+        cb.total_cmp(&ca)
+    } else {
+        corner_angle(p, a).total_cmp(&corner_angle(p, b))
+    }
 }
 
 #[cfg(test)]
@@ -728,7 +946,7 @@ mod tests {
                 let normal = polygon_normal(&p);
                 let x = [0.05 * next(), 0.05 * next(), 0.0];
                 let star_q = star_quality(&p, x, normal);
-                let Some((q, tris)) = best_with_point(&p, &any, normal, x) else {
+                let Some((q, tris)) = best_with_point(&p, &Chords::new(n, &any), normal, x) else {
                     assert!(star_q <= 0.0);
                     continue;
                 };
@@ -753,15 +971,17 @@ mod tests {
         let p = regular(6);
         // Only diagonals from corner 0.
         let from0 = |i: usize, _: usize| i == 0;
-        let t = best_by_diagonals(&p, &from0, polygon_normal(&p)).unwrap().1;
-        for tri in &t {
+        let t = best_by_diagonals(&p, &Chords::new(6, &from0), polygon_normal(&p))
+            .unwrap()
+            .1;
+        for tri in t.as_slice() {
             for k in 0..3 {
                 let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
                 assert!(b == a + 1 || (a, b) == (0, 5) || a == 0, "{t:?}");
             }
         }
         // Nothing allowed: no triangulation by diagonals.
-        assert!(best_by_diagonals(&p, &|_, _| false, polygon_normal(&p)).is_none());
+        assert!(best_by_diagonals(&p, &Chords::new(6, &|_, _| false), polygon_normal(&p)).is_none());
     }
 
     #[test]
@@ -794,10 +1014,9 @@ mod tests {
         ];
         let lh = triangulate(&h, &any, Strategy::Local, bounds).unwrap();
         let oh = triangulate(&h, &any, Strategy::Optimal, bounds).unwrap();
-        let diagonals = best_by_diagonals(&h, &any, polygon_normal(&h))
-            .unwrap()
-            .0
-            .to_degrees();
+        let diagonals =
+            angle_of_rank(best_by_diagonals(&h, &Chords::new(6, &any), polygon_normal(&h)).unwrap().0)
+                .to_degrees();
         assert!(min_angle(&h, &lh) >= diagonals - 1e-9);
         assert!(min_angle(&h, &oh) >= min_angle(&h, &lh) - 1e-9);
     }
