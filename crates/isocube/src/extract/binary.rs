@@ -28,8 +28,9 @@ use crate::mesh::Mesh;
 use crate::quality::Strategy;
 
 /// Sign masks of every point row.
-struct Masks {
-    words: usize,
+pub(super) struct Masks {
+    /// 64-bit words per row.
+    pub(super) words: usize,
     above: Vec<u64>,
     /// Non-finite points, if the grid has any.
     invalid: Option<Vec<u64>>,
@@ -37,7 +38,7 @@ struct Masks {
 
 impl Masks {
     /// Masks of the point planes `k0..=k1` (rows indexed from `k0`).
-    fn new(window: &Window, level: f32, k0: usize, k1: usize) -> Masks {
+    pub(super) fn new(window: &Window, level: f32, k0: usize, k1: usize) -> Masks {
         let [nx, ny, _] = window.dims();
         let words = nx.div_ceil(64);
         let values = window.planes(k0, k1);
@@ -90,7 +91,7 @@ impl Masks {
 
     /// The cells of row `(j, k)` to visit, one bit each: corners that disagree, or a non-finite
     /// corner (counted and skipped by the cell code).
-    fn visit(&self, j: usize, k: usize, ny: usize, cells: usize, out: &mut [u64]) {
+    pub(super) fn visit(&self, j: usize, k: usize, ny: usize, cells: usize, out: &mut [u64]) {
         let rows = [(j, k), (j + 1, k), (j, k + 1), (j + 1, k + 1)];
         let a = rows.map(|(j, k)| self.row(&self.above, j, k, ny));
         let shifted = |m: &[&[u64]; 4], w: usize, and: bool| -> (u64, u64) {

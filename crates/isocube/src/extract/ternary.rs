@@ -37,6 +37,7 @@
 //! smaller of their smallest angles; new diagonals join corners that share no face of the cell,
 //! so no neighbour can ever use the same edge, and flips never change the topology.
 
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -204,6 +205,12 @@ impl<'a> Ternary<'a> {
 
     /// Decides the zero points. Returns (snapped, refused) counts.
     pub(super) fn choose_zeros(&mut self) -> (usize, usize) {
+        self.choose_zeros_in_groups(true)
+    }
+
+    /// [`Ternary::choose_zeros`], checking independent points together (`grouped`) or strictly
+    /// one after the other (the reference the grouping must reproduce).
+    pub(super) fn choose_zeros_in_groups(&mut self, grouped: bool) -> (usize, usize) {
         let snapping = self.snapping;
         let values = self.grid.values();
         let level = f64::from(self.level);
@@ -264,17 +271,41 @@ impl<'a> Ternary<'a> {
             })
             .collect();
         order.sort_unstable();
+        // A point's check reads only the cells around it (points at most one step away), and
+        // two points of one parity class are two steps apart along some axis: within a
+        // (round, class) group the checks are independent, so each group is checked in
+        // parallel and then applied — the same choices as one point after the other.
         let (mut snapped, mut refused) = (0, 0);
-        let mut before = Patch::default();
-        let mut after = Patch::default();
-        for &(_, _, p) in &order {
-            if self.zero_keeps_topology(p, &mut before, &mut after) {
-                self.zero[p] = true;
-                self.g[p] = self.level;
-                snapped += 1;
+        let mut start = 0;
+        while start < order.len() {
+            let group = (order[start].0, order[start].1);
+            let len = if grouped {
+                order[start..]
+                    .iter()
+                    .take_while(|e| (e.0, e.1) == group)
+                    .count()
             } else {
-                refused += 1;
+                1
+            };
+            let members = &order[start..start + len];
+            let verdicts: Vec<bool> = members
+                .par_iter()
+                .with_min_len(64)
+                .map_init(
+                    || (Patch::default(), Patch::default()),
+                    |(before, after), &(_, _, p)| self.zero_keeps_topology(p, before, after),
+                )
+                .collect();
+            for (&(_, _, p), ok) in members.iter().zip(verdicts) {
+                if ok {
+                    self.zero[p] = true;
+                    self.g[p] = self.level;
+                    snapped += 1;
+                } else {
+                    refused += 1;
+                }
             }
+            start += len;
         }
         (snapped, refused)
     }
@@ -741,9 +772,31 @@ impl<'a> Ternary<'a> {
         let [nx, ny, nz] = self.grid.dims();
         let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
         let mut patch = Patch::default();
+        // Zero points hold the level, which counts as above: cells whose eight values are all
+        // above or all below make nothing, and are ruled out 64 at a time.
+        let window = super::window::Window::new(
+            self.grid.dims(),
+            self.grid.spacing(),
+            self.grid.origin(),
+            0,
+            &self.g,
+        );
+        let masks = super::binary::Masks::new(&window, self.level, 0, nz - 1);
+        let mut visit = vec![0u64; masks.words];
         for k in 0..nz - 1 {
             for j in 0..ny - 1 {
-                for i in 0..nx - 1 {
+                masks.visit(j, k, ny, nx - 1, &mut visit);
+                let cells = visit.iter().enumerate().flat_map(|(w, &word)| {
+                    let mut bits = word;
+                    std::iter::from_fn(move || {
+                        (bits != 0).then(|| {
+                            let i = w * 64 + bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            i
+                        })
+                    })
+                });
+                for i in cells {
                     let base = self.grid.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
                     if pts.iter().any(|&p| !self.g[p].is_finite()) {

@@ -551,6 +551,52 @@ mod ternary {
         assert_eq!(a.positions, b.positions);
         assert_eq!(a.triangles, b.triangles);
     }
+
+    /// Zero points are checked in parallel within independent groups: the choices, and so the
+    /// bytes, are the same with 1, 2 or 3 threads — on tied integer data too, where many
+    /// points compete, and with a quality triangulation.
+    #[test]
+    fn same_output_whatever_the_thread_count() {
+        let grids = [
+            Sample::Tangle.grid(40),
+            Grid::new([17, 15, 19], quantised_values([17, 15, 19], 9)).unwrap(),
+        ];
+        for grid in &grids {
+            for options in [
+                ternary(0.0, 0.4),
+                ternary(0.1, 0.3).with_triangulation(crate::quality::Strategy::Local),
+            ] {
+                let run = |threads: usize| {
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap()
+                        .install(|| extract(grid, &options).unwrap())
+                };
+                let (one, stats) = run(1);
+                assert!(stats.snapped_points > 0 && !one.triangles.is_empty());
+                // The groups decide as one point after the other would.
+                let Method::Ternary(snapping) = options.method else {
+                    unreachable!()
+                };
+                let zeros = |grouped: bool| {
+                    let mut t = super::super::ternary::Ternary::new(grid, &options, snapping);
+                    t.choose_zeros_in_groups(grouped);
+                    let mut mesh = Mesh::new();
+                    let mut s = ExtractStats::default();
+                    t.mesh(&options, &mut mesh, &mut s, &mut |_, _| {}).unwrap();
+                    mesh
+                };
+                assert_eq!(zeros(false), one);
+                assert_eq!(zeros(true), one);
+                for threads in [2, 3] {
+                    let (other, other_stats) = run(threads);
+                    assert_eq!(stats, other_stats, "{threads}");
+                    assert_eq!(one, other, "{threads}");
+                }
+            }
+        }
+    }
 }
 
 /// The quality SnapMC reports on a sphere sampled at 40 points per axis (smallest angle about 17°
