@@ -327,7 +327,10 @@ fn readme_examples_run() {
     for k in 0..n {
         for j in 0..n {
             for i in 0..n {
-                let r2 = [i, j, k].map(|c| (c as f64 - 11.5).powi(2)).iter().sum::<f64>();
+                let r2 = [i, j, k]
+                    .map(|c| (c as f64 - 11.5).powi(2))
+                    .iter()
+                    .sum::<f64>();
                 npy.extend_from_slice(&(if r2 < 64.0 { 1700u16 } else { 1000 }).to_le_bytes());
             }
         }

@@ -1,7 +1,7 @@
 //! Times extraction alone (grid already in memory) on built-in samples, best of several runs.
 //!
 //! `cargo run --release -p isocube --example extract_speed -- [sample:tangle:256 …] [--normals]
-//! [--local | --optimal]`
+//! [--local | --optimal] [--ternary]`
 
 use std::time::Instant;
 
@@ -35,6 +35,9 @@ fn main() {
         if args.iter().any(|a| a == flag) {
             options = options.with_triangulation(strategy);
         }
+    }
+    if args.iter().any(|a| a == "--ternary") {
+        options = options.with_method(isocube::extract::Method::Ternary(Default::default()));
     }
     for spec in specs {
         let spec: SampleSpec = spec.parse().expect("a sample");

@@ -80,3 +80,15 @@ impl TestRng {
 #[cfg(doctest)]
 #[doc = include_str!("../../../README.md")]
 pub struct ReadmeDoctests;
+
+/// `grid` with every `every`-th value replaced by NaN (tests of skipped cells).
+#[cfg(test)]
+pub(crate) fn with_nan_holes(grid: field::Grid, every: usize) -> field::Grid {
+    let values: Vec<f32> = grid
+        .values()
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| if i % every == 0 { f32::NAN } else { v })
+        .collect();
+    field::Grid::new(grid.dims(), values).expect("same dimensions")
+}

@@ -6,7 +6,8 @@ use std::time::Instant;
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{
-    extract_into, extract_streamed, ExtractOptions, Method, SnapPosition, Snapping, StreamError,
+    extract_into, extract_streamed, ExtractOptions, ExtractStats, Method, SnapPosition, Snapping,
+    StreamError,
 };
 use isocube::field::PlaneSource;
 use isocube::field::SampleSpec;
@@ -125,7 +126,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if !quiet {
         let r = mesh.report();
         eprintln!(
-            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} of {} cells active, {} tunnels{}{})",
+            "{}: {} vertices, {} triangles, {} in {:.1} ms ({}{})",
             args.output.display(),
             r.vertices,
             r.triangles,
@@ -135,14 +136,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                 format!("{} boundary edges", r.boundary_edges)
             },
             elapsed.as_secs_f64() * 1e3,
-            stats.active_cells,
-            stats.cells,
-            stats.tunnels,
-            if stats.skipped_cells > 0 {
-                format!(", {} skipped for NaN/Inf values", stats.skipped_cells)
-            } else {
-                String::new()
-            },
+            cell_summary(&stats),
             if let Method::Ternary(_) = options.method {
                 format!(
                     ", {} points snapped, {} kept off to keep the topology",
@@ -204,21 +198,26 @@ fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), F
     ply.finish().map_err(|e| crate::io_failure(e, false))?;
     if !quiet {
         eprintln!(
-            "{}: {vertices} vertices, {triangles} triangles in {:.1} ms, streamed slab by slab from {} ({} of {} cells active, {} tunnels{})",
+            "{}: {vertices} vertices, {triangles} triangles in {:.1} ms, streamed slab by slab from {} ({})",
             args.output.display(),
             started.elapsed().as_secs_f64() * 1e3,
             volume.path().display(),
-            stats.active_cells,
-            stats.cells,
-            stats.tunnels,
-            if stats.skipped_cells > 0 {
-                format!(", {} skipped for NaN/Inf values", stats.skipped_cells)
-            } else {
-                String::new()
-            },
+            cell_summary(&stats),
         );
     }
     Ok(())
+}
+
+/// "N of M cells active, T tunnels[, S skipped for NaN/Inf values]".
+fn cell_summary(stats: &ExtractStats) -> String {
+    let mut text = format!(
+        "{} of {} cells active, {} tunnels",
+        stats.active_cells, stats.cells, stats.tunnels
+    );
+    if stats.skipped_cells > 0 {
+        text += &format!(", {} skipped for NaN/Inf values", stats.skipped_cells);
+    }
+    text
 }
 
 /// The library's options from the arguments; `exact`: the volume is a built-in sample (which

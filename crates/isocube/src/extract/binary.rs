@@ -530,14 +530,7 @@ mod tests {
     /// NaN values.
     #[test]
     fn output_does_not_depend_on_threads_or_slabs() {
-        let mut holey = Sample::Gyroid.grid(33);
-        let values: Vec<f32> = holey
-            .values()
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| if i % 997 == 0 { f32::NAN } else { v })
-            .collect();
-        holey = Grid::new(holey.dims(), values).unwrap();
+        let holey = crate::with_nan_holes(Sample::Gyroid.grid(33), 997);
         let grids = [
             Sample::Tangle.grid(40),
             Sample::Noise { seed: 3 }.grid(37),

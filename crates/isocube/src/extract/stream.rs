@@ -220,14 +220,7 @@ mod tests {
     /// values, normals or none, classic and MC33, quality triangulation, 1 and 2 threads.
     #[test]
     fn streamed_equals_in_memory() {
-        let mut holey = Sample::Gyroid.grid(30);
-        let values: Vec<f32> = holey
-            .values()
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| if i % 811 == 0 { f32::NAN } else { v })
-            .collect();
-        holey = Grid::new(holey.dims(), values).unwrap();
+        let holey = crate::with_nan_holes(Sample::Gyroid.grid(30), 811);
         let tall = Grid::from_fn([20, 17, 150], [0.1; 3], [-1.0, -0.8, -7.5], |p| {
             (p[0] * 3.0).sin() + (p[1] * 2.0).cos() + (p[2] * 1.3).sin() - 0.2
         });

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use memmap2::Mmap;
 
 use super::npy::layout;
-use super::raw::{decode_into, Endian, ScalarType};
+use super::raw::{check_raw_size, decode_into, Endian, ScalarType};
 use super::{IoError, Position, VolumeOptions};
 use crate::field::{Grid, PlaneSource};
 
@@ -74,27 +74,7 @@ impl MappedVolume {
                 )
             })?;
             let count = Grid::point_count(raw.dims).map_err(|e| IoError::grid(path, e))?;
-            let need = (count as u64)
-                .checked_mul(raw.scalar.size() as u64)
-                .and_then(|n| n.checked_add(raw.header_bytes))
-                .ok_or_else(|| IoError::format(path, Position::File, "dimensions overflow"))?;
-            if map.len() as u64 != need {
-                return Err(IoError::format(
-                    path,
-                    Position::File,
-                    format!(
-                        "{:?} {} values need {need} bytes{}, the file has {}",
-                        raw.dims,
-                        raw.scalar,
-                        if raw.header_bytes > 0 {
-                            format!(" (with {} header bytes)", raw.header_bytes)
-                        } else {
-                            String::new()
-                        },
-                        map.len()
-                    ),
-                ));
-            }
+            check_raw_size(path, raw, count, map.len() as u64)?;
             let [nx, ny, _] = raw.dims;
             (
                 raw.scalar,

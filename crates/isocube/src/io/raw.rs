@@ -182,27 +182,7 @@ impl RawOptions {
 pub fn read_raw(path: &Path, options: &RawOptions) -> Result<Grid, IoError> {
     let count = Grid::point_count(options.dims).map_err(|e| IoError::grid(path, e))?;
     let bytes = read_file(path)?;
-    let need = (count as u64)
-        .checked_mul(options.scalar.size() as u64)
-        .and_then(|n| n.checked_add(options.header_bytes))
-        .ok_or_else(|| IoError::format(path, Position::File, "dimensions overflow"))?;
-    if bytes.len() as u64 != need {
-        return Err(IoError::format(
-            path,
-            Position::File,
-            format!(
-                "{:?} {} values need {need} bytes{}, the file has {}",
-                options.dims,
-                options.scalar,
-                if options.header_bytes > 0 {
-                    format!(" (with {} header bytes)", options.header_bytes)
-                } else {
-                    String::new()
-                },
-                bytes.len()
-            ),
-        ));
-    }
+    check_raw_size(path, options, count, bytes.len() as u64)?;
     let values = decode_all(
         &bytes[options.header_bytes as usize..],
         options.scalar,
@@ -212,6 +192,36 @@ pub fn read_raw(path: &Path, options: &RawOptions) -> Result<Grid, IoError> {
         .and_then(|g| g.with_spacing(options.spacing))
         .and_then(|g| g.with_origin(options.origin))
         .map_err(|e| IoError::grid(path, e))
+}
+
+/// Checks that a raw file of `len` bytes holds exactly the header and `count` values.
+pub(super) fn check_raw_size(
+    path: &Path,
+    options: &RawOptions,
+    count: usize,
+    len: u64,
+) -> Result<(), IoError> {
+    let need = (count as u64)
+        .checked_mul(options.scalar.size() as u64)
+        .and_then(|n| n.checked_add(options.header_bytes))
+        .ok_or_else(|| IoError::format(path, Position::File, "dimensions overflow"))?;
+    if len == need {
+        return Ok(());
+    }
+    Err(IoError::format(
+        path,
+        Position::File,
+        format!(
+            "{:?} {} values need {need} bytes{}, the file has {len}",
+            options.dims,
+            options.scalar,
+            if options.header_bytes > 0 {
+                format!(" (with {} header bytes)", options.header_bytes)
+            } else {
+                String::new()
+            },
+        ),
+    ))
 }
 
 /// Decodes consecutive values (the slice length must be a multiple of the type size).

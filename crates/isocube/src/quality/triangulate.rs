@@ -773,9 +773,7 @@ fn local(
             }
         }
     }
-    if let Some((_, tris)) =
-        by_diagonals.unwrap_or_else(|| best_by_diagonals(q, &inner, normal))
-    {
+    if let Some((_, tris)) = by_diagonals.unwrap_or_else(|| best_by_diagonals(q, &inner, normal)) {
         for t in tris.as_slice() {
             out.push(t.map(|k| rest[usize::from(k)]));
         }
@@ -981,7 +979,9 @@ mod tests {
             }
         }
         // Nothing allowed: no triangulation by diagonals.
-        assert!(best_by_diagonals(&p, &Chords::new(6, &|_, _| false), polygon_normal(&p)).is_none());
+        assert!(
+            best_by_diagonals(&p, &Chords::new(6, &|_, _| false), polygon_normal(&p)).is_none()
+        );
     }
 
     #[test]
@@ -1014,9 +1014,12 @@ mod tests {
         ];
         let lh = triangulate(&h, &any, Strategy::Local, bounds).unwrap();
         let oh = triangulate(&h, &any, Strategy::Optimal, bounds).unwrap();
-        let diagonals =
-            angle_of_rank(best_by_diagonals(&h, &Chords::new(6, &any), polygon_normal(&h)).unwrap().0)
-                .to_degrees();
+        let diagonals = angle_of_rank(
+            best_by_diagonals(&h, &Chords::new(6, &any), polygon_normal(&h))
+                .unwrap()
+                .0,
+        )
+        .to_degrees();
         assert!(min_angle(&h, &lh) >= diagonals - 1e-9);
         assert!(min_angle(&h, &oh) >= min_angle(&h, &lh) - 1e-9);
     }
