@@ -357,15 +357,19 @@ fn star_quality(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3]) -> f64 {
     angle_of_rank(star_rank(p, x, normal))
 }
 
-/// [`star_quality`] if it is above `bar`, found without an arctangent per triangle and given up
-/// at the first triangle that cannot beat `bar`.
-fn star_quality_above(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3], bar: f64) -> Option<f64> {
-    // Angles in (0, π/2] rank inversely to their cotangents.
-    let bar_cot = if bar > 0.0 {
+/// The cotangent a star's smallest angle must stay below to beat `bar` (radians): angles in
+/// (0, π/2] rank inversely to their cotangents.
+fn cot_bar(bar: f64) -> f64 {
+    if bar > 0.0 {
         1.0 / bar.tan()
     } else {
         f64::INFINITY
-    };
+    }
+}
+
+/// [`star_quality`] if its worst cotangent is below `bar_cot` (see [`cot_bar`]), found without
+/// an arctangent per triangle and given up at the first triangle that cannot beat it.
+fn star_quality_above(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3], bar_cot: f64) -> Option<f64> {
     let n = p.len();
     let mut worst = f64::NEG_INFINITY;
     for i in 0..n {
@@ -450,13 +454,16 @@ fn best_star(p: &[[f64; 3]], normal: [f64; 3], bounds: ([f64; 3], [f64; 3])) -> 
     let v = cross(nn, u);
     let perimeter: f64 = (0..n).map(|i| length(p[i], p[(i + 1) % n])).sum();
     let mut step = 0.25 * perimeter / n as f64;
+    // The bar's cotangent changes only when the star improves.
+    let mut bar_cot = cot_bar(q);
     for _ in 0..24 {
         let mut improved = false;
         for dir in [u, v, u.map(|c| -c), v.map(|c| -c)] {
             let y = clamp_to(std::array::from_fn(|d| x[d] + step * dir[d]), bounds);
-            if let Some(qy) = star_quality_above(p, y, normal, q) {
+            if let Some(qy) = star_quality_above(p, y, normal, bar_cot) {
                 if qy > q {
                     (x, q) = (y, qy);
+                    bar_cot = cot_bar(q);
                     improved = true;
                 }
             }
