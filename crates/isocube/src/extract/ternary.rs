@@ -276,6 +276,7 @@ impl<'a> Ternary<'a> {
         // (round, class) group the checks are independent, so each group is checked in
         // parallel and then applied — the same choices as one point after the other.
         let (mut snapped, mut refused) = (0, 0);
+        let verdicts = Verdicts::default();
         let mut start = 0;
         while start < order.len() {
             let group = (order[start].0, order[start].1);
@@ -293,7 +294,9 @@ impl<'a> Ternary<'a> {
                 .with_min_len(64)
                 .map_init(
                     || (Patch::default(), Patch::default()),
-                    |(before, after), &(_, _, p)| self.zero_keeps_topology(p, before, after),
+                    |(before, after), &(_, _, p)| {
+                        self.zero_keeps_topology(p, before, after, &verdicts)
+                    },
                 )
                 .collect();
             for (&(_, _, p), ok) in members.iter().zip(verdicts) {
@@ -600,7 +603,13 @@ impl<'a> Ternary<'a> {
         }
     }
 
-    fn zero_keeps_topology(&self, p: usize, before: &mut Patch, after: &mut Patch) -> bool {
+    fn zero_keeps_topology(
+        &self,
+        p: usize,
+        before: &mut Patch,
+        after: &mut Patch,
+        verdicts: &Verdicts,
+    ) -> bool {
         before.clear();
         after.clear();
         for cell in self.star(p) {
@@ -659,7 +668,20 @@ impl<'a> Ternary<'a> {
             frozen: &|keys: &[Key]| on(keys, false),
             open: &|keys: &[Key]| on(keys, true),
         };
-        check.accepts(&before.triangles, &after.triangles) && self.no_zero_area(before, after)
+        let signature = signature(&planes, &before.triangles, &after.triangles);
+        let accepted = match verdicts.get(&signature) {
+            Some(v) => {
+                // Tests (debug assertions) check every reuse against a fresh verdict.
+                debug_assert_eq!(v, check.accepts(&before.triangles, &after.triangles));
+                v
+            }
+            None => {
+                let v = check.accepts(&before.triangles, &after.triangles);
+                verdicts.insert(signature, v);
+                v
+            }
+        };
+        accepted && self.no_zero_area(before, after)
     }
 
     fn no_zero_area(&self, before: &Patch, after: &Patch) -> bool {
@@ -891,6 +913,56 @@ impl Hasher for KeyHasher {
 }
 
 /// Rotates a triangle to start at its smallest key (orientation kept).
+/// The combinatorial check's verdicts by patch signature. The check sees keys only through
+/// equality, their boundary-plane masks and their relative order, and it gives the same answer
+/// under any consistent relabelling; patches around different points with the same signature
+/// (the same cells, signs and zeros, up to translation) are judged once. Shared by the threads:
+/// a verdict does not depend on who found it first, so neither does the mesh.
+#[derive(Default)]
+struct Verdicts(std::sync::RwLock<rustc_hash::FxHashMap<Vec<u8>, bool>>);
+
+impl Verdicts {
+    fn get(&self, signature: &[u8]) -> Option<bool> {
+        self.0
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(signature)
+            .copied()
+    }
+
+    fn insert(&self, signature: Vec<u8>, verdict: bool) {
+        self.0
+            .write()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(signature, verdict);
+    }
+}
+
+/// The patches with every key replaced by its rank among the block's keys (`planes`, sorted,
+/// with their boundary-plane masks): everything the combinatorial check reads.
+fn signature(planes: &[(Key, u8, u8)], before: &[[Key; 3]], after: &[[Key; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(6 + 2 * planes.len() + 3 * (before.len() + after.len()));
+    let rank = |k: Key| {
+        planes
+            .binary_search_by_key(&k, |e| e.0)
+            .expect("every key of the patches is listed")
+    };
+    out.extend_from_slice(&(planes.len() as u16).to_le_bytes());
+    for &(_, frozen, open) in planes {
+        out.push(frozen);
+        out.push(open);
+    }
+    for list in [before, after] {
+        out.extend_from_slice(&(list.len() as u16).to_le_bytes());
+        for t in list {
+            for &k in t {
+                out.extend_from_slice(&(rank(k) as u16).to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
 fn canonical(t: [Key; 3]) -> [Key; 3] {
     let i = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
     [t[i], t[(i + 1) % 3], t[(i + 2) % 3]]
