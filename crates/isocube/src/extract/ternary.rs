@@ -215,47 +215,55 @@ impl<'a> Ternary<'a> {
         let values = self.grid.values();
         let level = f64::from(self.level);
         let dims = self.grid.dims();
-        // (point, nearest crossing as a fraction of an edge), from one pass over the grid edges.
-        let mut near: Vec<(usize, f64)> = Vec::new();
+        // (point, nearest crossing as a fraction of an edge), from one pass over the grid edges,
+        // a plane at a time in parallel (the list is sorted next, so its order does not matter).
         let threshold = f64::from(snapping.zero_threshold);
         let snap = f64::from(snapping.snap);
         let [nx, ny, nz] = dims;
-        for k in 0..nz {
-            for j in 0..ny {
-                let row = self.grid.index(0, j, k);
-                for i in 0..nx {
-                    let p = row + i;
-                    let v = f64::from(values[p]);
-                    if !v.is_finite() {
-                        continue;
-                    }
-                    if (v - level).abs() <= threshold {
-                        near.push((p, 0.0));
-                    }
-                    if snap <= 0.0 {
-                        continue;
-                    }
-                    for (axis, inside) in [(0, i + 1 < nx), (1, j + 1 < ny), (2, k + 1 < nz)] {
-                        if !inside {
+        let strides = self.strides;
+        let grid = self.grid;
+        let planes: Vec<Vec<(usize, f64)>> = (0..nz)
+            .into_par_iter()
+            .map(|k| {
+                let mut near = Vec::new();
+                for j in 0..ny {
+                    let row = grid.index(0, j, k);
+                    for i in 0..nx {
+                        let p = row + i;
+                        let v = f64::from(values[p]);
+                        if !v.is_finite() {
                             continue;
                         }
-                        let q = p + self.strides[axis];
-                        let w = f64::from(values[q]);
-                        if !w.is_finite() || (v >= level) == (w >= level) {
+                        if (v - level).abs() <= threshold {
+                            near.push((p, 0.0));
+                        }
+                        if snap <= 0.0 {
                             continue;
                         }
-                        let t = (level - v) / (w - v);
-                        if t <= snap {
-                            near.push((p, t));
-                        }
-                        if 1.0 - t <= snap {
-                            near.push((q, 1.0 - t));
+                        for (axis, inside) in [(0, i + 1 < nx), (1, j + 1 < ny), (2, k + 1 < nz)] {
+                            if !inside {
+                                continue;
+                            }
+                            let q = p + strides[axis];
+                            let w = f64::from(values[q]);
+                            if !w.is_finite() || (v >= level) == (w >= level) {
+                                continue;
+                            }
+                            let t = (level - v) / (w - v);
+                            if t <= snap {
+                                near.push((p, t));
+                            }
+                            if 1.0 - t <= snap {
+                                near.push((q, 1.0 - t));
+                            }
                         }
                     }
                 }
-            }
-        }
-        near.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+                near
+            })
+            .collect();
+        let mut near: Vec<(usize, f64)> = planes.concat();
+        near.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
         near.dedup_by_key(|e| e.0);
         // Closest crossings first, in rounds of 1/20 of an edge, then by parity class.
         let mut order: Vec<(u8, u8, usize)> = near
@@ -270,7 +278,7 @@ impl<'a> Ternary<'a> {
                 )
             })
             .collect();
-        order.sort_unstable();
+        order.par_sort_unstable();
         // A point's check reads only the cells around it (points at most one step away), and
         // two points of one parity class are two steps apart along some axis: within a
         // (round, class) group the checks are independent, so each group is checked in
