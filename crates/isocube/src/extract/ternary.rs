@@ -520,8 +520,22 @@ impl<'a> Ternary<'a> {
             }
             mask
         };
-        let interiors = &patch.interiors;
-        let pos = |k: Key| self.position(k, interiors).map(f64::from);
+        // Each vertex placed once: the sweeps below look at every triangle pair several times.
+        let mut placed: Vec<(Key, [f64; 3])> = Vec::with_capacity(3 * n);
+        for t in &patch.triangles[first..] {
+            for &k in t {
+                if !placed.iter().any(|e| e.0 == k) {
+                    placed.push((k, self.position(k, &patch.interiors).map(f64::from)));
+                }
+            }
+        }
+        let pos = |k: Key| {
+            placed
+                .iter()
+                .find(|e| e.0 == k)
+                .map(|e| e.1)
+                .expect("flips only reuse the cell's vertices")
+        };
         // The largest cosine of a triangle's angles stands for its smallest angle.
         let max_cos = |t: [Key; 3]| -> (f64, [f64; 3]) {
             let p = t.map(pos);
@@ -694,11 +708,21 @@ impl<'a> Ternary<'a> {
 
     fn no_zero_area(&self, before: &Patch, after: &Patch) -> bool {
         let old: Vec<[Key; 3]> = canonical_triangles(&before.triangles);
+        // New triangles share their vertices (the snapped point above all): place each once.
+        let mut placed: Vec<(Key, [f64; 3])> = Vec::with_capacity(32);
+        let mut place = |k: Key| {
+            if let Some(&(_, x)) = placed.iter().find(|e| e.0 == k) {
+                return x;
+            }
+            let x = self.position(k, &after.interiors).map(f64::from);
+            placed.push((k, x));
+            x
+        };
         after.triangles.iter().all(|t| {
             if old.binary_search(&canonical(*t)).is_ok() {
                 return true;
             }
-            let p = t.map(|k| self.position(k, &after.interiors).map(f64::from));
+            let p = t.map(&mut place);
             let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
             crate::mesh::dot(n, n) > 0.0
         })
