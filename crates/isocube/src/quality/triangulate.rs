@@ -192,7 +192,7 @@ fn triangles_of(list: &[[u8; 3]]) -> Triangles {
 fn polygon_normal(p: &[[f64; 3]]) -> [f64; 3] {
     let mut n = [0.0; 3];
     for i in 0..p.len() {
-        let (a, b) = (p[i], p[(i + 1) % p.len()]);
+        let (a, b) = (p[i], p[next(i, p.len())]);
         n[0] += (a[1] - b[1]) * (a[2] + b[2]);
         n[1] += (a[2] - b[2]) * (a[0] + b[0]);
         n[2] += (a[0] - b[0]) * (a[1] + b[1]);
@@ -248,6 +248,26 @@ fn smallest_angle_cot(a: [f64; 3], b: [f64; 3], c: [f64; 3], normal: [f64; 3]) -
     Some(cosine_side / dot(n, n).sqrt())
 }
 
+/// The corner after `i` in a ring of `n` (a branch: `%` is a division in the hot loops).
+#[inline]
+fn next(i: usize, n: usize) -> usize {
+    if i + 1 == n {
+        0
+    } else {
+        i + 1
+    }
+}
+
+/// The corner before `i` in a ring of `n`.
+#[inline]
+fn prev(i: usize, n: usize) -> usize {
+    if i == 0 {
+        n - 1
+    } else {
+        i - 1
+    }
+}
+
 /// Whether a triangle has positive area and faces along `normal`: [`smallest_angle_cot`] is
 /// `Some` exactly then.
 #[inline]
@@ -259,8 +279,8 @@ fn valid(a: [f64; 3], b: [f64; 3], c: [f64; 3], normal: [f64; 3]) -> bool {
 /// Angle at corner `i` of the polygon, radians.
 fn corner_angle(p: &[[f64; 3]], i: usize) -> f64 {
     let n = p.len();
-    let u = sub(p[(i + n - 1) % n], p[i]);
-    let v = sub(p[(i + 1) % n], p[i]);
+    let u = sub(p[prev(i, n)], p[i]);
+    let v = sub(p[next(i, n)], p[i]);
     let w = cross(u, v);
     dot(w, w).sqrt().atan2(dot(u, v))
 }
@@ -345,7 +365,7 @@ fn star_rank(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3]) -> f64 {
     let n = p.len();
     let mut worst = f64::INFINITY;
     for i in 0..n {
-        worst = worst.min(rank(p[i], p[(i + 1) % n], x, normal));
+        worst = worst.min(rank(p[i], p[next(i, n)], x, normal));
         if worst == f64::NEG_INFINITY {
             break;
         }
@@ -373,7 +393,7 @@ fn star_quality_above(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3], bar_cot: f6
     let n = p.len();
     let mut worst = f64::NEG_INFINITY;
     for i in 0..n {
-        let cot = smallest_angle_cot(p[i], p[(i + 1) % n], x, normal)?;
+        let cot = smallest_angle_cot(p[i], p[next(i, n)], x, normal)?;
         if cot >= bar_cot {
             return None;
         }
@@ -403,7 +423,7 @@ fn weighted_point(p: &[[f64; 3]], sides: &[f64]) -> [f64; 3] {
     let n = p.len();
     let mut lse = [0.0f64; MAX_CORNERS];
     for i in 0..n {
-        lse[i] = sides[i].min(sides[(i + n - 1) % n]);
+        lse[i] = sides[i].min(sides[prev(i, n)]);
     }
     let slme: f64 = lse[..n].iter().sum();
     let mut x = [0.0; 3];
@@ -665,9 +685,9 @@ fn local(
     let corner = |rest: &[u8], k: usize| {
         let m = rest.len();
         (
-            usize::from(rest[(k + m - 1) % m]),
+            usize::from(rest[prev(k, m)]),
             usize::from(rest[k]),
-            usize::from(rest[(k + 1) % m]),
+            usize::from(rest[next(k, m)]),
         )
     };
     // (1) Cut off corners with a bad angle, smallest first, while the cut is allowed and valid.
@@ -678,8 +698,15 @@ fn local(
             let (a, b, c) = corner(&rest[..m], k);
             let (u, v) = (sub(p[a], p[b]), sub(p[c], p[b]));
             let w = cross(u, v);
-            let (sine, cosine) = (dot(w, w).sqrt(), dot(u, v));
-            if cosine > 0.0 && sine < tan_bad * cosine {
+            let cosine = dot(u, v);
+            // Most corners are far from 30°: the squared test rules them out without a root
+            // (with a margin far above rounding, so borderline corners get the exact test).
+            let bar = tan_bad * cosine;
+            if cosine <= 0.0 || dot(w, w) > bar * bar * (1.0 + 1e-9) {
+                continue;
+            }
+            let sine = dot(w, w).sqrt();
+            if sine < bar {
                 // Insertion keeps equal angles in corner order.
                 let key = sine / cosine;
                 let mut at = count;
@@ -709,7 +736,7 @@ fn local(
     }
     let q = &q[..m];
     for k in 0..m {
-        sides[k] = length(q[k], q[(k + 1) % m]);
+        sides[k] = length(q[k], q[next(k, m)]);
     }
     let sides = &sides[..m];
     let ratio = sides.iter().copied().fold(0.0, f64::max)
@@ -801,7 +828,7 @@ fn ears_below(p: &[[f64; 3]], chords: &Chords, normal: [f64; 3], rank_to_reach: 
     let n = p.len();
     let (mut first, mut second) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     for c in 0..n {
-        let (a, b) = ((c + n - 1) % n, (c + 1) % n);
+        let (a, b) = (prev(c, n), next(c, n));
         if !chords.has(a, b) {
             continue;
         }
@@ -820,7 +847,7 @@ fn ears_below(p: &[[f64; 3]], chords: &Chords, normal: [f64; 3], rank_to_reach: 
 /// is 0).
 fn corner_cosine(p: &[[f64; 3]], i: usize) -> f64 {
     let n = p.len();
-    let (u, v) = (sub(p[(i + n - 1) % n], p[i]), sub(p[(i + 1) % n], p[i]));
+    let (u, v) = (sub(p[prev(i, n)], p[i]), sub(p[next(i, n)], p[i]));
     let norm = (dot(u, u) * dot(v, v)).sqrt();
     if norm > 0.0 {
         dot(u, v) / norm
