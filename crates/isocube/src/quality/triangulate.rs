@@ -389,17 +389,36 @@ fn cot_bar(bar: f64) -> f64 {
 
 /// [`star_quality`] if its worst cotangent is below `bar_cot` (see [`cot_bar`]), found without
 /// an arctangent per triangle and given up at the first triangle that cannot beat it.
-fn star_quality_above(p: &[[f64; 3]], x: [f64; 3], normal: [f64; 3], bar_cot: f64) -> Option<f64> {
+fn star_quality_above(
+    p: &[[f64; 3]],
+    x: [f64; 3],
+    normal: [f64; 3],
+    bar_cot: f64,
+    first: &mut usize,
+) -> Option<f64> {
+    // The answer does not depend on the order the triangles are looked at (any failure fails,
+    // else the largest cotangent): start with the one that was worst last time, which is
+    // the likeliest to fail again, and remember the worst.
     let n = p.len();
-    let mut worst = f64::NEG_INFINITY;
-    for i in 0..n {
-        let cot = smallest_angle_cot(p[i], p[next(i, n)], x, normal)?;
-        if cot >= bar_cot {
-            return None;
+    let mut worst = (f64::NEG_INFINITY, *first);
+    let mut i = *first;
+    for _ in 0..n {
+        let cot = smallest_angle_cot(p[i], p[next(i, n)], x, normal);
+        match cot {
+            Some(c) if c < bar_cot => {
+                if c > worst.0 {
+                    worst = (c, i);
+                }
+            }
+            _ => {
+                *first = i;
+                return None;
+            }
         }
-        worst = worst.max(cot);
+        i = next(i, n);
     }
-    Some(1f64.atan2(worst))
+    *first = worst.1;
+    Some(1f64.atan2(worst.0))
 }
 
 fn star(n: usize) -> Vec<[u8; 3]> {
@@ -476,11 +495,12 @@ fn best_star(p: &[[f64; 3]], normal: [f64; 3], bounds: ([f64; 3], [f64; 3])) -> 
     let mut step = 0.25 * perimeter / n as f64;
     // The bar's cotangent changes only when the star improves.
     let mut bar_cot = cot_bar(q);
+    let mut first = 0;
     for _ in 0..24 {
         let mut improved = false;
         for dir in [u, v, u.map(|c| -c), v.map(|c| -c)] {
             let y = clamp_to(std::array::from_fn(|d| x[d] + step * dir[d]), bounds);
-            if let Some(qy) = star_quality_above(p, y, normal, bar_cot) {
+            if let Some(qy) = star_quality_above(p, y, normal, bar_cot, &mut first) {
                 if qy > q {
                     (x, q) = (y, qy);
                     bar_cot = cot_bar(q);
