@@ -148,8 +148,10 @@ fn pack_above(values: &[f32], level: f32) -> u64 {
 pub(super) struct Slab {
     pub(super) mesh: Mesh,
     pub(super) stats: ExtractStats,
-    pub(super) bottom: Vec<(u32, u32)>,
-    pub(super) top: Vec<(u32, u32)>,
+    /// Vertices on the bottom and top planes as (slot, local index): the slot names the
+    /// vertex's place on the plane (an edge slot, or a ternary key) so neighbours can match it.
+    pub(super) bottom: Vec<(u64, u32)>,
+    pub(super) top: Vec<(u64, u32)>,
 }
 
 /// Cell layers per slab: at least 16 slabs to balance the cores, and a slab's planes within
@@ -203,7 +205,7 @@ fn extract_in_slabs(
 /// Joins the slabs in order: a slab's bottom-plane vertices are its predecessor's top-plane
 /// ones, every other vertex is new, numbered after all the earlier slabs' new vertices. The
 /// numbering needs only counts, so the copying runs in parallel.
-fn join(
+pub(super) fn join(
     parts: Vec<Slab>,
     grid: &Grid,
     mesh: &mut Mesh,
@@ -220,7 +222,7 @@ fn join(
             if s == 0 {
                 return Vec::new();
             }
-            let mut below: Vec<(u32, u32)> = parts[s - 1].top.clone();
+            let mut below: Vec<(u64, u32)> = parts[s - 1].top.clone();
             below.sort_unstable();
             parts[s]
                 .bottom
@@ -409,11 +411,17 @@ pub(super) fn mesh_slab(
                 }
             }
         }
+        let wide = |entries: Vec<(u32, u32)>| -> Vec<(u64, u32)> {
+            entries
+                .into_iter()
+                .map(|(s, v)| (u64::from(s), v))
+                .collect()
+        };
         if k == k0 {
-            bottom = cache.plane_entries(false);
+            bottom = wide(cache.plane_entries(false));
         }
         if k + 1 == k1 {
-            top = cache.plane_entries(true);
+            top = wide(cache.plane_entries(true));
         }
         cache.next_layer();
     }

@@ -136,7 +136,7 @@ pub fn extract_streamed<S: MeshSink>(
 struct Joiner {
     next: u64,
     /// The previous slab's top-plane vertices: (edge slot, global index), by slot.
-    top: Vec<(u32, u32)>,
+    top: Vec<(u64, u32)>,
     remap: Vec<u32>,
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,

@@ -47,6 +47,7 @@ use crate::field::Grid;
 use crate::mesh::Mesh;
 use crate::quality::{triangulate, Strategy};
 
+use super::binary::Slab;
 use super::classify::{cell_config, face_decisions};
 use super::place::Placer;
 use super::{choose_tunnel, ExtractError, ExtractOptions, ExtractStats};
@@ -815,6 +816,9 @@ impl<'a> Ternary<'a> {
     }
 
     /// Meshes the whole grid with the chosen zero points.
+    /// Meshes the field with the chosen zeros: slabs of cell layers in parallel, joined in
+    /// order like the binary engine's (vertices on a slab's bottom plane are its predecessor's,
+    /// matched by key), so vertices are numbered by first use exactly as one pass would.
     pub(super) fn mesh(
         &self,
         options: &ExtractOptions,
@@ -824,8 +828,6 @@ impl<'a> Ternary<'a> {
     ) -> Result<(), ExtractError> {
         let placer = Placer::new(super::window::Window::whole(self.grid), options);
         let [nx, ny, nz] = self.grid.dims();
-        let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
-        let mut patch = Patch::default();
         // Zero points hold the level, which counts as above: cells whose eight values are all
         // above or all below make nothing, and are ruled out 64 at a time.
         let window = super::window::Window::new(
@@ -836,8 +838,42 @@ impl<'a> Ternary<'a> {
             &self.g,
         );
         let masks = super::binary::Masks::new(&window, self.level, 0, nz - 1);
+        let height = super::binary::slab_height(nx, ny, nz - 1);
+        let slabs = (nz - 1).div_ceil(height);
+        let parts: Vec<Result<Slab, ExtractError>> = (0..slabs)
+            .into_par_iter()
+            .map(|s| {
+                let k0 = s * height;
+                let k1 = ((s + 1) * height).min(nz - 1);
+                self.mesh_slab(options, &placer, &masks, k0, k1)
+            })
+            .collect();
+        let parts: Vec<Slab> = parts.into_iter().collect::<Result<_, _>>()?;
+        let joined = super::binary::join(parts, self.grid, mesh, &mut |s| {
+            progress(((s + 1) * height).min(nz - 1), nz - 1)
+        })?;
+        stats.active_cells += joined.active_cells;
+        stats.skipped_cells += joined.skipped_cells;
+        stats.interior_vertices += joined.interior_vertices;
+        Ok(())
+    }
+
+    /// Cell layers `k0..k1`, with the vertices on planes `k0` and `k1` by key.
+    fn mesh_slab(
+        &self,
+        options: &ExtractOptions,
+        placer: &Placer,
+        masks: &super::binary::Masks,
+        k0: usize,
+        k1: usize,
+    ) -> Result<Slab, ExtractError> {
+        let [nx, ny, _] = self.grid.dims();
+        let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
+        let mut patch = Patch::default();
+        let mut mesh = Mesh::new();
+        let mut stats = ExtractStats::default();
         let mut visit = vec![0u64; masks.words];
-        for k in 0..nz - 1 {
+        for k in k0..k1 {
             for j in 0..ny - 1 {
                 masks.visit(j, k, ny, nx - 1, &mut visit);
                 let cells = visit.iter().enumerate().flat_map(|(w, &word)| {
@@ -866,7 +902,8 @@ impl<'a> Ternary<'a> {
                     for t in &patch.triangles {
                         let mut tri = [0u32; 3];
                         for (slot, &key) in tri.iter_mut().zip(t) {
-                            *slot = self.vertex(key, &patch, &placer, &mut ids, mesh, stats)?;
+                            *slot =
+                                self.vertex(key, &patch, placer, &mut ids, &mut mesh, &mut stats)?;
                         }
                         if options.flip {
                             tri.swap(1, 2);
@@ -875,9 +912,26 @@ impl<'a> Ternary<'a> {
                     }
                 }
             }
-            progress(k + 1, nz - 1);
         }
-        Ok(())
+        // Interior points are never on a plane; points and crossings on planes k0 and k1 may be
+        // the neighbouring slabs' too.
+        let (mut bottom, mut top) = (Vec::new(), Vec::new());
+        for (&key, &id) in &ids {
+            let z = self.key_coords(key)[2];
+            if z == 2 * k0 {
+                bottom.push((key, id));
+            } else if z == 2 * k1 {
+                top.push((key, id));
+            }
+        }
+        bottom.sort_unstable();
+        top.sort_unstable();
+        Ok(Slab {
+            mesh,
+            stats,
+            bottom,
+            top,
+        })
     }
 
     fn vertex(
