@@ -1,14 +1,17 @@
-//! Extraction throughput: MC33 against classic Marching Cubes on the built-in samples.
+//! Extraction throughput: MC33 against classic Marching Cubes on the built-in samples, then the
+//! other methods against the default on one sample (local and optimal triangulation, ternary,
+//! slab-wise streaming into memory).
 //!
 //! `cargo bench -p isocube --bench extract` (add `-- --quick` for a short run). Each case is
-//! labelled `topology/sample/N` and reports cells per second; the output mesh is reused between
-//! iterations so allocation is not timed.
+//! labelled `topology/sample/N` or `method/sample/N` and reports cells per second; the output
+//! mesh is reused between iterations so allocation is not timed (except when streaming).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use isocube::cube::Topology;
-use isocube::extract::{extract_into, ExtractOptions};
+use isocube::extract::{extract_into, extract_streamed, ExtractOptions, Method};
 use isocube::field::Sample;
 use isocube::mesh::Mesh;
+use isocube::quality::Strategy;
 
 fn topologies(c: &mut Criterion) {
     let mut group = c.benchmark_group("extract");
@@ -41,5 +44,44 @@ fn topologies(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, topologies);
+fn methods(c: &mut Criterion) {
+    let mut group = c.benchmark_group("methods");
+    group.sample_size(10);
+    let n = 128;
+    let sample = Sample::Tangle;
+    let grid = sample.grid(n);
+    group.throughput(Throughput::Elements(grid.cell_count() as u64));
+    let default = ExtractOptions::default();
+    for (name, options) in [
+        ("default", default),
+        ("local", default.with_triangulation(Strategy::Local)),
+        ("optimal", default.with_triangulation(Strategy::Optimal)),
+        (
+            "ternary",
+            default.with_method(Method::Ternary(Default::default())),
+        ),
+    ] {
+        let mut mesh = Mesh::new();
+        extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).unwrap();
+        group.bench_with_input(
+            BenchmarkId::new(name, format!("{sample}/{n}")),
+            &grid,
+            |b, grid| b.iter(|| extract_into(grid, &options, &mut mesh, &mut |_, _| {}).unwrap()),
+        );
+    }
+    group.bench_with_input(
+        BenchmarkId::new("streamed", format!("{sample}/{n}")),
+        &grid,
+        |b, grid| {
+            b.iter(|| {
+                let mut mesh = Mesh::new();
+                extract_streamed(grid, &default, &mut mesh, &mut |_, _| {}).unwrap();
+                mesh
+            })
+        },
+    );
+    group.finish();
+}
+
+criterion_group!(benches, topologies, methods);
 criterion_main!(benches);

@@ -128,7 +128,7 @@ pub(crate) struct Chords {
 impl Chords {
     /// The chords of an `n`-gon (`n ≤ MAX_CORNERS`) whose diagonal `(i, j)`, `i < j`, may be drawn
     /// when `allowed(i, j)`.
-    pub(crate) fn new(n: usize, allowed: &dyn Fn(usize, usize) -> bool) -> Chords {
+    pub(crate) fn new(n: usize, allowed: impl Fn(usize, usize) -> bool) -> Chords {
         let mut bits = [0u16; MAX_CORNERS];
         for i in 0..n {
             for j in i + 1..n {
