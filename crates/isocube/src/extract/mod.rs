@@ -414,7 +414,7 @@ fn emit_polygon(
         mesh.triangles.push(t);
         return Ok(());
     }
-    let chords = Chords::new(n, &|a, b| may_join(polygon[a], polygon[b]));
+    let chords = Chords::new(n, |a, b| may_join(polygon[a], polygon[b]));
     let push = |t: [u32; 3], mesh: &mut Mesh| {
         let mut t = t;
         if options.flip {

@@ -150,7 +150,7 @@ impl Chords {
     /// chords between its corners.
     fn sub(&self, rest: &[u8]) -> Chords {
         let m = rest.len();
-        Chords::new(m, &|a, b| {
+        Chords::new(m, |a, b| {
             self.has(usize::from(rest[a]), usize::from(rest[b]))
         })
     }
@@ -998,7 +998,7 @@ mod tests {
                 let normal = polygon_normal(&p);
                 let x = [0.05 * next(), 0.05 * next(), 0.0];
                 let star_q = star_quality(&p, x, normal);
-                let Some((q, tris)) = best_with_point(&p, &Chords::new(n, &any), normal, x) else {
+                let Some((q, tris)) = best_with_point(&p, &Chords::new(n, any), normal, x) else {
                     assert!(star_q <= 0.0);
                     continue;
                 };
@@ -1023,7 +1023,7 @@ mod tests {
         let p = regular(6);
         // Only diagonals from corner 0.
         let from0 = |i: usize, _: usize| i == 0;
-        let t = best_by_diagonals(&p, &Chords::new(6, &from0), polygon_normal(&p))
+        let t = best_by_diagonals(&p, &Chords::new(6, from0), polygon_normal(&p))
             .unwrap()
             .1;
         for tri in t.as_slice() {
@@ -1033,9 +1033,7 @@ mod tests {
             }
         }
         // Nothing allowed: no triangulation by diagonals.
-        assert!(
-            best_by_diagonals(&p, &Chords::new(6, &|_, _| false), polygon_normal(&p)).is_none()
-        );
+        assert!(best_by_diagonals(&p, &Chords::new(6, |_, _| false), polygon_normal(&p)).is_none());
     }
 
     #[test]
@@ -1069,7 +1067,7 @@ mod tests {
         let lh = triangulate(&h, &any, Strategy::Local, bounds).unwrap();
         let oh = triangulate(&h, &any, Strategy::Optimal, bounds).unwrap();
         let diagonals = angle_of_rank(
-            best_by_diagonals(&h, &Chords::new(6, &any), polygon_normal(&h))
+            best_by_diagonals(&h, &Chords::new(6, any), polygon_normal(&h))
                 .unwrap()
                 .0,
         )
