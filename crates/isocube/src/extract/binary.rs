@@ -128,6 +128,21 @@ impl Masks {
     }
 }
 
+/// The positions of the set bits of `words` (bit `b` of word `w` is `64 w + b`), in order: the
+/// cells [`Masks::visit`] marked.
+pub(super) fn set_bits(words: &[u64]) -> impl Iterator<Item = usize> + '_ {
+    words.iter().enumerate().flat_map(|(w, &word)| {
+        let mut bits = word;
+        std::iter::from_fn(move || {
+            (bits != 0).then(|| {
+                let i = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                i
+            })
+        })
+    })
+}
+
 /// Bit `b` set when `values[b]` is at or above the level, for 64 values: the comparisons go to
 /// bytes (which vectorises), and each 8 bytes of 0/1 are gathered into 8 bits by one multiply.
 #[inline]
@@ -381,11 +396,8 @@ pub(super) fn mesh_slab(
     for k in k0..k1 {
         for j in 0..ny - 1 {
             masks.visit(j, k - k0, ny, nx - 1, &mut visit);
-            for (w, &word) in visit.iter().enumerate() {
-                let mut bits = word;
-                while bits != 0 {
-                    let i = w * 64 + bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
+            {
+                for i in set_bits(&visit) {
                     let base = grid.index(i, j, k);
                     let v = corner_offsets.map(|o| values[base + o]);
                     if v.iter().any(|x| !x.is_finite()) {

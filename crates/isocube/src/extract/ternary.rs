@@ -876,17 +876,7 @@ impl<'a> Ternary<'a> {
         for k in k0..k1 {
             for j in 0..ny - 1 {
                 masks.visit(j, k, ny, nx - 1, &mut visit);
-                let cells = visit.iter().enumerate().flat_map(|(w, &word)| {
-                    let mut bits = word;
-                    std::iter::from_fn(move || {
-                        (bits != 0).then(|| {
-                            let i = w * 64 + bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            i
-                        })
-                    })
-                });
-                for i in cells {
+                for i in super::binary::set_bits(&visit) {
                     let base = self.grid.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
                     if pts.iter().any(|&p| !self.g[p].is_finite()) {
