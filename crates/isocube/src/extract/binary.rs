@@ -42,31 +42,28 @@ impl Masks {
         let [nx, ny, _] = window.dims();
         let words = nx.div_ceil(64);
         let values = window.planes(k0, k1);
-        let rows = ny * (k1 + 1 - k0);
-        let mut above = vec![0u64; rows * words];
-        let mut invalid = false;
-        for (row, out) in values.chunks_exact(nx).zip(above.chunks_exact_mut(words)) {
-            // v · 0 is NaN exactly for non-finite v: one sum per row finds them, and the loops
-            // stay simple enough to vectorise.
-            let mut probe = 0.0f32;
-            let full = row.chunks_exact(64);
-            let tail = full.remainder();
-            for (w, chunk) in full.enumerate() {
-                out[w] = pack_above(chunk, level);
-                probe += chunk.iter().map(|&v| v * 0.0).sum::<f32>();
-            }
-            if !tail.is_empty() {
-                let mut bits = 0u64;
-                for (b, &v) in tail.iter().enumerate() {
-                    bits |= u64::from(v >= level) << b;
-                    probe += v * 0.0;
-                }
-                out[words - 1] = bits;
-            }
-            invalid |= probe.is_nan();
-        }
+        let mut above = vec![0u64; ny * (k1 + 1 - k0) * words];
+        let invalid = pack_rows(values, nx, level, &mut above);
+        Masks::finish(values, nx, words, above, invalid)
+    }
+
+    /// [`Masks::new`] for all of `window`'s planes, a plane per task.
+    pub(super) fn new_parallel(window: &Window, level: f32) -> Masks {
+        let [nx, ny, nz] = window.dims();
+        let words = nx.div_ceil(64);
+        let values = window.planes(0, nz - 1);
+        let mut above = vec![0u64; ny * nz * words];
+        let invalid = values
+            .par_chunks(nx * ny)
+            .zip(above.par_chunks_mut(ny * words))
+            .map(|(plane, out)| pack_rows(plane, nx, level, out))
+            .reduce(|| false, |a, b| a | b);
+        Masks::finish(values, nx, words, above, invalid)
+    }
+
+    fn finish(values: &[f32], nx: usize, words: usize, above: Vec<u64>, invalid: bool) -> Masks {
         let invalid = invalid.then(|| {
-            let mut bad = vec![0u64; rows * words];
+            let mut bad = vec![0u64; above.len()];
             for (row, out) in values.chunks_exact(nx).zip(bad.chunks_exact_mut(words)) {
                 for (w, chunk) in row.chunks(64).enumerate() {
                     out[w] = chunk
@@ -82,6 +79,16 @@ impl Masks {
             above,
             invalid,
         }
+    }
+
+    /// The above bits of row `(j, k)` (`k` counted from the masks' first plane).
+    pub(super) fn above(&self, j: usize, k: usize, ny: usize) -> &[u64] {
+        self.row(&self.above, j, k, ny)
+    }
+
+    /// Marks point `(i, j, k)` above the level (`k` counted from the masks' first plane).
+    pub(super) fn set_above(&mut self, [i, j, k]: [usize; 3], ny: usize) {
+        self.above[(k * ny + j) * self.words + i / 64] |= 1 << (i % 64);
     }
 
     fn row<'a>(&self, masks: &'a [u64], j: usize, k: usize, ny: usize) -> &'a [u64] {
@@ -126,6 +133,34 @@ impl Masks {
             *slot = v;
         }
     }
+}
+
+/// Packs the above bits of `values` (rows of `nx`) into `out` (rows of whole words); returns
+/// whether some value is not finite.
+fn pack_rows(values: &[f32], nx: usize, level: f32, out: &mut [u64]) -> bool {
+    let words = nx.div_ceil(64);
+    let mut invalid = false;
+    for (row, out) in values.chunks_exact(nx).zip(out.chunks_exact_mut(words)) {
+        // v · 0 is NaN exactly for non-finite v: one sum per row finds them, and the loops
+        // stay simple enough to vectorise.
+        let mut probe = 0.0f32;
+        let full = row.chunks_exact(64);
+        let tail = full.remainder();
+        for (w, chunk) in full.enumerate() {
+            out[w] = pack_above(chunk, level);
+            probe += chunk.iter().map(|&v| v * 0.0).sum::<f32>();
+        }
+        if !tail.is_empty() {
+            let mut bits = 0u64;
+            for (b, &v) in tail.iter().enumerate() {
+                bits |= u64::from(v >= level) << b;
+                probe += v * 0.0;
+            }
+            out[words - 1] = bits;
+        }
+        invalid |= probe.is_nan();
+    }
+    invalid
 }
 
 /// The positions of the set bits of `words` (bit `b` of word `w` is `64 w + b`), in order: the

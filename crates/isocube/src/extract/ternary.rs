@@ -33,6 +33,13 @@
 //! work). Refused points keep their sign; their crossings are kept at least [`MIN_OFFSET`] of an
 //! edge away from the grid point so that no triangle collapses to zero area.
 //!
+//! Most of these checks repeat: away from the grid's boundary, when no cell of the block has an
+//! ambiguous face or a tunnel to choose (before or after), the patches are a function of the
+//! below / above / zero pattern of the block's 27 points. The first check of a pattern records
+//! the combinatorial verdict and the new triangles by local position; later points with that
+//! pattern only place those triangles' corners and test their areas. Tests (debug assertions)
+//! re-run the full check on every reuse.
+//!
 //! Finally, inside each cell, a diagonal between two triangles is flipped where that raises the
 //! smaller of their smallest angles; new diagonals join corners that share no face of the cell,
 //! so no neighbour can ever use the same edge, and flips never change the topology.
@@ -173,9 +180,11 @@ pub(super) struct Ternary<'a> {
     grid: &'a Grid,
     level: f32,
     topology: Topology,
-    /// The field with zero points set to the level.
-    g: Vec<f32>,
-    zero: Vec<bool>,
+    values: &'a [f32],
+    /// Zero points, one bit each: the field `g` is the level there and `values` elsewhere.
+    zero: Vec<u64>,
+    /// Sign masks of `g` (zero points are above).
+    masks: super::binary::Masks,
     snapping: Snapping,
     strategy: Strategy,
     offsets: [usize; 8],
@@ -190,8 +199,12 @@ impl<'a> Ternary<'a> {
             grid,
             level: options.level,
             topology: options.topology,
-            g: grid.values().to_vec(),
-            zero: vec![false; grid.values().len()],
+            values: grid.values(),
+            zero: vec![0; grid.values().len().div_ceil(64)],
+            masks: super::binary::Masks::new_parallel(
+                &super::window::Window::whole(grid),
+                options.level,
+            ),
             snapping,
             strategy: options.triangulation,
             offsets: [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz],
@@ -223,39 +236,58 @@ impl<'a> Ternary<'a> {
         let [nx, ny, nz] = dims;
         let strides = self.strides;
         let grid = self.grid;
+        let masks = &self.masks;
         let planes: Vec<Vec<(usize, f64)>> = (0..nz)
             .into_par_iter()
             .map(|k| {
                 let mut near = Vec::new();
                 for j in 0..ny {
                     let row = grid.index(0, j, k);
-                    for i in 0..nx {
-                        let p = row + i;
-                        let v = f64::from(values[p]);
-                        if !v.is_finite() {
-                            continue;
-                        }
-                        if (v - level).abs() <= threshold {
-                            near.push((p, 0.0));
-                        }
-                        if snap <= 0.0 {
-                            continue;
-                        }
-                        for (axis, inside) in [(0, i + 1 < nx), (1, j + 1 < ny), (2, k + 1 < nz)] {
-                            if !inside {
-                                continue;
+                    if threshold > 0.0 || values[row..row + nx].contains(&self.level) {
+                        for (i, &v) in values[row..row + nx].iter().enumerate() {
+                            if (f64::from(v) - level).abs() <= threshold {
+                                near.push((row + i, 0.0));
                             }
-                            let q = p + strides[axis];
-                            let w = f64::from(values[q]);
-                            if !w.is_finite() || (v >= level) == (w >= level) {
-                                continue;
+                        }
+                    }
+                    if snap <= 0.0 {
+                        continue;
+                    }
+                    // Edges whose ends disagree, from the sign masks (a point that is not
+                    // finite counts as below there, and is skipped below).
+                    let here = masks.above(j, k, ny);
+                    let along = |axis: usize, w: usize| -> u64 {
+                        match axis {
+                            0 => {
+                                let next = here.get(w + 1).map_or(0, |n| n << 63);
+                                // Edges start at points 0..nx − 1.
+                                let keep = (nx - 1).saturating_sub(w * 64);
+                                let keep = if keep >= 64 { !0 } else { (1u64 << keep) - 1 };
+                                (here[w] ^ (here[w] >> 1 | next)) & keep
                             }
-                            let t = (level - v) / (w - v);
-                            if t <= snap {
-                                near.push((p, t));
-                            }
-                            if 1.0 - t <= snap {
-                                near.push((q, 1.0 - t));
+                            1 if j + 1 < ny => here[w] ^ masks.above(j + 1, k, ny)[w],
+                            2 if k + 1 < nz => here[w] ^ masks.above(j, k + 1, ny)[w],
+                            _ => 0,
+                        }
+                    };
+                    for (axis, &stride) in strides.iter().enumerate() {
+                        for w in 0..masks.words {
+                            let mut bits = along(axis, w);
+                            while bits != 0 {
+                                let p = row + w * 64 + bits.trailing_zeros() as usize;
+                                bits &= bits - 1;
+                                let q = p + stride;
+                                let (a, b) = (f64::from(values[p]), f64::from(values[q]));
+                                if !a.is_finite() || !b.is_finite() {
+                                    continue;
+                                }
+                                let t = (level - a) / (b - a);
+                                if t <= snap {
+                                    near.push((p, t));
+                                }
+                                if 1.0 - t <= snap {
+                                    near.push((q, 1.0 - t));
+                                }
                             }
                         }
                     }
@@ -285,7 +317,7 @@ impl<'a> Ternary<'a> {
         // (round, class) group the checks are independent, so each group is checked in
         // parallel and then applied — the same choices as one point after the other.
         let (mut snapped, mut refused) = (0, 0);
-        let verdicts = Verdicts::default();
+        let neighbourhoods = Neighbourhoods::default();
         let mut start = 0;
         while start < order.len() {
             let group = (order[start].0, order[start].1);
@@ -304,14 +336,15 @@ impl<'a> Ternary<'a> {
                 .map_init(
                     || (Patch::default(), Patch::default()),
                     |(before, after), &(_, _, p)| {
-                        self.zero_keeps_topology(p, before, after, &verdicts)
+                        self.snap_is_safe(p, before, after, &neighbourhoods)
                     },
                 )
                 .collect();
             for (&(_, _, p), ok) in members.iter().zip(verdicts) {
                 if ok {
-                    self.zero[p] = true;
-                    self.g[p] = self.level;
+                    self.zero[p / 64] |= 1 << (p % 64);
+                    let ny = self.grid.dims()[1];
+                    self.masks.set_above(self.coords(p), ny);
                     snapped += 1;
                 } else {
                     refused += 1;
@@ -322,16 +355,32 @@ impl<'a> Ternary<'a> {
         (snapped, refused)
     }
 
+    /// Whether `p` was chosen as a zero point.
+    #[inline]
+    fn zero_point(&self, p: usize) -> bool {
+        self.zero[p / 64] >> (p % 64) & 1 != 0
+    }
+
+    /// The value of `g` at `p`.
+    #[inline]
+    fn g(&self, p: usize) -> f32 {
+        if self.zero_point(p) {
+            self.level
+        } else {
+            self.values[p]
+        }
+    }
+
     fn value(&self, p: usize, over: Option<usize>) -> f32 {
         if over == Some(p) {
             self.level
         } else {
-            self.g[p]
+            self.g(p)
         }
     }
 
     fn is_zero(&self, p: usize, over: Option<usize>) -> bool {
-        over == Some(p) || self.zero[p]
+        over == Some(p) || self.zero_point(p)
     }
 
     /// Appends the triangles of cell `cell` (its first grid point) to `patch`, with point `over`
@@ -626,13 +675,179 @@ impl<'a> Ternary<'a> {
         }
     }
 
-    fn zero_keeps_topology(
+    /// Whether making `p` zero keeps the mesh a manifold with the same topology and makes no
+    /// zero-area triangle: [`Ternary::zero_keeps_topology`], answered from the memo of `p`'s
+    /// neighbourhood when an identical one (same below / above / zero pattern of the 27 points)
+    /// was checked before and its cells are unambiguous.
+    fn snap_is_safe(
         &self,
         p: usize,
         before: &mut Patch,
         after: &mut Patch,
-        verdicts: &Verdicts,
+        neighbourhoods: &Neighbourhoods,
     ) -> bool {
+        let Some(pattern) = self.pattern(p) else {
+            return self.zero_keeps_topology(p, before, after);
+        };
+        if let Some(known) = neighbourhoods.get(pattern) {
+            let safe = match known {
+                Known::Values => return self.zero_keeps_topology(p, before, after),
+                Known::Refused => false,
+                Known::Accepted(new) => {
+                    // Each corner is placed once: most new triangles share the snapped point.
+                    let mut at = [[0.0f64; 3]; MAX_NEW_CORNERS];
+                    for (x, &code) in at
+                        .iter_mut()
+                        .zip(&new.corners[..usize::from(new.corner_count)])
+                    {
+                        *x = self.position(self.local_key(p, code), &[]).map(f64::from);
+                    }
+                    new.triangles[..usize::from(new.count)]
+                        .iter()
+                        .all(|t| positive_area(t.map(|c| at[usize::from(c)])))
+                }
+            };
+            // Tests (debug assertions) check every reuse against the full check.
+            debug_assert_eq!(safe, self.zero_keeps_topology(p, before, after));
+            return safe;
+        }
+        let kept = self.topology_kept(p, before, after);
+        neighbourhoods.insert(pattern, self.known(p, pattern, before, after, kept));
+        kept && self.no_zero_area(before, after)
+    }
+
+    /// The below (0) / above (1) / zero (2) pattern of the 27 points around an interior point
+    /// `p` (two bits each, `x` fastest), or `None` near the grid's boundary (where the block's
+    /// planes are open) or next to a value that is not finite.
+    fn pattern(&self, p: usize) -> Option<u64> {
+        let c = self.coords(p);
+        let dims = self.grid.dims();
+        if (0..3).any(|a| c[a] < 2 || c[a] + 3 > dims[a]) {
+            return None;
+        }
+        let [sx, sy, sz] = self.strides;
+        let start = p - sx - sy - sz;
+        let mut pattern = 0u64;
+        let mut bit = 0;
+        for k in 0..3 {
+            for j in 0..3 {
+                let row = start + j * sy + k * sz;
+                for q in row..row + 3 {
+                    let v = self.values[q];
+                    if !v.is_finite() {
+                        return None;
+                    }
+                    let trit = if self.zero_point(q) {
+                        2
+                    } else {
+                        u64::from(v >= self.level)
+                    };
+                    pattern |= trit << bit;
+                    bit += 2;
+                }
+            }
+        }
+        Some(pattern)
+    }
+
+    /// What the full check of `p` (combinatorial verdict `kept`, patches `before` and `after`) says about
+    /// every point with the same `pattern`. The patches are a function of the pattern when no
+    /// cell has an ambiguous face or a tunnel to choose, before or after: then the combinatorial
+    /// verdict carries over, and only the new triangles' areas (positions) remain to be checked.
+    fn known(&self, p: usize, pattern: u64, before: &Patch, after: &Patch, kept: bool) -> Known {
+        let table = CaseTable::binary();
+        let above = |d: [usize; 3], p_above: bool| {
+            let bits = pattern >> (2 * (d[0] + 3 * d[1] + 9 * d[2])) & 3;
+            bits != 0 || (p_above && d == [1, 1, 1])
+        };
+        for o in 0..8usize {
+            let origin = [o & 1, o >> 1 & 1, o >> 2];
+            for p_above in [false, true] {
+                let mut config = 0u8;
+                for (v, corner) in crate::cube::VERTICES.iter().enumerate() {
+                    let d = [0, 1, 2].map(|a| origin[a] + usize::from(corner[a]));
+                    config |= u8::from(above(d, p_above)) << v;
+                }
+                if table.ambiguous_faces(config) != 0
+                    || (self.topology == Topology::Mc33 && table.has_tunnel_candidates(config, 0))
+                {
+                    return Known::Values;
+                }
+            }
+        }
+        if !before.interiors.is_empty() || !after.interiors.is_empty() {
+            return Known::Values;
+        }
+        let old = canonical_triangles(&before.triangles);
+        let mut new = NewTriangles {
+            corners: [0; MAX_NEW_CORNERS],
+            corner_count: 0,
+            triangles: [[0; 3]; MAX_NEW],
+            count: 0,
+        };
+        let c = self.coords(p);
+        for t in &after.triangles {
+            if old.binary_search(&canonical(*t)).is_ok() {
+                continue;
+            }
+            if usize::from(new.count) == MAX_NEW {
+                return Known::Values;
+            }
+            let mut triangle = [0u8; 3];
+            for (slot, &k) in triangle.iter_mut().zip(t) {
+                let d = self.key_coords(k);
+                let l = [0, 1, 2].map(|a| (d[a] + 2 - 2 * c[a]) as u8);
+                let code = l[0] * 25 + l[1] * 5 + l[2];
+                let len = usize::from(new.corner_count);
+                *slot = match new.corners[..len].iter().position(|&x| x == code) {
+                    Some(i) => i as u8,
+                    None if len < MAX_NEW_CORNERS => {
+                        new.corners[len] = code;
+                        new.corner_count += 1;
+                        len as u8
+                    }
+                    None => return Known::Values,
+                };
+            }
+            // The codes name the same keys again around any point with this pattern.
+            debug_assert_eq!(
+                triangle.map(|c| self.local_key(p, new.corners[usize::from(c)])),
+                *t
+            );
+            new.triangles[usize::from(new.count)] = triangle;
+            new.count += 1;
+        }
+        if kept {
+            Known::Accepted(new)
+        } else {
+            Known::Refused
+        }
+    }
+
+    /// The key of the vertex at local doubled coordinates `code` (see [`Known`]) around `p`.
+    fn local_key(&self, p: usize, code: u8) -> Key {
+        let d = [code / 25, code / 5 % 5, code % 5].map(|x| isize::from(x) - 2);
+        let mut q = p as isize;
+        let mut axis = None;
+        for (a, (&d, &stride)) in d.iter().zip(&self.strides).enumerate() {
+            q += d.div_euclid(2) * stride as isize;
+            if d % 2 != 0 {
+                axis = Some(a);
+            }
+        }
+        match axis {
+            None => POINT << TAG_SHIFT | q as u64,
+            Some(a) => EDGE << TAG_SHIFT | (q as u64 * 3 + a as u64),
+        }
+    }
+
+    fn zero_keeps_topology(&self, p: usize, before: &mut Patch, after: &mut Patch) -> bool {
+        self.topology_kept(p, before, after) && self.no_zero_area(before, after)
+    }
+
+    /// The combinatorial part of [`Ternary::zero_keeps_topology`], leaving the patches in
+    /// `before` and `after`.
+    fn topology_kept(&self, p: usize, before: &mut Patch, after: &mut Patch) -> bool {
         before.clear();
         after.clear();
         for cell in self.star(p) {
@@ -691,41 +906,14 @@ impl<'a> Ternary<'a> {
             frozen: &|keys: &[Key]| on(keys, false),
             open: &|keys: &[Key]| on(keys, true),
         };
-        let signature = signature(&planes, &before.triangles, &after.triangles);
-        let accepted = match verdicts.get(&signature) {
-            Some(v) => {
-                // Tests (debug assertions) check every reuse against a fresh verdict.
-                debug_assert_eq!(v, check.accepts(&before.triangles, &after.triangles));
-                v
-            }
-            None => {
-                let v = check.accepts(&before.triangles, &after.triangles);
-                verdicts.insert(signature, v);
-                v
-            }
-        };
-        accepted && self.no_zero_area(before, after)
+        check.accepts(&before.triangles, &after.triangles)
     }
 
     fn no_zero_area(&self, before: &Patch, after: &Patch) -> bool {
         let old: Vec<[Key; 3]> = canonical_triangles(&before.triangles);
-        // New triangles share their vertices (the snapped point above all): place each once.
-        let mut placed: Vec<(Key, [f64; 3])> = Vec::with_capacity(32);
-        let mut place = |k: Key| {
-            if let Some(&(_, x)) = placed.iter().find(|e| e.0 == k) {
-                return x;
-            }
-            let x = self.position(k, &after.interiors).map(f64::from);
-            placed.push((k, x));
-            x
-        };
         after.triangles.iter().all(|t| {
-            if old.binary_search(&canonical(*t)).is_ok() {
-                return true;
-            }
-            let p = t.map(&mut place);
-            let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
-            crate::mesh::dot(n, n) > 0.0
+            old.binary_search(&canonical(*t)).is_ok()
+                || positive_area(t.map(|k| self.position(k, &after.interiors).map(f64::from)))
         })
     }
 
@@ -768,8 +956,8 @@ impl<'a> Ternary<'a> {
     }
 
     fn edge_t(&self, a: usize, axis: usize) -> f64 {
-        let v0 = f64::from(self.g[a]);
-        let v1 = f64::from(self.g[a + self.strides[axis]]);
+        let v0 = f64::from(self.g(a));
+        let v1 = f64::from(self.g(a + self.strides[axis]));
         ((f64::from(self.level) - v0) / (v1 - v0)).clamp(MIN_OFFSET, 1.0 - MIN_OFFSET)
     }
 
@@ -828,16 +1016,9 @@ impl<'a> Ternary<'a> {
     ) -> Result<(), ExtractError> {
         let placer = Placer::new(super::window::Window::whole(self.grid), options);
         let [nx, ny, nz] = self.grid.dims();
-        // Zero points hold the level, which counts as above: cells whose eight values are all
-        // above or all below make nothing, and are ruled out 64 at a time.
-        let window = super::window::Window::new(
-            self.grid.dims(),
-            self.grid.spacing(),
-            self.grid.origin(),
-            0,
-            &self.g,
-        );
-        let masks = super::binary::Masks::new(&window, self.level, 0, nz - 1);
+        // Zero points hold the level, which counts as above (the masks say so): cells whose
+        // eight values are all above or all below make nothing, and are ruled out 64 at a time.
+        let masks = &self.masks;
         let height = super::binary::slab_height(nx, ny, nz - 1);
         let slabs = (nz - 1).div_ceil(height);
         let parts: Vec<Result<Slab, ExtractError>> = (0..slabs)
@@ -845,7 +1026,7 @@ impl<'a> Ternary<'a> {
             .map(|s| {
                 let k0 = s * height;
                 let k1 = ((s + 1) * height).min(nz - 1);
-                self.mesh_slab(options, &placer, &masks, k0, k1)
+                self.mesh_slab(options, &placer, masks, k0, k1)
             })
             .collect();
         let parts: Vec<Slab> = parts.into_iter().collect::<Result<_, _>>()?;
@@ -879,7 +1060,7 @@ impl<'a> Ternary<'a> {
                 for i in super::binary::set_bits(&visit) {
                     let base = self.grid.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
-                    if pts.iter().any(|&p| !self.g[p].is_finite()) {
+                    if pts.iter().any(|&p| !self.values[p].is_finite()) {
                         stats.skipped_cells += 1;
                         continue;
                     }
@@ -988,57 +1169,61 @@ impl Hasher for KeyHasher {
     }
 }
 
-/// Rotates a triangle to start at its smallest key (orientation kept).
-/// The combinatorial check's verdicts by patch signature. The check sees keys only through
-/// equality, their boundary-plane masks and their relative order, and it gives the same answer
-/// under any consistent relabelling; patches around different points with the same signature
-/// (the same cells, signs and zeros, up to translation) are judged once. Shared by the threads:
-/// a verdict does not depend on who found it first, so neither does the mesh.
-#[derive(Default)]
-struct Verdicts(std::sync::RwLock<rustc_hash::FxHashMap<Vec<u8>, bool>>);
+/// The most new triangles a [`Known::Accepted`] neighbourhood lists, and their most corners.
+const MAX_NEW: usize = 24;
+const MAX_NEW_CORNERS: usize = 24;
 
-impl Verdicts {
-    fn get(&self, signature: &[u8]) -> Option<bool> {
+fn positive_area(p: [[f64; 3]; 3]) -> bool {
+    let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
+    crate::mesh::dot(n, n) > 0.0
+}
+
+/// The triangles a snap makes, by corner number; corners by local code (see [`Known`]).
+#[derive(Clone, Copy)]
+struct NewTriangles {
+    corners: [u8; MAX_NEW_CORNERS],
+    corner_count: u8,
+    triangles: [[u8; 3]; MAX_NEW],
+    count: u8,
+}
+
+/// What one 27-point pattern tells about snapping its centre (see [`Ternary::snap_is_safe`]).
+/// New triangles are listed by their corners' local doubled coordinates `d` (−2..=2 around the
+/// centre; even for grid points, odd along an edge's axis for crossings), coded
+/// `25 (d_x + 2) + 5 (d_y + 2) + d_z + 2`.
+#[derive(Clone, Copy)]
+enum Known {
+    /// Some cell is ambiguous before or after: the patches depend on the values.
+    Values,
+    /// The combinatorial check refuses.
+    Refused,
+    /// The combinatorial check accepts; these triangles are new and need a positive area.
+    Accepted(NewTriangles),
+}
+
+/// Known patterns, shared by the threads: what a pattern says does not depend on who found it
+/// first, so neither does the mesh.
+#[derive(Default)]
+struct Neighbourhoods(std::sync::RwLock<rustc_hash::FxHashMap<u64, Known>>);
+
+impl Neighbourhoods {
+    fn get(&self, pattern: u64) -> Option<Known> {
         self.0
             .read()
             .unwrap_or_else(|e| e.into_inner())
-            .get(signature)
+            .get(&pattern)
             .copied()
     }
 
-    fn insert(&self, signature: Vec<u8>, verdict: bool) {
+    fn insert(&self, pattern: u64, known: Known) {
         self.0
             .write()
             .unwrap_or_else(|e| e.into_inner())
-            .insert(signature, verdict);
+            .insert(pattern, known);
     }
 }
 
-/// The patches with every key replaced by its rank among the block's keys (`planes`, sorted,
-/// with their boundary-plane masks): everything the combinatorial check reads.
-fn signature(planes: &[(Key, u8, u8)], before: &[[Key; 3]], after: &[[Key; 3]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(6 + 2 * planes.len() + 3 * (before.len() + after.len()));
-    let rank = |k: Key| {
-        planes
-            .binary_search_by_key(&k, |e| e.0)
-            .expect("every key of the patches is listed")
-    };
-    out.extend_from_slice(&(planes.len() as u16).to_le_bytes());
-    for &(_, frozen, open) in planes {
-        out.push(frozen);
-        out.push(open);
-    }
-    for list in [before, after] {
-        out.extend_from_slice(&(list.len() as u16).to_le_bytes());
-        for t in list {
-            for &k in t {
-                out.extend_from_slice(&(rank(k) as u16).to_le_bytes());
-            }
-        }
-    }
-    out
-}
-
+/// Rotates a triangle to start at its smallest key (orientation kept).
 fn canonical(t: [Key; 3]) -> [Key; 3] {
     let i = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
     [t[i], t[(i + 1) % 3], t[(i + 2) % 3]]
@@ -1189,7 +1374,6 @@ impl Check<'_> {
     /// Per edge-connected component: its Euler characteristic and its interface edges.
     #[allow(clippy::type_complexity)]
     fn component_signatures(&self, ts: &[[Key; 3]]) -> Vec<(i64, Vec<(Key, Key)>)> {
-        let mut parent: Vec<usize> = (0..ts.len()).collect();
         fn find(parent: &mut [usize], mut x: usize) -> usize {
             while parent[x] != x {
                 parent[x] = parent[parent[x]];
@@ -1197,6 +1381,7 @@ impl Check<'_> {
             }
             x
         }
+        let mut parent: Vec<usize> = (0..ts.len()).collect();
         let mut edges: Vec<(Key, Key, usize)> = Vec::with_capacity(3 * ts.len());
         for (i, t) in ts.iter().enumerate() {
             for j in 0..3 {
@@ -1211,46 +1396,53 @@ impl Check<'_> {
                 parent[a] = b;
             }
         }
-        let roots: Vec<usize> = (0..ts.len()).map(|i| find(&mut parent, i)).collect();
-        let mut out = Vec::new();
-        let mut done = vec![false; ts.len()];
-        for i in 0..ts.len() {
-            let r = roots[i];
-            if done[r] {
-                continue;
+        // Components by their root; all triangles of an edge's group share one.
+        let mut roots: Vec<usize> = (0..ts.len()).map(|i| find(&mut parent, i)).collect();
+        let mut out: Vec<(usize, i64, Vec<(Key, Key)>)> = Vec::new();
+        let slot = |root: usize, out: &mut Vec<(usize, i64, Vec<(Key, Key)>)>| match out
+            .iter()
+            .position(|c| c.0 == root)
+        {
+            Some(i) => i,
+            None => {
+                out.push((root, 0, Vec::new()));
+                out.len() - 1
             }
-            done[r] = true;
-            let members: Vec<usize> = (0..ts.len()).filter(|&j| roots[j] == r).collect();
-            let mut verts: Vec<Key> = members.iter().flat_map(|&j| ts[j]).collect();
-            verts.sort_unstable();
-            verts.dedup();
-            let mut es: Vec<(Key, Key)> = members
-                .iter()
-                .flat_map(|&j| {
-                    let t = ts[j];
-                    (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))
-                })
-                .collect();
-            es.sort_unstable();
-            es.dedup();
-            let euler = verts.len() as i64 - es.len() as i64 + members.len() as i64;
-            // The interface with the rest of the mesh: frozen edges the component uses once.
-            let mut uses: Vec<(Key, Key)> = members
-                .iter()
-                .flat_map(|&j| {
-                    let t = ts[j];
-                    (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))
-                })
-                .filter(|&(a, b)| (self.frozen)(&[a, b]))
-                .collect();
-            uses.sort_unstable();
-            let frozen_edges: Vec<(Key, Key)> = uses
-                .chunk_by(|x, y| x == y)
-                .filter(|g| g.len() == 1)
-                .map(|g| g[0])
-                .collect();
-            out.push((euler, frozen_edges));
+        };
+        // χ = V − E + F: faces, then edges (and the interface: frozen edges used once) …
+        for &r in &roots {
+            let i = slot(r, &mut out);
+            out[i].1 += 1;
         }
+        for group in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+            let i = slot(roots[group[0].2], &mut out);
+            out[i].1 -= 1;
+            let edge = (group[0].0, group[0].1);
+            // Uses by the component, counted as undirected edges: a triangle lists an edge once.
+            if group.len() == 1 && (self.frozen)(&[edge.0, edge.1]) {
+                out[i].2.push(edge);
+            }
+        }
+        // … then vertices, each once per component.
+        let mut verts: Vec<(usize, Key)> = ts
+            .iter()
+            .zip(&roots)
+            .flat_map(|(t, &r)| t.map(|k| (r, k)))
+            .collect();
+        verts.sort_unstable();
+        verts.dedup();
+        for &(r, _) in &verts {
+            let i = slot(r, &mut out);
+            out[i].1 += 1;
+        }
+        roots.clear();
+        let mut out: Vec<(i64, Vec<(Key, Key)>)> = out
+            .into_iter()
+            .map(|(_, euler, mut interface)| {
+                interface.sort_unstable();
+                (euler, interface)
+            })
+            .collect();
         out.sort();
         out
     }

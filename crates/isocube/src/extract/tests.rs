@@ -411,6 +411,85 @@ mod ternary {
         }
     }
 
+    /// Fields whose signs repeat with period 3 but whose magnitudes are random: the same 27-point
+    /// neighbourhoods come back around many points, with ambiguous faces and tunnels decided
+    /// both ways, and snapped vertices that coincide, so the memo of patterns gets reused where
+    /// it must not decide or must test areas (tests re-run the full check on every reuse). The
+    /// results keep MC33's topology and have no zero-area triangle.
+    #[test]
+    fn repeated_neighbourhoods_with_ambiguous_cells() {
+        let dims = [20, 20, 20];
+        let mut checked = 0;
+        for seed in 0..12u64 {
+            let mut rng = crate::TestRng::new(seed);
+            let signs: Vec<f32> = (0..27).map(|_| (rng.next_u64() % 3) as f32 - 1.0).collect();
+            let magnitudes: Vec<f32> = (0..27)
+                .map(|_| [0.25, 0.5, 1.0][(rng.next_u64() % 3) as usize])
+                .collect();
+            let mut values = Vec::with_capacity(dims.iter().product());
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        let sign = signs[i % 3 + 3 * (j % 3) + 9 * (k % 3)];
+                        // Odd seeds: periodic magnitudes from a small set, so crossings often
+                        // sit exactly halfway and snapped vertices coincide, again and again
+                        // (zero-area refusals of known patterns).
+                        let magnitude = if seed % 2 == 1 {
+                            magnitudes[i % 3 + 3 * (j % 3) + 9 * (k % 3)]
+                        } else {
+                            0.05 + rng.unit() as f32
+                        };
+                        values.push(sign * magnitude);
+                    }
+                }
+            }
+            let grid = Grid::new(dims, values).unwrap();
+            let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
+            for snap in [0.2, 0.5] {
+                let (mesh, stats) = extract(&grid, &ternary(0.0, snap)).unwrap();
+                checked += stats.snapped_points + stats.refused_points;
+                let (a, b) = (mesh.report(), mc33.report());
+                assert_eq!(
+                    (a.components, a.euler),
+                    (b.components, b.euler),
+                    "seed {seed}"
+                );
+                assert!(a.oriented && a.nonmanifold_edges == 0);
+                assert_clean(&mesh);
+            }
+        }
+        assert!(checked > 10_000, "{checked}");
+        // Small integers (ties, halfway crossings) repeating along x with period 4: every
+        // decision, zero-area refusals included, recurs at the next period.
+        for seed in 0..40u64 {
+            let dims = [42, 6, 6];
+            let base = quantised_values([4, 6, 6], seed);
+            let mut values = Vec::with_capacity(dims.iter().product());
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        values.push(base[i % 4 + 4 * (j + 6 * k)]);
+                    }
+                }
+            }
+            let grid = Grid::new(dims, values).unwrap();
+            for (level, snap) in [(0.0, 0.5), (0.125, 0.5), (0.25, 0.3)] {
+                let mc33 = extract(&grid, &ExtractOptions::default().with_level(level))
+                    .unwrap()
+                    .0;
+                let options = ternary(0.0, snap).with_level(level);
+                let (mesh, _) = extract(&grid, &options).unwrap();
+                let (a, b) = (mesh.report(), mc33.report());
+                assert_eq!(
+                    (a.components, a.euler),
+                    (b.components, b.euler),
+                    "seed {seed}"
+                );
+                assert_clean(&mesh);
+            }
+        }
+    }
+
     /// Schwarz P at 40 per axis: crossings land on or within rounding of grid points, so plain
     /// Marching Cubes makes zero-area triangles by the thousand; ternary makes none.
     #[test]
