@@ -83,7 +83,7 @@ pub(crate) fn io_failure(e: isocube::io::IoError, reading: bool) -> Failure {
 pub(crate) fn check_mesh_output(path: &std::path::Path) -> Result<(), Failure> {
     if isocube::io::MeshFormat::from_path(path).is_none() {
         return Err(Failure::input(anyhow::anyhow!(
-            "{}: unknown mesh extension (expected .ply, .obj or .stl)",
+            "{}: unknown mesh extension (expected .ply, .obj, .stl, .off, .glb, .vtp, .vtk or .msh)",
             path.display()
         )));
     }

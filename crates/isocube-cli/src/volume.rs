@@ -11,7 +11,7 @@ use isocube::io::{
 use crate::Failure;
 
 /// How to read the volume.
-#[derive(Debug, Args)]
+#[derive(Clone, Debug, Args)]
 pub(crate) struct VolumeArgs {
     /// `sample:NAME:N` (a built-in sample on N points per axis; noise takes `:SEED` too), or a
     /// file: .npy, .nrrd, .nhdr, or raw (with --dims and --type).

@@ -11,9 +11,11 @@ use isocube::extract::{
 };
 use isocube::field::PlaneSource;
 use isocube::field::SampleSpec;
-use isocube::io::{write_mesh, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter};
+use isocube::io::{
+    write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
+};
 use isocube::mesh::Mesh;
-use isocube::quality::{relax, Implicit, Strategy};
+use isocube::quality::{relax, Field, Implicit, Strategy, Trilinear};
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;
@@ -23,7 +25,8 @@ use crate::Failure;
 pub(crate) struct Args {
     #[command(flatten)]
     volume: VolumeArgs,
-    /// Output mesh: .ply (binary unless --ascii), .obj or .stl.
+    /// Output mesh: .ply (binary unless --ascii), .obj, .stl, .off, .glb (binary glTF), .vtp or
+    /// .vtk (VTK PolyData) or .msh (Gmsh 4.1).
     #[arg(long, short)]
     output: PathBuf,
     /// The iso-value. Values equal to it count as above.
@@ -61,6 +64,11 @@ pub(crate) struct Args {
     /// trilinear interpolant otherwise.
     #[arg(long, default_value_t = 0)]
     relax: usize,
+    /// Also write one value per vertex: this volume (same forms as VOLUME; raw files take the
+    /// same --dims and --type) sampled trilinearly at each vertex in world coordinates, NaN
+    /// outside it. For .ply, .glb, .vtp, .vtk and .msh.
+    #[arg(long, value_name = "VOLUME")]
+    values: Option<String>,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -80,6 +88,14 @@ const STREAM_ABOVE: u64 = 1 << 30;
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
+    if let (Some(_), Some(format)) = (&args.values, MeshFormat::from_path(&args.output)) {
+        if !format.holds_vertex_data() {
+            return Err(Failure::input(anyhow::anyhow!(
+                "{}: --values needs a format with per-vertex data (.ply, .glb, .vtp, .vtk, .msh)",
+                args.output.display()
+            )));
+        }
+    }
     if args.volume.is_file(&args.output) {
         return Err(Failure::input(anyhow::anyhow!(
             "{}: the output would overwrite the input volume",
@@ -114,13 +130,20 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         );
     }
     let elapsed = started.elapsed();
-    write_mesh(
+    let values = match &args.values {
+        Some(spec) => Some(sample_at_vertices(args, spec, &mesh)?),
+        None => None,
+    };
+    write_mesh_with_values(
         &args.output,
         &mesh,
         &MeshWriteOptions {
             ascii: args.ascii,
             normals: !args.no_normals,
         },
+        values
+            .as_ref()
+            .map(|(name, v)| VertexValues { name, values: v }),
     )
     .map_err(|e| crate::io_failure(e, false))?;
     if !quiet {
@@ -150,6 +173,46 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The `--values` volume sampled at the mesh's vertices, with the array's name (the volume's
+/// file stem, or the sample's name).
+fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, Vec<f32>), Failure> {
+    let volume = VolumeArgs {
+        volume: spec.to_string(),
+        ..args.volume.clone()
+    };
+    let grid = volume.load()?;
+    let field = Trilinear(&grid);
+    let dims = grid.dims();
+    let (h, o) = (grid.spacing(), grid.origin());
+    let values = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let p = p.map(f64::from);
+            // Inside the grid (within rounding), else NaN rather than an extrapolation.
+            let inside = (0..3).all(|a| {
+                let u = (p[a] - o[a]) / h[a];
+                u >= -1e-6 && u <= (dims[a] - 1) as f64 + 1e-6
+            });
+            match (inside, field.value_and_gradient(p)) {
+                (true, Some((v, _))) => v as f32,
+                _ => f32::NAN,
+            }
+        })
+        .collect();
+    let name = if SampleSpec::is_sample(spec) {
+        spec.split(':').nth(1).unwrap_or("value").to_string()
+    } else {
+        std::path::Path::new(spec)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .map(|s| s.split('.').next().unwrap_or(s).to_string())
+            .filter(|s| !s.is_empty())
+            .unwrap_or_else(|| "value".into())
+    };
+    Ok((name, values))
+}
+
 /// The mapped volume, when extraction goes slab by slab: asked for with --stream (an error if
 /// the options need the whole volume), or chosen for a large volume whose options allow it.
 fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
@@ -161,6 +224,8 @@ fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
         Some("ternary extraction needs the whole volume")
     } else if args.relax > 0 {
         Some("relaxation needs the whole mesh")
+    } else if args.values.is_some() {
+        Some("vertex values need the whole mesh")
     } else {
         None
     };

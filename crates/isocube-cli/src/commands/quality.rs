@@ -1,6 +1,5 @@
 //! `isocube quality MESH [--field VOLUME] [--level L] [--json] [--histogram FILE.png|FILE.svg]`.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
@@ -173,16 +172,7 @@ fn picture_format(path: &Path) -> Option<Picture> {
 
 /// Writes through a temporary file in the target's directory, renamed into place once complete.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), Failure> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let fail = |e: std::io::Error| Failure::other(anyhow::anyhow!("{}: {e}", path.display()));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(fail)?;
-    tmp.write_all(bytes).map_err(fail)?;
-    tmp.as_file().sync_all().map_err(fail)?;
-    tmp.persist(path).map_err(|e| fail(e.error))?;
-    Ok(())
+    isocube::io::write_file_atomic(path, bytes).map_err(|e| crate::io_failure(e, false))
 }
 
 const WIDTH: usize = 760;

@@ -1,9 +1,11 @@
-//! Mesh files: PLY, OBJ and STL, chosen by extension.
+//! Mesh files, chosen by extension: PLY, OBJ and STL (read and written), OFF (read and written),
+//! binary glTF, VTK PolyData (XML and legacy) and Gmsh MSH 4.1 (written; see [`super::export`]).
 
 use std::collections::HashMap;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+use super::export::{self, VertexValues};
 use super::{read_file, IoError, Position};
 use crate::extract::MeshSink;
 use crate::mesh::Mesh;
@@ -17,6 +19,16 @@ pub enum MeshFormat {
     Obj,
     /// STL (written binary).
     Stl,
+    /// Object File Format (ASCII).
+    Off,
+    /// Binary glTF 2.0 (`.glb`).
+    Glb,
+    /// VTK XML PolyData (`.vtp`).
+    Vtp,
+    /// Legacy VTK PolyData (`.vtk`, binary).
+    Vtk,
+    /// Gmsh MSH 4.1 (`.msh`, ASCII).
+    Msh,
 }
 
 impl MeshFormat {
@@ -27,8 +39,29 @@ impl MeshFormat {
             "ply" => Some(MeshFormat::Ply),
             "obj" => Some(MeshFormat::Obj),
             "stl" => Some(MeshFormat::Stl),
+            "off" => Some(MeshFormat::Off),
+            "glb" => Some(MeshFormat::Glb),
+            "vtp" => Some(MeshFormat::Vtp),
+            "vtk" => Some(MeshFormat::Vtk),
+            "msh" => Some(MeshFormat::Msh),
             _ => None,
         }
+    }
+
+    /// Whether [`read_mesh`] reads this format.
+    pub fn readable(self) -> bool {
+        matches!(
+            self,
+            MeshFormat::Ply | MeshFormat::Obj | MeshFormat::Stl | MeshFormat::Off
+        )
+    }
+
+    /// Whether the format stores per-vertex normals and values ([`VertexValues`]).
+    pub fn holds_vertex_data(self) -> bool {
+        matches!(
+            self,
+            MeshFormat::Ply | MeshFormat::Glb | MeshFormat::Vtp | MeshFormat::Vtk | MeshFormat::Msh
+        )
     }
 }
 
@@ -54,7 +87,7 @@ fn unknown_format(path: &Path) -> IoError {
     IoError::unsupported(
         path,
         Position::File,
-        "unknown mesh extension (expected .ply, .obj or .stl)",
+        "unknown mesh extension (expected .ply, .obj, .stl, .off, .glb, .vtp, .vtk or .msh)",
     )
 }
 
@@ -62,13 +95,50 @@ fn unknown_format(path: &Path) -> IoError {
 /// file beside the target, are synced to disk and the file is renamed over the target. On any
 /// error the target is untouched and the temporary file removed.
 pub fn write_mesh(path: &Path, mesh: &Mesh, options: &MeshWriteOptions) -> Result<(), IoError> {
+    write_mesh_with_values(path, mesh, options, None)
+}
+
+/// [`write_mesh`] with one scalar per vertex, for the formats that hold them
+/// ([`MeshFormat::holds_vertex_data`]); asking another format for values is an error.
+pub fn write_mesh_with_values(
+    path: &Path,
+    mesh: &Mesh,
+    options: &MeshWriteOptions,
+    values: Option<VertexValues>,
+) -> Result<(), IoError> {
     let format = MeshFormat::from_path(path).ok_or_else(|| unknown_format(path))?;
     mesh.validate().map_err(|reason| {
         IoError::format(path, Position::File, format!("invalid mesh: {reason}"))
     })?;
+    if let Some(v) = values {
+        if !format.holds_vertex_data() {
+            return Err(IoError::unsupported(
+                path,
+                Position::File,
+                "this format has no per-vertex values (use .ply, .glb, .vtp, .vtk or .msh)",
+            ));
+        }
+        if v.values.len() != mesh.positions.len() {
+            return Err(IoError::format(
+                path,
+                Position::File,
+                format!(
+                    "{} values for {} vertices",
+                    v.values.len(),
+                    mesh.positions.len()
+                ),
+            ));
+        }
+    }
     write_atomic(path, &mut |w| {
-        write_mesh_to(&mut &mut *w, format, mesh, options)
+        write_mesh_data_to(&mut &mut *w, format, mesh, options, values)
     })
+}
+
+/// Writes `bytes` to `path` atomically (see [`write_mesh`]): for pictures, reports and any
+/// other output that must not be left half-written.
+pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+    write_atomic(path, &mut |w| w.write_all(bytes))
 }
 
 /// Writes a file atomically: a temporary file beside the target, synced, renamed over it; on
@@ -95,15 +165,37 @@ pub fn write_mesh_to(
     mesh: &Mesh,
     options: &MeshWriteOptions,
 ) -> std::io::Result<()> {
+    write_mesh_data_to(w, format, mesh, options, None)
+}
+
+/// [`write_mesh_to`] with optional per-vertex values (ignored by formats that cannot hold them).
+pub fn write_mesh_data_to(
+    w: &mut impl Write,
+    format: MeshFormat,
+    mesh: &Mesh,
+    options: &MeshWriteOptions,
+    values: Option<VertexValues>,
+) -> std::io::Result<()> {
     let normals = options.normals && !mesh.normals.is_empty();
     match format {
-        MeshFormat::Ply => write_ply(w, mesh, normals, options.ascii),
+        MeshFormat::Ply => write_ply(w, mesh, normals, values, options.ascii),
         MeshFormat::Obj => write_obj(w, mesh, normals),
         MeshFormat::Stl => write_stl(w, mesh),
+        MeshFormat::Off => export::write_off(w, mesh),
+        MeshFormat::Glb => export::write_glb(w, mesh, normals, values),
+        MeshFormat::Vtp => export::write_vtp(w, mesh, normals, values),
+        MeshFormat::Vtk => export::write_legacy_vtk(w, mesh, normals, values),
+        MeshFormat::Msh => export::write_msh(w, mesh, normals, values),
     }
 }
 
-fn write_ply(w: &mut impl Write, mesh: &Mesh, normals: bool, ascii: bool) -> std::io::Result<()> {
+fn write_ply(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    normals: bool,
+    values: Option<VertexValues>,
+    ascii: bool,
+) -> std::io::Result<()> {
     let format = if ascii {
         "ascii"
     } else {
@@ -115,17 +207,22 @@ fn write_ply(w: &mut impl Write, mesh: &Mesh, normals: bool, ascii: bool) -> std
         mesh.positions.len(),
         mesh.triangles.len(),
         normals,
+        values.map(|v| v.name),
     )?;
     for (i, p) in mesh.positions.iter().enumerate() {
         let n = if normals { Some(mesh.normals[i]) } else { None };
+        let value = values.map(|v| v.values[i]);
         if ascii {
             write!(w, "{} {} {}", p[0], p[1], p[2])?;
             if let Some(n) = n {
                 write!(w, " {} {} {}", n[0], n[1], n[2])?;
             }
+            if let Some(x) = value {
+                write!(w, " {x}")?;
+            }
             writeln!(w)?;
         } else {
-            for c in p.iter().chain(n.iter().flatten()) {
+            for c in p.iter().chain(n.iter().flatten()).chain(&value) {
                 w.write_all(&c.to_le_bytes())?;
             }
         }
@@ -149,12 +246,21 @@ fn ply_header(
     vertices: usize,
     faces: usize,
     normals: bool,
+    value: Option<&str>,
 ) -> std::io::Result<()> {
     writeln!(w, "ply\nformat {format} 1.0\ncomment isocube")?;
     writeln!(w, "element vertex {vertices}")?;
     writeln!(w, "property float x\nproperty float y\nproperty float z")?;
     if normals {
         writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
+    }
+    if let Some(name) = value {
+        // PLY property names are single words.
+        let name: String = name
+            .chars()
+            .map(|c| if c.is_whitespace() { '_' } else { c })
+            .collect();
+        writeln!(w, "property float {name}")?;
     }
     writeln!(w, "element face {faces}")?;
     writeln!(w, "property list uchar uint vertex_indices\nend_header")
@@ -222,6 +328,7 @@ impl PlyWriter {
                 self.vertex_count,
                 self.face_count,
                 self.normals,
+                None,
             )
             .map_err(os)?;
             w.flush().map_err(os)?;
@@ -239,7 +346,7 @@ impl PlyWriter {
 }
 
 /// A temporary file in `path`'s directory, named after it.
-fn temp_beside(path: &Path, what: &str) -> std::io::Result<tempfile::NamedTempFile> {
+pub(crate) fn temp_beside(path: &Path, what: &str) -> std::io::Result<tempfile::NamedTempFile> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -250,10 +357,16 @@ fn temp_beside(path: &Path, what: &str) -> std::io::Result<tempfile::NamedTempFi
     } else {
         format!(".{name}.{what}.")
     };
-    tempfile::Builder::new()
-        .prefix(&prefix)
-        .suffix(".tmp")
-        .tempfile_in(dir)
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    // Temporary files are private (0600); the file that takes the target's place gets the
+    // usual mode for new files (0666 less the umask), as if it had been created directly.
+    #[cfg(unix)]
+    if what.is_empty() {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    builder.tempfile_in(dir)
 }
 
 impl MeshSink for PlyWriter {
@@ -359,6 +472,14 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, IoError> {
         MeshFormat::Ply => read_ply(path, &bytes)?,
         MeshFormat::Obj => read_obj(path, &bytes)?,
         MeshFormat::Stl => read_stl(path, &bytes)?,
+        MeshFormat::Off => read_off(path, &bytes)?,
+        other => {
+            return Err(IoError::unsupported(
+                path,
+                Position::File,
+                format!("isocube writes {other:?} meshes but reads only .ply, .obj, .stl and .off"),
+            ))
+        }
     };
     Ok(mesh)
 }
@@ -743,6 +864,115 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
+/// OFF (and its `NOFF`/`COFF`/`CNOFF` headers, whose extra vertex columns are skipped):
+/// `#` comments, counts, vertices, then faces as a count and indices (extra face colours are
+/// skipped too).
+fn read_off(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let line = bytes[..e.valid_up_to()]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1;
+        IoError::format(path, Position::Line(line), "not valid UTF-8 text")
+    })?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(n, l)| (n + 1, l.split('#').next().unwrap_or("").trim()))
+        .filter(|(_, l)| !l.is_empty());
+    let end = |what: &str| IoError::format(path, Position::File, format!("ends before {what}"));
+    let (n, header) = lines.next().ok_or_else(|| end("the OFF header"))?;
+    let keyword = header.split_whitespace().next().unwrap_or("");
+    match keyword {
+        "OFF" | "NOFF" | "COFF" | "CNOFF" | "NCOFF" => {}
+        _ => {
+            return Err(IoError::format(
+                path,
+                Position::Line(n),
+                format!("'{keyword}' is not an OFF header"),
+            ))
+        }
+    }
+    // The counts may follow the keyword on its line.
+    let rest: Vec<&str> = header.split_whitespace().skip(1).collect();
+    let (n, counts) = if rest.is_empty() {
+        let (n, l) = lines.next().ok_or_else(|| end("the counts"))?;
+        (n, l.split_whitespace().collect::<Vec<_>>())
+    } else {
+        (n, rest)
+    };
+    let count = |i: usize, what: &str| -> Result<usize, IoError> {
+        counts
+            .get(i)
+            .and_then(|w| w.parse::<usize>().ok())
+            .ok_or_else(|| IoError::format(path, Position::Line(n), format!("no {what} count")))
+    };
+    let (vertices, faces) = (count(0, "vertex")?, count(1, "face")?);
+    // Each vertex and face takes a line: more than the file has lines is a lie, caught before
+    // allocating.
+    if vertices.saturating_add(faces) > text.len() {
+        return Err(IoError::format(
+            path,
+            Position::Line(n),
+            format!("{vertices} vertices and {faces} faces cannot fit in the file"),
+        ));
+    }
+    let mut mesh = Mesh::new();
+    mesh.positions.reserve(vertices);
+    for _ in 0..vertices {
+        let (n, l) = lines.next().ok_or_else(|| end("all vertices"))?;
+        let pos = || Position::Line(n);
+        let c: Vec<f64> = l
+            .split_whitespace()
+            .take(3)
+            .map(|w| {
+                w.parse::<f64>()
+                    .map_err(|_| IoError::format(path, pos(), format!("'{w}' is not a number")))
+            })
+            .collect::<Result<_, _>>()?;
+        if c.len() < 3 {
+            return Err(IoError::format(
+                path,
+                pos(),
+                "a vertex needs three coordinates",
+            ));
+        }
+        mesh.positions.push([
+            check_coordinate(path, pos, c[0])?,
+            check_coordinate(path, pos, c[1])?,
+            check_coordinate(path, pos, c[2])?,
+        ]);
+    }
+    for _ in 0..faces {
+        let (n, l) = lines.next().ok_or_else(|| end("all faces"))?;
+        let pos = || Position::Line(n);
+        let mut words = l.split_whitespace();
+        let k: usize = words
+            .next()
+            .and_then(|w| w.parse().ok())
+            .ok_or_else(|| IoError::format(path, pos(), "a face starts with its vertex count"))?;
+        let polygon: Vec<i64> = words
+            .by_ref()
+            .take(k)
+            .map(|w| {
+                w.parse::<i64>().map_err(|_| {
+                    IoError::format(path, pos(), format!("'{w}' is not a vertex index"))
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        if polygon.len() < k {
+            return Err(IoError::format(
+                path,
+                pos(),
+                format!("the face lists {} of its {k} vertices", polygon.len()),
+            ));
+        }
+        push_polygon(path, pos, &mut mesh, &polygon, vertices)?;
+    }
+    Ok(mesh)
+}
+
 fn read_obj(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
     let text = std::str::from_utf8(bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()]
@@ -926,6 +1156,7 @@ mod tests {
             ("b.ply", true),
             ("c.obj", false),
             ("d.stl", false),
+            ("e.off", false),
         ] {
             let p = dir.path().join(name);
             write_mesh(
@@ -956,7 +1187,74 @@ mod tests {
             .unwrap()
             .map(|e| e.unwrap().file_name())
             .collect();
-        assert_eq!(names.len(), 4, "{names:?}");
+        assert_eq!(names.len(), 5, "{names:?}");
+    }
+
+    #[test]
+    fn off_headers_comments_and_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("q.off");
+        std::fs::write(
+            &p,
+            "# a square\nOFF 4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0 # last\n4 0 1 2 3\n",
+        )
+        .unwrap();
+        let m = read_mesh(&p).unwrap();
+        assert_eq!((m.positions.len(), m.triangles.len()), (4, 2));
+        std::fs::write(
+            &p,
+            "NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n",
+        )
+        .unwrap();
+        assert_eq!(read_mesh(&p).unwrap().triangles.len(), 1);
+        for (text, says) in [
+            ("PLY\n", "not an OFF header"),
+            ("OFF\n3 1 0\n0 0 0\n1 0 0\n", "ends before all vertices"),
+            ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "outside 0..3"),
+            ("OFF\n3 1 0\n0 0 0\n1 0 x\n0 1 0\n3 0 1 2\n", "line 4"),
+            ("OFF\n99999999 1 0\n", "cannot fit"),
+            (
+                "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n",
+                "lists 2 of its 3",
+            ),
+        ] {
+            std::fs::write(&p, text).unwrap();
+            let e = read_mesh(&p).unwrap_err().to_string();
+            assert!(e.contains(says) && e.contains("q.off"), "{text:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn formats_without_a_reader_say_so_and_values_need_a_format_that_holds_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = torus();
+        let values: Vec<f32> = (0..mesh.positions.len()).map(|i| i as f32).collect();
+        let v = Some(VertexValues {
+            name: "index",
+            values: &values,
+        });
+        let options = MeshWriteOptions::default();
+        for name in ["a.glb", "a.vtp", "a.vtk", "a.msh", "a.ply"] {
+            let p = dir.path().join(name);
+            write_mesh_with_values(&p, &mesh, &options, v).unwrap();
+            if !MeshFormat::from_path(&p).unwrap().readable() {
+                let e = read_mesh(&p).unwrap_err().to_string();
+                assert!(e.contains("reads only"), "{e}");
+            }
+        }
+        let e = write_mesh_with_values(&dir.path().join("a.obj"), &mesh, &options, v)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no per-vertex values"), "{e}");
+        let short = Some(VertexValues {
+            name: "index",
+            values: &values[1..],
+        });
+        let e = write_mesh_with_values(&dir.path().join("b.vtp"), &mesh, &options, short)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("values for"), "{e}");
+        assert!(!dir.path().join("a.obj").exists() && !dir.path().join("b.vtp").exists());
     }
 
     #[test]

@@ -5,9 +5,12 @@
 //! [`Grid`] with `f32` values (integers above 2^24 lose precision),
 //! `x` fastest.
 //!
-//! Meshes: PLY (binary little-endian by default, ASCII on request), OBJ and binary STL, chosen by
-//! file extension. Readers accept PLY (ASCII and both binary byte orders), OBJ and STL (binary or
-//! ASCII, welded by exact position) and fan-triangulate polygons.
+//! Meshes, chosen by file extension: PLY (binary little-endian by default, ASCII on request),
+//! OBJ, binary STL, OFF, binary glTF (`.glb`), VTK PolyData (`.vtp` XML and legacy `.vtk`) and
+//! Gmsh MSH 4.1 (`.msh`), with optional vertex normals and one scalar per vertex
+//! ([`VertexValues`]) where the format holds them. Readers accept PLY (ASCII and both binary
+//! byte orders), OBJ, STL (binary or ASCII, welded by exact position) and OFF, and
+//! fan-triangulate polygons.
 //!
 //! Volumes larger than memory: [`MappedVolume`] maps a raw or `.npy` file and hands out planes;
 //! [`PlyWriter`] writes a binary PLY piece by piece; together with
@@ -21,6 +24,7 @@
 //! Every error names the file, the position (line, byte or header field) and the reason.
 
 mod contours;
+mod export;
 mod mapped;
 mod mesh_io;
 mod npy;
@@ -36,8 +40,12 @@ use thiserror::Error;
 use crate::field::{Grid, GridError};
 
 pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
+pub use export::VertexValues;
 pub use mapped::MappedVolume;
-pub use mesh_io::{read_mesh, write_mesh, write_mesh_to, MeshFormat, MeshWriteOptions, PlyWriter};
+pub use mesh_io::{
+    read_mesh, write_file_atomic, write_mesh, write_mesh_data_to, write_mesh_to,
+    write_mesh_with_values, MeshFormat, MeshWriteOptions, PlyWriter,
+};
 pub use npy::{read_npy, NpyAxes};
 pub use nrrd::read_nrrd;
 pub use poly::{read_poly_mesh, write_poly_mesh};

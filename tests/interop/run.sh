@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Writes meshes in every format isocube writes and loads each back with an independent reader
+# (trimesh, meshio, VTK, gmsh), checking counts, positions, normals and vertex values.
+#
+#   tests/interop/run.sh [WORKDIR]
+#
+# The readers go into a virtual environment (WORKDIR/venv, or $ISOCUBE_PY_VENV if set) from
+# PyPI, pinned in requirements.txt.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+root="$(cd "$here/../.." && pwd)"
+work="${1:-$(mktemp -d)}"
+mkdir -p "$work"
+venv="${ISOCUBE_PY_VENV:-$work/venv}"
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+  "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$here/requirements.txt"
+fi
+cargo build --quiet --release --manifest-path "$root/Cargo.toml" -p isocube-cli
+isocube="$root/target/release/isocube"
+
+# Two surfaces: a closed torus with another field's values on it, an open gyroid patch.
+cases=("torus sample:torus:40 sample:sphere:40" "gyroid sample:gyroid:36 sample:tangle:36")
+manifest="$work/manifest.txt"
+: > "$manifest"
+for case in "${cases[@]}"; do
+  read -r name volume values <<< "$case"
+  for ext in ply obj stl off glb vtp vtk msh; do
+    out="$work/$name.$ext"
+    extra=()
+    case "$ext" in ply|glb|vtp|vtk|msh) extra=(--values "$values") ;; esac
+    summary=$("$isocube" extract "$volume" -o "$out" "${extra[@]}" 2>&1 | tail -1)
+    # "<file>: V vertices, T triangles, ..."
+    v=$(sed -E 's/.*: ([0-9]+) vertices, ([0-9]+) triangles.*/\1/' <<< "$summary")
+    t=$(sed -E 's/.*: ([0-9]+) vertices, ([0-9]+) triangles.*/\2/' <<< "$summary")
+    echo "$out $v $t ${#extra[@]}" >> "$manifest"
+  done
+done
+"$venv/bin/python" "$here/check_meshes.py" "$manifest"
