@@ -35,6 +35,8 @@ enum Command {
     Info(commands::info::Args),
     /// Triangle quality (Verdict measures), distance from the field's level set, angle histogram.
     Quality(commands::quality::Args),
+    /// Draw a mesh into a PNG picture (software renderer: no GPU, no window).
+    Render(commands::render::Args),
     /// Catmull–Clark subdivision (OpenSubdiv's rules; creases, corners, faces with holes).
     Subdivide(commands::subdivide::Args),
     /// Print the symmetry-derived configuration tables as TSV.
@@ -118,6 +120,7 @@ fn dispatch(cli: &Cli) -> Result<(), Failure> {
         Command::Contours(a) => commands::contours::run(a, cli.quiet),
         Command::Info(a) => commands::info::run(a),
         Command::Quality(a) => commands::quality::run(a),
+        Command::Render(a) => commands::render::run(a, cli.quiet),
         Command::Subdivide(a) => commands::subdivide::run(a, cli.quiet),
         Command::Tables(a) => commands::tables::run(a),
         Command::Demo(a) => commands::demo::run(a, cli.quiet),

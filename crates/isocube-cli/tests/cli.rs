@@ -299,9 +299,89 @@ fn demo_writes_every_sample() {
         &["demo", "--out", "d", "--size", "24", "--quiet"],
     );
     assert_eq!(out.lines().count(), 1 + 9);
-    let files = std::fs::read_dir(dir.path().join("d")).unwrap().count();
-    assert_eq!(files, 9);
+    let files: Vec<String> = std::fs::read_dir(dir.path().join("d"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(files.len(), 18, "{files:?}");
+    for f in files.iter().filter(|f| f.ends_with(".ply")) {
+        assert!(
+            files.contains(&f.replace(".ply", ".png")),
+            "no picture of {f}"
+        );
+    }
     assert!(out.lines().nth(1).unwrap().starts_with("sphere"));
+}
+
+/// Width, height and the share of pixels that differ from the white background.
+fn png_stats(path: &Path) -> (u32, u32, f64) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let px = &buf[..info.buffer_size()];
+    let channels = px.len() / (info.width * info.height) as usize;
+    let drawn = px
+        .chunks(channels)
+        .filter(|p| p[..3].iter().any(|&v| v != 255))
+        .count();
+    (
+        info.width,
+        info.height,
+        drawn as f64 / (info.width * info.height) as f64,
+    )
+}
+
+#[test]
+fn render_draws_pictures_of_the_requested_size() {
+    let dir = tempfile::tempdir().unwrap();
+    ok(
+        dir.path(),
+        &["extract", "sample:torus:32", "-o", "t.ply", "--quiet"],
+    );
+    ok(
+        dir.path(),
+        &["extract", "sample:sphere:32", "-o", "s.off", "--quiet"],
+    );
+    for (mesh, args, size, share) in [
+        ("t.ply", vec![], (800, 600), (0.3, 0.7)),
+        (
+            "t.ply",
+            vec!["--view", "z", "--size", "300x300"],
+            (300, 300),
+            (0.4, 0.8),
+        ),
+        (
+            "t.ply",
+            vec!["--view", "x", "--size", "300x300"],
+            (300, 300),
+            (0.1, 0.4),
+        ),
+        (
+            "s.off",
+            vec!["--view", "-30,60", "--size", "200x100", "--wireframe"],
+            (200, 100),
+            (0.25, 0.5),
+        ),
+    ] {
+        let mut all = vec!["render", mesh, "-o", "p.png", "--quiet"];
+        all.extend(&args);
+        ok(dir.path(), &all);
+        let (w, h, drawn) = png_stats(&dir.path().join("p.png"));
+        assert_eq!((w, h), size, "{args:?}");
+        assert!(drawn > share.0 && drawn < share.1, "{args:?}: {drawn}");
+    }
+    for bad in [
+        vec!["render", "t.ply", "-o", "p.jpg"],
+        vec!["render", "t.ply", "-o", "t.ply"],
+        vec!["render", "t.ply", "-o", "q.png", "--size", "10"],
+        vec!["render", "t.ply", "-o", "q.png", "--view", "up"],
+        vec!["render", "missing.ply", "-o", "q.png"],
+    ] {
+        let out = isocube(dir.path(), &bad);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+        assert!(!dir.path().join("q.png").exists() && !dir.path().join("p.jpg").exists());
+    }
 }
 
 /// Every `isocube …` line in the README's shell examples runs successfully, in order, in one

@@ -24,7 +24,9 @@
 //! - [`quality`]: per-polygon triangulation strategies (local-change paper, exact max–min angle),
 //!   relaxation on the level set, Verdict triangle measures, angle histograms and the distance
 //!   from the field's level set.
-//! - [`io`] (feature `io`): raw, NumPy and NRRD volumes; PLY, OBJ and STL meshes.
+//! - [`render`]: headless pictures of meshes (software z-buffer, Lambert shading, edge overlay).
+//! - [`io`] (feature `io`): raw, NumPy and NRRD volumes; PLY, OBJ, STL, OFF, glTF, VTK and Gmsh
+//!   meshes.
 //!
 //! # Quick start
 //! ```
@@ -49,6 +51,7 @@ pub mod field;
 pub mod io;
 pub mod mesh;
 pub mod quality;
+pub mod render;
 pub mod subdiv;
 
 /// A small reproducible generator for tests that need many arbitrary cases without proptest.

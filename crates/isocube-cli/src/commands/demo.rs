@@ -1,4 +1,5 @@
-//! `isocube demo [--out DIR]`: extract the built-in samples, write them, print a summary.
+//! `isocube demo [--out DIR]`: extract the built-in samples, write them with a picture of each,
+//! print a summary.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -9,7 +10,9 @@ use isocube::extract::{extract, ExtractOptions};
 use isocube::field::Sample;
 use isocube::io::{write_mesh, MeshWriteOptions};
 
+use crate::commands::render;
 use crate::Failure;
+use isocube::render::View;
 
 #[derive(Debug, ClapArgs)]
 pub(crate) struct Args {
@@ -19,6 +22,9 @@ pub(crate) struct Args {
     /// Points per axis.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u16).range(2..=512))]
     size: u16,
+    /// Picture size in pixels (each mesh is also drawn as a .png beside it).
+    #[arg(long, default_value = "640x480", value_parser = crate::commands::render::parse_size)]
+    picture: (usize, usize),
 }
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
@@ -48,6 +54,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         let path = args.out.join(format!("{}-{n}.ply", sample.name()));
         write_mesh(&path, &mesh, &MeshWriteOptions::default())
             .map_err(|e| crate::io_failure(e, false))?;
+        let picture = render::picture(&mesh, View::ISO, args.picture, false);
+        render::write_png(&path.with_extension("png"), &picture)?;
         println!(
             "{:<12} {:>6} {:>9} {:>9} {:>10} {:>10} {:>6} {:>6} {:>9.2} {:>9.1}",
             sample.name(),
@@ -63,7 +71,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         );
     }
     if !quiet {
-        eprintln!("meshes written to {}", args.out.display());
+        eprintln!("meshes and pictures written to {}", args.out.display());
     }
     Ok(())
 }

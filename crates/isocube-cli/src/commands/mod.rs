@@ -5,5 +5,6 @@ pub(crate) mod demo;
 pub(crate) mod extract;
 pub(crate) mod info;
 pub(crate) mod quality;
+pub(crate) mod render;
 pub(crate) mod subdivide;
 pub(crate) mod tables;
