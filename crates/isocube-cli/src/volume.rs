@@ -3,9 +3,9 @@
 use std::path::Path;
 
 use clap::Args;
-use isocube::field::{Grid, SampleSpec};
+use isocube::field::{Grid, Orientation, SampleSpec};
 use isocube::io::{
-    read_volume, Endian, MappedVolume, NpyAxes, RawOptions, ScalarType, VolumeOptions,
+    read_volume_oriented, Endian, MappedVolume, NpyAxes, RawOptions, ScalarType, VolumeOptions,
 };
 
 use crate::Failure;
@@ -14,7 +14,7 @@ use crate::Failure;
 #[derive(Clone, Debug, Args)]
 pub(crate) struct VolumeArgs {
     /// `sample:NAME:N` (a built-in sample on N points per axis; noise takes `:SEED` too), or a
-    /// file: .npy, .nrrd, .nhdr, or raw (with --dims and --type).
+    /// file: .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, or raw (with --dims and --type).
     pub volume: String,
     /// Raw files: points along x, y, z.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_dims)]
@@ -54,7 +54,9 @@ impl VolumeArgs {
         }
     }
 
-    pub(crate) fn load(&self) -> Result<Grid, Failure> {
+    /// The volume and how its axes lie in the world (identity for samples and formats without a
+    /// direction).
+    pub(crate) fn load_oriented(&self) -> Result<(Grid, Orientation), Failure> {
         if SampleSpec::is_sample(&self.volume) {
             let spec: SampleSpec = self
                 .volume
@@ -67,10 +69,10 @@ impl VolumeArgs {
             if let Some(o) = self.origin {
                 grid = grid.with_origin(o).map_err(Failure::input)?;
             }
-            return Ok(grid);
+            return Ok((grid, Orientation::IDENTITY));
         }
         let options = self.file_options()?;
-        read_volume(Path::new(&self.volume), &options)
+        read_volume_oriented(Path::new(&self.volume), &options)
             .map_err(|e| crate::io_failure(e, true))
             .map_err(|f| Failure {
                 error: f.error.context("cannot read the volume"),

@@ -911,3 +911,104 @@ fn subdivide_command() {
         assert!(!dir.path().join("out.obj").exists());
     }
 }
+
+/// Vertices and triangles of an ASCII PLY written by isocube (positions, normals, faces).
+fn ascii_ply(path: &Path) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let mut vertices = 0;
+    for line in lines.by_ref() {
+        if let Some(n) = line.strip_prefix("element vertex ") {
+            vertices = n.parse().unwrap();
+        }
+        if line == "end_header" {
+            break;
+        }
+    }
+    let mut positions = Vec::new();
+    for _ in 0..vertices {
+        let v: Vec<f64> = lines
+            .next()
+            .unwrap()
+            .split_whitespace()
+            .map(|w| w.parse().unwrap())
+            .collect();
+        positions.push([v[0], v[1], v[2]]);
+    }
+    let triangles = lines
+        .map(|l| {
+            let v: Vec<usize> = l.split_whitespace().map(|w| w.parse().unwrap()).collect();
+            [v[1], v[2], v[3]]
+        })
+        .collect();
+    (positions, triangles)
+}
+
+/// Volumes written by nibabel and SimpleITK: the mesh in world coordinates is the index-space
+/// mesh carried by the file's index-to-world map, with the winding reversed under a reflection.
+#[test]
+fn oriented_volumes_give_meshes_in_world_coordinates() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+    let expected: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data.join("expected.json")).unwrap())
+            .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for (name, file) in expected["files"].as_object().unwrap() {
+        let input = data.join(name);
+        let input = input.to_str().unwrap();
+        ok(
+            dir.path(),
+            &[
+                "extract", input, "--level", "400", "-o", "w.ply", "--ascii", "--quiet",
+            ],
+        );
+        ok(
+            dir.path(),
+            &[
+                "extract",
+                input,
+                "--level",
+                "400",
+                "-o",
+                "i.ply",
+                "--ascii",
+                "--quiet",
+                "--index-space",
+            ],
+        );
+        let (world, wt) = ascii_ply(&dir.path().join("w.ply"));
+        let (index, it) = ascii_ply(&dir.path().join("i.ply"));
+        assert!(world.len() > 50 && world.len() == index.len(), "{name}");
+        let m: Vec<Vec<f64>> = file["linear"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| {
+                r.as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_f64().unwrap())
+                    .collect()
+            })
+            .collect();
+        let o: Vec<f64> = file["origin"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        for (w, p) in world.iter().zip(&index) {
+            for r in 0..3 {
+                let want = o[r] + (0..3).map(|c| m[r][c] * p[c]).sum::<f64>();
+                assert!((w[r] - want).abs() < 1e-3, "{name}: {w:?} vs index {p:?}");
+            }
+        }
+        let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+        for (a, b) in wt.iter().zip(&it) {
+            let expect = if det < 0.0 { [b[0], b[2], b[1]] } else { *b };
+            assert_eq!(*a, expect, "{name}");
+        }
+    }
+}

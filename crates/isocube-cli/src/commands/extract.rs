@@ -9,8 +9,8 @@ use isocube::extract::{
     extract_into, extract_streamed, ExtractOptions, ExtractStats, Method, SnapPosition, Snapping,
     StreamError,
 };
-use isocube::field::PlaneSource;
 use isocube::field::SampleSpec;
+use isocube::field::{Orientation, PlaneSource};
 use isocube::io::{
     write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
 };
@@ -69,6 +69,10 @@ pub(crate) struct Args {
     /// outside it. For .ply, .glb, .vtp, .vtk and .msh.
     #[arg(long, value_name = "VOLUME")]
     values: Option<String>,
+    /// Keep the mesh in grid index coordinates (point (i, j, k) at (i, j, k)) instead of the
+    /// file's world coordinates (its spacing, origin and direction).
+    #[arg(long)]
+    index_space: bool,
     /// Do not compute or write vertex normals.
     #[arg(long)]
     no_normals: bool,
@@ -105,7 +109,16 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(volume) = streamable(args)? {
         return run_streamed(args, &volume, quiet);
     }
-    let grid = args.volume.load()?;
+    let (grid, orientation) = args.volume.load_oriented()?;
+    let (grid, orientation) = if args.index_space {
+        let grid = grid
+            .with_spacing([1.0; 3])
+            .and_then(|g| g.with_origin([0.0; 3]))
+            .map_err(Failure::input)?;
+        (grid, Orientation::IDENTITY)
+    } else {
+        (grid, orientation)
+    };
     let exact = SampleSpec::is_sample(&args.volume.volume)
         .then(|| args.volume.volume.parse::<SampleSpec>().ok())
         .flatten()
@@ -129,6 +142,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             h,
         );
     }
+    // Extraction ran in the grid's own frame; the file's direction turns it into the world.
+    orientation.orient_mesh(&mut mesh, grid.origin());
     let elapsed = started.elapsed();
     let values = match &args.values {
         Some(spec) => Some(sample_at_vertices(args, spec, &mesh)?),
@@ -180,7 +195,16 @@ fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, V
         volume: spec.to_string(),
         ..args.volume.clone()
     };
-    let grid = volume.load()?;
+    let (grid, orientation) = volume.load_oriented()?;
+    let (grid, orientation) = if args.index_space {
+        let grid = grid
+            .with_spacing([1.0; 3])
+            .and_then(|g| g.with_origin([0.0; 3]))
+            .map_err(Failure::input)?;
+        (grid, Orientation::IDENTITY)
+    } else {
+        (grid, orientation)
+    };
     let field = Trilinear(&grid);
     let dims = grid.dims();
     let (h, o) = (grid.spacing(), grid.origin());
@@ -188,7 +212,7 @@ fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, V
         .positions
         .iter()
         .map(|p| {
-            let p = p.map(f64::from);
+            let p = orientation.to_grid_frame(p.map(f64::from), o);
             // Inside the grid (within rounding), else NaN rather than an extrapolation.
             let inside = (0..3).all(|a| {
                 let u = (p[a] - o[a]) / h[a];

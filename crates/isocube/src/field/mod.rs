@@ -6,9 +6,11 @@
 //! command line's `sample:NAME:N[:SEED]`.
 
 mod grid;
+mod orientation;
 mod samples;
 mod source;
 
 pub use grid::{Grid, GridError};
+pub use orientation::Orientation;
 pub use samples::{Sample, SampleSpec};
 pub use source::PlaneSource;

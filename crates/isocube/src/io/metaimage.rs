@@ -1,0 +1,317 @@
+//! MetaImage volumes (ITK's `.mha` with the data after the header, `.mhd` with the data in a
+//! separate file), raw or zlib-compressed, with spacing, offset and direction
+//! (`TransformMatrix`, whose nine numbers are the three axis directions one after the other).
+//! World coordinates are the file's (LPS by ITK's convention).
+
+use std::io::Read;
+use std::path::Path;
+
+use super::raw::{decode_all, Endian, ScalarType};
+use super::{read_file, IoError, Position};
+use crate::field::{Grid, Orientation};
+
+/// Reads a MetaImage volume and its orientation.
+pub fn read_metaimage(path: &Path) -> Result<(Grid, Orientation), IoError> {
+    let bytes = read_file(path)?;
+    let header = Header::parse(path, &bytes)?;
+    let count = header
+        .dims
+        .iter()
+        .try_fold(1usize, |n, &d| n.checked_mul(d));
+    let count = count.ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field("DimSize".into()),
+            "dimensions overflow",
+        )
+    })?;
+    let need = count.checked_mul(header.scalar.size()).ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field("DimSize".into()),
+            "dimensions overflow",
+        )
+    })?;
+    match &header.data_file {
+        None => finish(path, &header, path, &bytes[header.length..], count, need),
+        Some(name) => {
+            // `.mhd` + `.raw`: errors about the data name the data file.
+            let file = path.parent().unwrap_or(Path::new(".")).join(name);
+            let data = read_file(&file)?;
+            finish(path, &header, &file, &data, count, need)
+        }
+    }
+}
+
+fn finish(
+    path: &Path,
+    header: &Header,
+    data_path: &Path,
+    stored: &[u8],
+    count: usize,
+    need: usize,
+) -> Result<(Grid, Orientation), IoError> {
+    let raw: std::borrow::Cow<[u8]> = if header.compressed {
+        // Never trust the declared size for the allocation: read at most what the dims need,
+        // then check that exactly that much came out.
+        let mut out = Vec::with_capacity(need.min(1 << 30));
+        flate2::read::ZlibDecoder::new(stored)
+            .take(need as u64 + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| IoError::format(data_path, Position::File, format!("zlib data: {e}")))?;
+        std::borrow::Cow::Owned(out)
+    } else {
+        let skip = match header.header_size {
+            // −1: the data are the file's last bytes.
+            Some(-1) => stored.len().saturating_sub(need),
+            Some(n) if n >= 0 => n as usize,
+            _ => 0,
+        };
+        std::borrow::Cow::Borrowed(stored.get(skip..).unwrap_or(&[]))
+    };
+    if raw.len() != need {
+        return Err(IoError::format(
+            data_path,
+            Position::File,
+            format!(
+                "{:?} {} values need {need} bytes of data, {} {}",
+                header.dims,
+                header.scalar,
+                if header.compressed {
+                    "the zlib stream gives"
+                } else {
+                    "the file has"
+                },
+                raw.len()
+            ),
+        ));
+    }
+    let values = decode_all(&raw, header.scalar, header.endian);
+    debug_assert_eq!(values.len(), count);
+    let linear: [[f64; 3]; 3] = std::array::from_fn(|r| {
+        std::array::from_fn(|c| header.direction[c][r] * header.spacing[c])
+    });
+    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field("TransformMatrix".into()),
+            "the direction matrix is singular or not finite",
+        )
+    })?;
+    let grid = Grid::new(header.dims, values)
+        .and_then(|g| g.with_spacing(spacing))
+        .and_then(|g| g.with_origin(header.offset))
+        .map_err(|e| IoError::grid(path, e))?;
+    Ok((grid, orientation))
+}
+
+struct Header {
+    dims: [usize; 3],
+    scalar: ScalarType,
+    endian: Endian,
+    spacing: [f64; 3],
+    offset: [f64; 3],
+    /// The axis directions, one per row.
+    direction: [[f64; 3]; 3],
+    compressed: bool,
+    header_size: Option<i64>,
+    /// `None` for `LOCAL`.
+    data_file: Option<String>,
+    /// Bytes of the header, up to and including the `ElementDataFile` line.
+    length: usize,
+}
+
+impl Header {
+    fn parse(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
+        let mut h = Header {
+            dims: [0; 3],
+            scalar: ScalarType::U8,
+            endian: Endian::Little,
+            spacing: [1.0; 3],
+            offset: [0.0; 3],
+            direction: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            compressed: false,
+            header_size: None,
+            data_file: None,
+            length: 0,
+        };
+        let (mut seen_dims, mut seen_type, mut ndims) = (false, false, None);
+        let mut at = 0;
+        let mut line_no = 0;
+        loop {
+            line_no += 1;
+            let Some(end) = bytes[at..].iter().position(|&b| b == b'\n') else {
+                return Err(IoError::format(
+                    path,
+                    Position::Line(line_no),
+                    "the header ends without ElementDataFile",
+                ));
+            };
+            let raw = &bytes[at..at + end];
+            at += end + 1;
+            let line = std::str::from_utf8(raw)
+                .map_err(|_| IoError::format(path, Position::Line(line_no), "not UTF-8 text"))?
+                .trim();
+            if line.is_empty() {
+                continue;
+            }
+            let Some((key, value)) = line.split_once('=') else {
+                return Err(IoError::format(
+                    path,
+                    Position::Line(line_no),
+                    format!("'{line}' is not a 'Key = Value' line"),
+                ));
+            };
+            let (key, value) = (key.trim(), value.trim());
+            let pos = || Position::Line(line_no);
+            let numbers = |n: usize| -> Result<Vec<f64>, IoError> {
+                let v: Vec<f64> = value
+                    .split_whitespace()
+                    .map(|w| w.parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| {
+                        IoError::format(path, pos(), format!("{key}: '{value}' is not {n} numbers"))
+                    })?;
+                if v.len() != n || v.iter().any(|x| !x.is_finite()) {
+                    return Err(IoError::format(
+                        path,
+                        pos(),
+                        format!("{key}: '{value}' is not {n} finite numbers"),
+                    ));
+                }
+                Ok(v)
+            };
+            let yes = || value.eq_ignore_ascii_case("true");
+            match key {
+                "ObjectType" if !value.eq_ignore_ascii_case("image") => {
+                    return Err(IoError::unsupported(
+                        path,
+                        pos(),
+                        format!("ObjectType {value}"),
+                    ));
+                }
+                "NDims" => {
+                    if !matches!(value, "1" | "2" | "3") {
+                        return Err(IoError::unsupported(
+                            path,
+                            pos(),
+                            format!("NDims {value}: isocube reads 1 to 3 dimensions"),
+                        ));
+                    }
+                    ndims = Some(value.to_string());
+                }
+                "DimSize" => {
+                    let v = numbers(ndims_of(&ndims))?;
+                    for (a, &d) in v.iter().enumerate() {
+                        if d < 1.0 || d.fract() != 0.0 || d > 1e12 {
+                            return Err(IoError::format(
+                                path,
+                                pos(),
+                                format!("DimSize: {d} is not a size"),
+                            ));
+                        }
+                        h.dims[a] = d as usize;
+                    }
+                    for a in v.len()..3 {
+                        h.dims[a] = 1;
+                    }
+                    seen_dims = true;
+                }
+                "ElementSpacing" | "ElementSize" => {
+                    let v = numbers(ndims_of(&ndims))?;
+                    h.spacing[..v.len()].copy_from_slice(&v);
+                }
+                "Offset" | "Origin" | "Position" => {
+                    let v = numbers(ndims_of(&ndims))?;
+                    h.offset[..v.len()].copy_from_slice(&v);
+                }
+                "TransformMatrix" | "Rotation" | "Orientation" => {
+                    let n = ndims_of(&ndims);
+                    let v = numbers(n * n)?;
+                    for a in 0..n {
+                        for r in 0..n {
+                            h.direction[a][r] = v[a * n + r];
+                        }
+                    }
+                }
+                "BinaryData" if !yes() => {
+                    return Err(IoError::unsupported(
+                        path,
+                        pos(),
+                        "ASCII MetaImage data (BinaryData = False)",
+                    ));
+                }
+                "BinaryDataByteOrderMSB" | "ElementByteOrderMSB" => {
+                    h.endian = if yes() { Endian::Big } else { Endian::Little };
+                }
+                "CompressedData" => h.compressed = yes(),
+                "HeaderSize" => {
+                    h.header_size = Some(value.parse().map_err(|_| {
+                        IoError::format(
+                            path,
+                            pos(),
+                            format!("HeaderSize: '{value}' is not a number"),
+                        )
+                    })?);
+                }
+                "ElementNumberOfChannels" if value != "1" => {
+                    return Err(IoError::unsupported(
+                        path,
+                        pos(),
+                        format!("{value} channels per element (isocube meshes one scalar)"),
+                    ));
+                }
+                "ElementType" => {
+                    h.scalar = match value {
+                        "MET_CHAR" => ScalarType::I8,
+                        "MET_UCHAR" => ScalarType::U8,
+                        "MET_SHORT" => ScalarType::I16,
+                        "MET_USHORT" => ScalarType::U16,
+                        "MET_INT" | "MET_LONG" => ScalarType::I32,
+                        "MET_UINT" | "MET_ULONG" => ScalarType::U32,
+                        "MET_LONG_LONG" => ScalarType::I64,
+                        "MET_ULONG_LONG" => ScalarType::U64,
+                        "MET_FLOAT" => ScalarType::F32,
+                        "MET_DOUBLE" => ScalarType::F64,
+                        other => {
+                            return Err(IoError::unsupported(
+                                path,
+                                pos(),
+                                format!("ElementType {other}"),
+                            ))
+                        }
+                    };
+                    seen_type = true;
+                }
+                "ElementDataFile" => {
+                    if value.eq_ignore_ascii_case("LOCAL") {
+                        h.data_file = None;
+                    } else if value.starts_with("LIST") || value.contains('%') {
+                        return Err(IoError::unsupported(
+                            path,
+                            pos(),
+                            "data split over several files (LIST or a file pattern)",
+                        ));
+                    } else {
+                        h.data_file = Some(value.to_string());
+                    }
+                    h.length = at;
+                    break;
+                }
+                _ => {}
+            }
+        }
+        if !seen_dims || !seen_type {
+            return Err(IoError::format(
+                path,
+                Position::Field(if seen_dims { "ElementType" } else { "DimSize" }.into()),
+                "missing before ElementDataFile",
+            ));
+        }
+        Ok(h)
+    }
+}
+
+fn ndims_of(ndims: &Option<String>) -> usize {
+    ndims.as_deref().and_then(|s| s.parse().ok()).unwrap_or(3)
+}

@@ -1,0 +1,133 @@
+//! NIfTI-1 volumes (`.nii`, `.nii.gz`, and `.hdr`/`.img` pairs) through the `nifti` crate, with
+//! the file's index-to-world map: the `sform` when its code is set, else the `qform`
+//! (quaternion, `qfac`, voxel sizes and offset), else the voxel sizes alone (NIfTI's "method
+//! 1"). World coordinates are the file's (RAS+ by the format's convention). Values go through
+//! `scl_slope` and `scl_inter` when the slope is not zero.
+
+use std::path::Path;
+
+use nifti::{IntoNdArray, NiftiObject, ReaderOptions};
+
+use super::{IoError, Position};
+use crate::field::{Grid, Orientation};
+
+/// Reads a NIfTI-1 volume and its orientation. The grid's spacing and origin are the lengths of
+/// the index-to-world map's columns and its translation; the orientation is the rest.
+pub fn read_nifti(path: &Path) -> Result<(Grid, Orientation), IoError> {
+    let fail = |reason: String| IoError::format(path, Position::File, reason);
+    let object = ReaderOptions::new().read_file(path).map_err(|e| match e {
+        nifti::NiftiError::Io(io) => IoError::os(path, io),
+        other => fail(format!("not a readable NIfTI-1 file: {other}")),
+    })?;
+    let header = object.header().clone();
+    let dim = header.dim;
+    let rank = usize::from(dim[0]);
+    if !(1..=7).contains(&rank) {
+        return Err(IoError::format(
+            path,
+            Position::Field("dim".into()),
+            format!("dim[0] = {rank}: the rank must be 1 to 7"),
+        ));
+    }
+    let extra: usize = dim[4..=rank.max(3)]
+        .iter()
+        .map(|&d| usize::from(d.max(1)))
+        .product();
+    if rank > 3 && extra != 1 {
+        return Err(IoError::unsupported(
+            path,
+            Position::Field("dim".into()),
+            format!("a {rank}-d volume with {extra} frames: isocube meshes one 3-d volume"),
+        ));
+    }
+    let dims: [usize; 3] = std::array::from_fn(|a| {
+        if a < rank {
+            usize::from(dim[a + 1]).max(1)
+        } else {
+            1
+        }
+    });
+    let array = object
+        .into_volume()
+        .into_ndarray::<f32>()
+        .map_err(|e| fail(format!("cannot decode the voxels: {e}")))?;
+    // The array's axes are the file's (x fastest on disk); walking the transposed view visits
+    // k, then j, then i, whatever the memory order.
+    let values: Vec<f32> = array.t().iter().copied().collect();
+    let (linear, origin) = index_to_world(&header);
+    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field(
+                if header.sform_code > 0 {
+                    "srow"
+                } else {
+                    "pixdim"
+                }
+                .into(),
+            ),
+            "the index-to-world map is singular or not finite",
+        )
+    })?;
+    let grid = Grid::new(dims, values)
+        .and_then(|g| g.with_spacing(spacing))
+        .and_then(|g| g.with_origin(origin))
+        .map_err(|e| IoError::grid(path, e))?;
+    Ok((grid, orientation))
+}
+
+/// The index-to-world map: rows of its 3 × 3 part, and its translation.
+fn index_to_world(h: &nifti::NiftiHeader) -> ([[f64; 3]; 3], [f64; 3]) {
+    let f = f64::from;
+    if h.sform_code > 0 {
+        let rows = [h.srow_x, h.srow_y, h.srow_z];
+        return (
+            rows.map(|r| [f(r[0]), f(r[1]), f(r[2])]),
+            rows.map(|r| f(r[3])),
+        );
+    }
+    let pixdim = h.pixdim.map(f);
+    if h.qform_code > 0 {
+        let (b, c, d) = (f(h.quatern_b), f(h.quatern_c), f(h.quatern_d));
+        let a = (1.0 - b * b - c * c - d * d).max(0.0).sqrt();
+        let r = [
+            [
+                a * a + b * b - c * c - d * d,
+                2.0 * (b * c - a * d),
+                2.0 * (b * d + a * c),
+            ],
+            [
+                2.0 * (b * c + a * d),
+                a * a + c * c - b * b - d * d,
+                2.0 * (c * d - a * b),
+            ],
+            [
+                2.0 * (b * d - a * c),
+                2.0 * (c * d + a * b),
+                a * a + d * d - b * b - c * c,
+            ],
+        ];
+        let qfac = if pixdim[0] < 0.0 { -1.0 } else { 1.0 };
+        let scale = [pixdim[1], pixdim[2], qfac * pixdim[3]];
+        return (
+            r.map(|row| std::array::from_fn(|col| row[col] * scale[col])),
+            [f(h.quatern_x), f(h.quatern_y), f(h.quatern_z)],
+        );
+    }
+    // Voxel sizes alone; a size left at zero (as some writers do) counts as 1.
+    let size = |x: f64| {
+        if x.is_finite() && x != 0.0 {
+            x.abs()
+        } else {
+            1.0
+        }
+    };
+    (
+        [
+            [size(pixdim[1]), 0.0, 0.0],
+            [0.0, size(pixdim[2]), 0.0],
+            [0.0, 0.0, size(pixdim[3])],
+        ],
+        [0.0; 3],
+    )
+}

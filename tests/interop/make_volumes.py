@@ -1,0 +1,95 @@
+"""Writes small volumes with programs that share no code with isocube (nibabel, SimpleITK),
+each with a known value at every index and a known index-to-world geometry, into
+tests/data/volumes/, plus expected.json describing them. isocube's reader tests compare what
+they read against that description.
+
+    python tests/interop/make_volumes.py [OUTDIR]
+"""
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[1] / "data" / "volumes"
+out.mkdir(parents=True, exist_ok=True)
+
+NX, NY, NZ = 12, 10, 8
+
+
+def values():
+    """v[i, j, k] = 100 + i + 10 j + 100 k: any axis mix-up shows."""
+    i, j, k = np.meshgrid(np.arange(NX), np.arange(NY), np.arange(NZ), indexing="ij")
+    return (100 + i + 10 * j + 100 * k).astype(np.int16)
+
+
+def rotation_z(deg):
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+expected = {"dims": [NX, NY, NZ], "value": "100 + i + 10 j + 100 k", "files": {}}
+
+
+def record(name, linear, origin, scale=1.0, offset=0.0):
+    """World = linear @ (i, j, k) + origin; stored value v reads as scale * v + offset."""
+    expected["files"][name] = {
+        "linear": np.asarray(linear).tolist(),
+        "origin": np.asarray(origin).tolist(),
+        "scale": scale,
+        "offset": offset,
+    }
+
+
+# NIfTI-1, gzip: rotated 30° about z, anisotropic spacing, sform and qform both set, with a
+# slope and intercept.
+import nibabel as nib
+
+spacing = np.array([0.8, 0.9, 1.5])
+linear = rotation_z(30) @ np.diag(spacing)
+origin = np.array([-10.0, 5.0, 20.0])
+affine = np.eye(4)
+affine[:3, :3] = linear
+affine[:3, 3] = origin
+img = nib.Nifti1Image(values(), affine)
+img.header.set_slope_inter(0.5, 10.0)
+img.set_qform(affine, code=1)
+img.set_sform(affine, code=1)
+nib.save(img, out / "rotated.nii.gz")
+record("rotated.nii.gz", linear, origin, 0.5, 10.0)
+
+# NIfTI-1, plain: x axis flipped (a reflection, as radiological files have), float32, qform only.
+linear = np.diag([-1.2, 1.0, 2.0])
+origin = np.array([14.0, -3.0, 0.5])
+affine = np.eye(4)
+affine[:3, :3] = linear
+affine[:3, 3] = origin
+img = nib.Nifti1Image(values().astype(np.float32), affine)
+img.set_qform(affine, code=2)
+img.set_sform(None, code=0)
+nib.save(img, out / "flipped.nii")
+record("flipped.nii", linear, origin)
+
+# MetaImage with SimpleITK: .mha (zlib-compressed) rotated about x, .mhd + .raw axis-aligned.
+import SimpleITK as sitk
+
+arr = values().transpose(2, 1, 0)  # SimpleITK arrays are [z, y, x]
+image = sitk.GetImageFromArray(arr)
+image.SetSpacing((0.5, 0.75, 1.25))
+image.SetOrigin((1.0, 2.0, 3.0))
+c, s = math.cos(math.radians(20)), math.sin(math.radians(20))
+direction = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+image.SetDirection(tuple(direction.flatten()))
+sitk.WriteImage(image, str(out / "rotated.mha"), useCompression=True)
+record("rotated.mha", direction @ np.diag([0.5, 0.75, 1.25]), [1.0, 2.0, 3.0])
+
+image = sitk.GetImageFromArray(arr.astype(np.uint16))
+image.SetSpacing((2.0, 1.0, 0.5))
+image.SetOrigin((-4.0, 0.0, 7.5))
+sitk.WriteImage(image, str(out / "plain.mhd"))
+record("plain.mhd", np.diag([2.0, 1.0, 0.5]), [-4.0, 0.0, 7.5])
+
+(out / "expected.json").write_text(json.dumps(expected, indent=1) + "\n")
+print("wrote", ", ".join(expected["files"]), "to", out)
