@@ -91,5 +91,21 @@ image.SetOrigin((-4.0, 0.0, 7.5))
 sitk.WriteImage(image, str(out / "plain.mhd"))
 record("plain.mhd", np.diag([2.0, 1.0, 0.5]), [-4.0, 0.0, 7.5])
 
+# Multi-page TIFF with tifffile: an ImageJ hyperstack (pixel size from the resolution tags, slice
+# spacing from ImageJ's description), and a plain float32 stack without any geometry.
+import tifffile
+
+stack = values().transpose(2, 1, 0)  # pages are z, rows y, columns x
+tifffile.imwrite(
+    out / "stack.tif",
+    stack.astype(np.uint16),
+    imagej=True,
+    resolution=(1 / 0.25, 1 / 0.4),
+    metadata={"spacing": 2.5, "unit": "um", "axes": "ZYX"},
+)
+record("stack.tif", np.diag([0.25, 0.4, 2.5]), [0.0, 0.0, 0.0])
+tifffile.imwrite(out / "plain.tiff", stack.astype(np.float32))
+record("plain.tiff", np.eye(3), [0.0, 0.0, 0.0])
+
 (out / "expected.json").write_text(json.dumps(expected, indent=1) + "\n")
 print("wrote", ", ".join(expected["files"]), "to", out)

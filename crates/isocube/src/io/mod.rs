@@ -2,7 +2,8 @@
 //!
 //! Volumes: raw binary ([`RawOptions`]), NumPy `.npy` ([`NpyAxes`]), NRRD (attached `.nrrd`
 //! or detached `.nhdr` headers; raw, gzip or ASCII encodings), MetaImage (`.mha`, `.mhd`; raw or
-//! zlib) and, with the `nifti` feature, NIfTI-1 (`.nii`, `.nii.gz`). Readers of formats that
+//! zlib), and with the `nifti` and `tiff` features NIfTI-1 (`.nii`, `.nii.gz`) and multi-page
+//! TIFF stacks. Readers of formats that
 //! carry a direction return it as an [`Orientation`] ([`read_volume_oriented`]). Every reader returns a
 //! [`Grid`] with `f32` values (integers above 2^24 lose precision),
 //! `x` fastest.
@@ -36,6 +37,8 @@ mod npy;
 mod nrrd;
 mod poly;
 mod raw;
+#[cfg(feature = "tiff")]
+mod tiff_stack;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -58,6 +61,8 @@ pub use npy::{read_npy, NpyAxes};
 pub use nrrd::read_nrrd;
 pub use poly::{read_poly_mesh, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
+#[cfg(feature = "tiff")]
+pub use tiff_stack::read_tiff_stack;
 
 /// Where in a file a problem was found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -183,7 +188,8 @@ pub fn read_volume(path: &Path, options: &VolumeOptions) -> Result<Grid, IoError
 }
 
 /// Reads a volume and how its axes lie in the world, choosing the reader by extension:
-/// `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`), `.mha`/`.mhd`, otherwise raw
+/// `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`), `.mha`/`.mhd`, `.tif`/`.tiff`
+/// (feature `tiff`), otherwise raw
 /// (which needs [`VolumeOptions::raw`]). Formats without a direction give
 /// [`Orientation::IDENTITY`].
 pub fn read_volume_oriented(
@@ -206,13 +212,14 @@ pub fn read_volume_oriented(
         "nrrd" | "nhdr" => identity(read_nrrd(path)?),
         "mha" | "mhd" => read_metaimage(path)?,
         _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => read_nifti_volume(path)?,
+        "tif" | "tiff" => identity(read_tiff_volume(path)?),
         _ => match &options.raw {
             Some(raw) => identity(read_raw(path, raw)?),
             None => {
                 return Err(IoError::unsupported(
                     path,
                     Position::File,
-                    "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha or .mhd",
+                    "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .tif or .tiff",
                 ))
             }
         },
@@ -226,6 +233,20 @@ pub fn read_volume_oriented(
         None => grid,
     };
     Ok((grid, orientation))
+}
+
+#[cfg(feature = "tiff")]
+fn read_tiff_volume(path: &Path) -> Result<Grid, IoError> {
+    read_tiff_stack(path)
+}
+
+#[cfg(not(feature = "tiff"))]
+fn read_tiff_volume(path: &Path) -> Result<Grid, IoError> {
+    Err(IoError::unsupported(
+        path,
+        Position::File,
+        "TIFF stacks need isocube built with the `tiff` feature",
+    ))
 }
 
 #[cfg(feature = "nifti")]
@@ -267,7 +288,9 @@ mod tests {
             .collect();
         let mut checked = 0;
         for (name, file) in expected["files"].as_object().unwrap() {
-            if name.contains(".nii") && cfg!(not(feature = "nifti")) {
+            if (name.contains(".nii") && cfg!(not(feature = "nifti")))
+                || (name.contains(".tif") && cfg!(not(feature = "tiff")))
+            {
                 continue;
             }
             let (grid, orientation) =
@@ -314,7 +337,9 @@ mod tests {
             }
             checked += 1;
         }
-        assert!(checked >= if cfg!(feature = "nifti") { 4 } else { 2 });
+        let all = expected["files"].as_object().unwrap().len();
+        assert!(checked == all || cfg!(not(all(feature = "nifti", feature = "tiff"))));
+        assert!(checked >= 2);
     }
 
     #[test]
