@@ -107,5 +107,43 @@ record("stack.tif", np.diag([0.25, 0.4, 2.5]), [0.0, 0.0, 0.0])
 tifffile.imwrite(out / "plain.tiff", stack.astype(np.float32))
 record("plain.tiff", np.eye(3), [0.0, 0.0, 0.0])
 
+# VTK ImageData (.vti) with VTK itself: ASCII; binary inline with zlib and 32-bit headers;
+# appended raw; appended base64 with zlib and 64-bit headers. One carries a direction.
+import vtk
+from vtk.util.numpy_support import numpy_to_vtk
+
+for name, mode, compress, encode, header64, rotated in [
+    ("ascii.vti", "ascii", False, False, False, False),
+    ("binary-zlib.vti", "binary", True, False, False, True),
+    ("appended-raw.vti", "appended", False, False, True, False),
+    ("appended-base64.vti", "appended", True, True, True, False),
+]:
+    image = vtk.vtkImageData()
+    image.SetDimensions(NX, NY, NZ)
+    image.SetSpacing(0.6, 0.7, 0.8)
+    image.SetOrigin(-1.0, -2.0, -3.0)
+    direction = rotation_z(-40) if rotated else np.eye(3)
+    image.SetDirectionMatrix(*direction.flatten())
+    flat = values().transpose(2, 1, 0).ravel()  # x fastest
+    arr = numpy_to_vtk(flat.astype(np.int16 if mode != "ascii" else np.float32), deep=True)
+    arr.SetName("density")
+    image.GetPointData().SetScalars(arr)
+    w = vtk.vtkXMLImageDataWriter()
+    w.SetFileName(str(out / name))
+    w.SetInputData(image)
+    {"ascii": w.SetDataModeToAscii, "binary": w.SetDataModeToBinary, "appended": w.SetDataModeToAppended}[mode]()
+    w.SetEncodeAppendedData(encode)
+    if compress:
+        w.SetCompressorTypeToZLib()
+        w.SetBlockSize(512)  # several compressed blocks
+    else:
+        w.SetCompressorTypeToNone()
+    if header64:
+        w.SetHeaderTypeToUInt64()
+    else:
+        w.SetHeaderTypeToUInt32()
+    assert w.Write() == 1
+    record(name, direction @ np.diag([0.6, 0.7, 0.8]), [-1.0, -2.0, -3.0])
+
 (out / "expected.json").write_text(json.dumps(expected, indent=1) + "\n")
 print("wrote", ", ".join(expected["files"]), "to", out)
