@@ -145,5 +145,51 @@ for name, mode, compress, encode, header64, rotated in [
     assert w.Write() == 1
     record(name, direction @ np.diag([0.6, 0.7, 0.8]), [-1.0, -2.0, -3.0])
 
+# A DICOM series with pydicom: oblique slices (rows along a rotated axis), 1.5 mm apart,
+# CT-style stored values with a rescale intercept, files named out of slice order.
+import pydicom
+from pydicom.dataset import FileDataset, FileMetaDataset
+from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+
+series = out / "dicom"
+series.mkdir(exist_ok=True)
+for old in series.glob("*.dcm"):
+    old.unlink()
+row_dir = rotation_z(25) @ np.array([1.0, 0.0, 0.0])
+col_dir = rotation_z(25) @ np.array([0.0, 1.0, 0.0])
+normal = np.cross(row_dir, col_dir)
+pixel = (0.7, 0.6)  # PixelSpacing: between rows (y), between columns (x)
+first = np.array([-50.0, 20.0, 100.0])
+series_uid, study_uid = generate_uid(), generate_uid()
+stored = values().transpose(2, 1, 0)  # [z, y, x]
+for k in range(NZ):
+    meta = FileMetaDataset()
+    meta.MediaStorageSOPClassUID = "1.2.840.10008.5.1.4.1.1.2"
+    meta.MediaStorageSOPInstanceUID = generate_uid()
+    meta.TransferSyntaxUID = ExplicitVRLittleEndian
+    name = series / f"slice-{(k * 5) % NZ:02d}-{k}.dcm"  # not in slice order
+    ds = FileDataset(str(name), {}, file_meta=meta, preamble=b"\0" * 128)
+    ds.SOPClassUID = meta.MediaStorageSOPClassUID
+    ds.SOPInstanceUID = meta.MediaStorageSOPInstanceUID
+    ds.SeriesInstanceUID = series_uid
+    ds.StudyInstanceUID = study_uid
+    ds.Modality = "CT"
+    ds.InstanceNumber = k + 1
+    ds.ImagePositionPatient = [float(x) for x in first + 1.5 * k * normal]
+    ds.ImageOrientationPatient = [float(x) for x in [*row_dir, *col_dir]]
+    ds.PixelSpacing = list(pixel)
+    ds.SliceThickness = 1.5
+    ds.Rows, ds.Columns = NY, NX
+    ds.SamplesPerPixel = 1
+    ds.PhotometricInterpretation = "MONOCHROME2"
+    ds.BitsAllocated, ds.BitsStored, ds.HighBit = 16, 16, 15
+    ds.PixelRepresentation = 1
+    ds.RescaleSlope = 2
+    ds.RescaleIntercept = -1024
+    ds.PixelData = stored[k].astype(np.int16).tobytes()
+    ds.save_as(name, enforce_file_format=True)
+linear = np.stack([row_dir * pixel[1], col_dir * pixel[0], normal * 1.5], axis=1)
+record("dicom", linear, first, 2.0, -1024.0)
+
 (out / "expected.json").write_text(json.dumps(expected, indent=1) + "\n")
 print("wrote", ", ".join(expected["files"]), "to", out)

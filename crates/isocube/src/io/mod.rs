@@ -2,9 +2,9 @@
 //!
 //! Volumes: raw binary ([`RawOptions`]), NumPy `.npy` ([`NpyAxes`]), NRRD (attached `.nrrd`
 //! or detached `.nhdr` headers; raw, gzip or ASCII encodings), MetaImage (`.mha`, `.mhd`; raw or
-//! zlib), VTK ImageData (`.vti`: ASCII, binary or appended, raw or zlib), and with the `nifti` and
-//! `tiff` features NIfTI-1 (`.nii`, `.nii.gz`) and multi-page
-//! TIFF stacks. Readers of formats that
+//! zlib), VTK ImageData (`.vti`: ASCII, binary or appended, raw or zlib), and with the `nifti`,
+//! `tiff` and `dicom` features NIfTI-1 (`.nii`, `.nii.gz`), multi-page TIFF stacks and DICOM
+//! series (a folder of uncompressed slices). Readers of formats that
 //! carry a direction return it as an [`Orientation`] ([`read_volume_oriented`]). Every reader returns a
 //! [`Grid`] with `f32` values (integers above 2^24 lose precision),
 //! `x` fastest.
@@ -28,6 +28,8 @@
 //! Every error names the file, the position (line, byte or header field) and the reason.
 
 mod contours;
+#[cfg(feature = "dicom")]
+mod dicom;
 mod export;
 mod mapped;
 mod mesh_io;
@@ -50,6 +52,8 @@ use thiserror::Error;
 use crate::field::{Grid, GridError, Orientation};
 
 pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
+#[cfg(feature = "dicom")]
+pub use dicom::read_dicom_series;
 pub use export::VertexValues;
 pub use mapped::MappedVolume;
 pub use mesh_io::{
@@ -190,8 +194,8 @@ pub fn read_volume(path: &Path, options: &VolumeOptions) -> Result<Grid, IoError
     read_volume_oriented(path, options).map(|(grid, _)| grid)
 }
 
-/// Reads a volume and how its axes lie in the world, choosing the reader by extension:
-/// `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`), `.mha`/`.mhd`, `.tif`/`.tiff`
+/// Reads a volume and how its axes lie in the world: a folder is a DICOM series (feature
+/// `dicom`); files by extension: `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`), `.mha`/`.mhd`, `.tif`/`.tiff`
 /// (feature `tiff`), `.vti`, otherwise raw
 /// (which needs [`VolumeOptions::raw`]). Formats without a direction give
 /// [`Orientation::IDENTITY`].
@@ -211,6 +215,7 @@ pub fn read_volume_oriented(
         .unwrap_or_default();
     let identity = |grid| (grid, Orientation::IDENTITY);
     let (grid, orientation) = match ext.as_str() {
+        _ if path.is_dir() => read_dicom_volume(path)?,
         "npy" => identity(read_npy(path, options.npy_axes)?),
         "nrrd" | "nhdr" => identity(read_nrrd(path)?),
         "mha" | "mhd" => read_metaimage(path)?,
@@ -237,6 +242,20 @@ pub fn read_volume_oriented(
         None => grid,
     };
     Ok((grid, orientation))
+}
+
+#[cfg(feature = "dicom")]
+fn read_dicom_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
+    read_dicom_series(path)
+}
+
+#[cfg(not(feature = "dicom"))]
+fn read_dicom_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
+    Err(IoError::unsupported(
+        path,
+        Position::File,
+        "a folder is read as a DICOM series, which needs isocube built with the `dicom` feature",
+    ))
 }
 
 #[cfg(feature = "tiff")]
@@ -294,6 +313,7 @@ mod tests {
         for (name, file) in expected["files"].as_object().unwrap() {
             if (name.contains(".nii") && cfg!(not(feature = "nifti")))
                 || (name.contains(".tif") && cfg!(not(feature = "tiff")))
+                || (name == "dicom" && cfg!(not(feature = "dicom")))
             {
                 continue;
             }
@@ -342,7 +362,14 @@ mod tests {
             checked += 1;
         }
         let all = expected["files"].as_object().unwrap().len();
-        assert!(checked == all || cfg!(not(all(feature = "nifti", feature = "tiff"))));
+        assert!(
+            checked == all
+                || cfg!(not(all(
+                    feature = "nifti",
+                    feature = "tiff",
+                    feature = "dicom"
+                )))
+        );
         assert!(checked >= 2);
     }
 
@@ -356,7 +383,7 @@ mod tests {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             let name = path.file_name().unwrap().to_str().unwrap().to_string();
-            if name.ends_with(".json") || name.ends_with(".raw") {
+            if name.ends_with(".json") || name.ends_with(".raw") || path.is_dir() {
                 continue;
             }
             let bytes = std::fs::read(&path).unwrap();
@@ -379,6 +406,35 @@ mod tests {
             }
         }
         assert!(errors > 500, "{errors}");
+        // A DICOM series with one slice cut short or damaged.
+        #[cfg(feature = "dicom")]
+        {
+            let series = work.path().join("series");
+            std::fs::create_dir(&series).unwrap();
+            let mut names: Vec<_> = std::fs::read_dir(dir.join("dicom"))
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .collect();
+            names.sort();
+            for n in &names {
+                std::fs::copy(n, series.join(n.file_name().unwrap())).unwrap();
+            }
+            // Slice 2 of 8: without it the others are unevenly spaced.
+            let victim = series.join(names[2].file_name().unwrap());
+            let bytes = std::fs::read(&victim).unwrap();
+            for cut in (0..bytes.len()).step_by(7) {
+                std::fs::write(&victim, &bytes[..cut]).unwrap();
+                let r = read_volume_oriented(&series, &VolumeOptions::default());
+                // Cut before the marker, the file is no slice: the rest are uneven.
+                assert!(r.is_err(), "cut at {cut}");
+            }
+            for at in (0..bytes.len()).step_by(3) {
+                let mut damaged = bytes.clone();
+                damaged[at] ^= 0x5a;
+                std::fs::write(&victim, &damaged).unwrap();
+                let _ = read_volume_oriented(&series, &VolumeOptions::default());
+            }
+        }
     }
 
     #[test]

@@ -1,0 +1,319 @@
+//! DICOM series: a folder of single-frame slices of one series (CT, MR), through the dicom-rs
+//! crates. Slices are sorted by their position along the normal of their orientation; the slice
+//! spacing comes from the positions (and must be even), the in-plane spacing from
+//! `PixelSpacing`, the axes from `ImageOrientationPatient`, the origin from the first slice's
+//! `ImagePositionPatient` (patient coordinates, LPS). Stored values go through `RescaleSlope`
+//! and `RescaleIntercept`. Pixel data must be uncompressed (the little-endian transfer syntaxes);
+//! compressed series are refused by name.
+
+use std::path::{Path, PathBuf};
+
+use dicom_dictionary_std::tags;
+use dicom_object::{open_file, DefaultDicomObject};
+
+use super::{IoError, Position};
+use crate::field::{Grid, Orientation};
+
+/// Uncompressed little-endian transfer syntaxes: implicit VR, explicit VR, deflated explicit VR.
+const UNCOMPRESSED: [&str; 3] = [
+    "1.2.840.10008.1.2",
+    "1.2.840.10008.1.2.1",
+    "1.2.840.10008.1.2.1.99",
+];
+
+struct Slice {
+    path: PathBuf,
+    series: String,
+    position: [f64; 3],
+    row: [f64; 3],
+    column: [f64; 3],
+    pixel: [f64; 2],
+    size: (usize, usize),
+    signed: bool,
+    bits: usize,
+    slope: f64,
+    intercept: f64,
+    data: Vec<u8>,
+}
+
+/// Reads every DICOM file of a folder (files that are not DICOM are skipped) as one volume.
+pub fn read_dicom_series(dir: &Path) -> Result<(Grid, Orientation), IoError> {
+    let entries = std::fs::read_dir(dir).map_err(|e| IoError::os(dir, e))?;
+    let mut files: Vec<PathBuf> = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(|e| IoError::os(dir, e))?.path();
+        if path.is_file() {
+            files.push(path);
+        }
+    }
+    files.sort();
+    let mut slices = Vec::new();
+    for path in files {
+        // A DICOM file has "DICM" after its 128-byte preamble; anything else is not a slice.
+        let mut magic = [0u8; 132];
+        let is_dicom = std::fs::File::open(&path)
+            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+            .is_ok()
+            && &magic[128..] == b"DICM";
+        if is_dicom {
+            slices.push(read_slice(&path)?);
+        }
+    }
+    let first = slices.first().ok_or_else(|| {
+        IoError::format(
+            dir,
+            Position::File,
+            "no DICOM files (with the DICM marker) in the folder",
+        )
+    })?;
+    let at = |s: &Slice, field: &str| (s.path.clone(), Position::Field(field.into()));
+    for s in &slices {
+        let differs = |a: &[f64], b: &[f64]| a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-4);
+        let problem = if s.series != first.series {
+            Some((
+                "SeriesInstanceUID",
+                format!(
+                    "series {} beside {}: give a folder with one series",
+                    s.series, first.series
+                ),
+            ))
+        } else if s.size != first.size {
+            Some((
+                "Rows",
+                format!("{:?} pixels, the first slice has {:?}", s.size, first.size),
+            ))
+        } else if differs(&s.row, &first.row) || differs(&s.column, &first.column) {
+            Some((
+                "ImageOrientationPatient",
+                "differs from the first slice's".to_string(),
+            ))
+        } else if differs(&s.pixel, &first.pixel) {
+            Some(("PixelSpacing", "differs from the first slice's".to_string()))
+        } else {
+            None
+        };
+        if let Some((field, reason)) = problem {
+            let (path, pos) = at(s, field);
+            return Err(IoError::format(&path, pos, reason));
+        }
+    }
+    let normal = cross(first.row, first.column);
+    let along = |s: &Slice| dot(s.position, normal);
+    slices.sort_by(|a, b| along(a).total_cmp(&along(b)));
+    // Every slice has the first one's size, axes and pixel spacing (checked above).
+    let first = &slices[0];
+    let (nx, ny, nz) = (first.size.1, first.size.0, slices.len());
+    let step = if nz > 1 {
+        along(&slices[1]) - along(&slices[0])
+    } else {
+        1.0
+    };
+    for w in slices.windows(2) {
+        let gap = along(&w[1]) - along(&w[0]);
+        if gap <= 1e-6 || (gap - step).abs() > 1e-3 * step.abs().max(1e-3) {
+            let (path, pos) = at(&w[1], "ImagePositionPatient");
+            return Err(IoError::format(
+                &path,
+                pos,
+                format!("slices {gap:.4} apart where the first two are {step:.4}: uneven or repeated slices"),
+            ));
+        }
+    }
+    let mut values = Vec::with_capacity(nx * ny * nz);
+    for s in &slices {
+        let width = s.bits / 8;
+        for px in s.data.chunks_exact(width).take(nx * ny) {
+            let raw = match (width, s.signed) {
+                (1, false) => f64::from(px[0]),
+                (1, true) => f64::from(px[0] as i8),
+                (2, false) => f64::from(u16::from_le_bytes([px[0], px[1]])),
+                (2, true) => f64::from(i16::from_le_bytes([px[0], px[1]])),
+                (4, false) => f64::from(u32::from_le_bytes([px[0], px[1], px[2], px[3]])),
+                _ => f64::from(i32::from_le_bytes([px[0], px[1], px[2], px[3]])),
+            };
+            values.push((s.slope * raw + s.intercept) as f32);
+        }
+    }
+    // Grid x runs along a row (the row direction cosine), y down the columns, z along the sorted
+    // slices; the columns of the map are those directions times the spacings.
+    let slice_dir = {
+        let d = sub(
+            slices.last().map_or(first.position, |s| s.position),
+            slices[0].position,
+        );
+        let len = dot(d, d).sqrt();
+        if nz > 1 && len > 0.0 {
+            d.map(|c| c / len)
+        } else {
+            normal
+        }
+    };
+    let spacing_z = if nz > 1 { step } else { 1.0 };
+    let axes = [first.row, first.column, slice_dir];
+    let scale = [first.pixel[1], first.pixel[0], spacing_z];
+    let linear: [[f64; 3]; 3] =
+        std::array::from_fn(|r| std::array::from_fn(|c| axes[c][r] * scale[c]));
+    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
+        let (path, pos) = at(first, "ImageOrientationPatient");
+        IoError::format(&path, pos, "the slice axes are degenerate")
+    })?;
+    let grid = Grid::new([nx, ny, nz], values)
+        .and_then(|g| g.with_spacing(spacing))
+        .and_then(|g| g.with_origin(first.position))
+        .map_err(|e| IoError::grid(dir, e))?;
+    Ok((grid, orientation))
+}
+
+fn read_slice(path: &Path) -> Result<Slice, IoError> {
+    let obj: DefaultDicomObject = open_file(path).map_err(|e| {
+        IoError::format(
+            path,
+            Position::File,
+            format!("not a readable DICOM file: {e}"),
+        )
+    })?;
+    let ts = obj
+        .meta()
+        .transfer_syntax()
+        .trim_end_matches('\0')
+        .to_string();
+    if !UNCOMPRESSED.contains(&ts.as_str()) {
+        return Err(IoError::unsupported(
+            path,
+            Position::Field("TransferSyntaxUID".into()),
+            format!("transfer syntax {ts} (compressed or big-endian pixel data): isocube reads uncompressed little-endian series"),
+        ));
+    }
+    let field = |name: &str| Position::Field(name.into());
+    let floats = |tag, name: &str, n: usize| -> Result<Vec<f64>, IoError> {
+        let v = obj
+            .element(tag)
+            .map_err(|_| IoError::format(path, field(name), "missing"))?
+            .to_multi_float64()
+            .map_err(|e| IoError::format(path, field(name), e.to_string()))?;
+        if v.len() != n || v.iter().any(|x| !x.is_finite()) {
+            return Err(IoError::format(
+                path,
+                field(name),
+                format!("{v:?} is not {n} finite numbers"),
+            ));
+        }
+        Ok(v)
+    };
+    let int = |tag, name: &str| -> Result<usize, IoError> {
+        obj.element(tag)
+            .map_err(|_| IoError::format(path, field(name), "missing"))?
+            .to_int::<u32>()
+            .map(|x| x as usize)
+            .map_err(|e| IoError::format(path, field(name), e.to_string()))
+    };
+    let optional = |tag| -> Option<f64> {
+        obj.element_opt(tag)
+            .ok()
+            .flatten()
+            .and_then(|e| e.to_float64().ok())
+            .filter(|x| x.is_finite())
+    };
+    let position = floats(tags::IMAGE_POSITION_PATIENT, "ImagePositionPatient", 3)?;
+    let orientation = floats(
+        tags::IMAGE_ORIENTATION_PATIENT,
+        "ImageOrientationPatient",
+        6,
+    )?;
+    let pixel = floats(tags::PIXEL_SPACING, "PixelSpacing", 2)?;
+    let (rows, columns) = (int(tags::ROWS, "Rows")?, int(tags::COLUMNS, "Columns")?);
+    let bits = int(tags::BITS_ALLOCATED, "BitsAllocated")?;
+    if !matches!(bits, 8 | 16 | 32) {
+        return Err(IoError::unsupported(
+            path,
+            field("BitsAllocated"),
+            format!("{bits} bits"),
+        ));
+    }
+    if obj
+        .element_opt(tags::SAMPLES_PER_PIXEL)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_int::<u32>().ok())
+        .unwrap_or(1)
+        != 1
+    {
+        return Err(IoError::unsupported(
+            path,
+            field("SamplesPerPixel"),
+            "colour images",
+        ));
+    }
+    if obj
+        .element_opt(tags::NUMBER_OF_FRAMES)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_int::<u32>().ok())
+        .unwrap_or(1)
+        > 1
+    {
+        return Err(IoError::unsupported(
+            path,
+            field("NumberOfFrames"),
+            "multi-frame files",
+        ));
+    }
+    let signed = int(tags::PIXEL_REPRESENTATION, "PixelRepresentation").unwrap_or(0) == 1;
+    let data = obj
+        .element(tags::PIXEL_DATA)
+        .map_err(|_| IoError::format(path, field("PixelData"), "missing"))?
+        .to_bytes()
+        .map_err(|e| IoError::format(path, field("PixelData"), e.to_string()))?
+        .into_owned();
+    let need = rows * columns * bits / 8;
+    if data.len() < need {
+        return Err(IoError::format(
+            path,
+            field("PixelData"),
+            format!(
+                "{} bytes for {rows}×{columns} pixels of {bits} bits ({need} needed)",
+                data.len()
+            ),
+        ));
+    }
+    let series = obj
+        .element_opt(tags::SERIES_INSTANCE_UID)
+        .ok()
+        .flatten()
+        .and_then(|e| {
+            e.to_str()
+                .ok()
+                .map(|s| s.trim_end_matches('\0').trim().to_string())
+        })
+        .unwrap_or_default();
+    Ok(Slice {
+        path: path.to_path_buf(),
+        series,
+        position: [position[0], position[1], position[2]],
+        row: [orientation[0], orientation[1], orientation[2]],
+        column: [orientation[3], orientation[4], orientation[5]],
+        pixel: [pixel[0], pixel[1]],
+        size: (rows, columns),
+        signed,
+        bits,
+        slope: optional(tags::RESCALE_SLOPE).unwrap_or(1.0),
+        intercept: optional(tags::RESCALE_INTERCEPT).unwrap_or(0.0),
+        data,
+    })
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
