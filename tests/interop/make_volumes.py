@@ -3,7 +3,10 @@ each with a known value at every index and a known index-to-world geometry, into
 tests/data/volumes/, plus expected.json describing them. isocube's reader tests compare what
 they read against that description.
 
+    pip install -r tests/interop/requirements-volumes.txt
     python tests/interop/make_volumes.py [OUTDIR]
+
+DICOM files get new UIDs on every run; the other files come out byte for byte the same.
 """
 
 import json
@@ -190,6 +193,18 @@ for k in range(NZ):
     ds.save_as(name, enforce_file_format=True)
 linear = np.stack([row_dir * pixel[1], col_dir * pixel[0], normal * 1.5], axis=1)
 record("dicom", linear, first, 2.0, -1024.0)
+
+# A small segmentation for `isocube extract --labels` (README): three touching ellipsoids,
+# labels 1, 2, 3, in background 0, 1 mm × 1 mm × 1.5 mm voxels.
+i, j, k = np.meshgrid(np.arange(48), np.arange(40), np.arange(32), indexing="ij")
+seg = np.zeros((48, 40, 32), np.uint8)
+for label, (cx, cy, cz, rx, ry, rz) in enumerate(
+    [(16, 20, 16, 10, 12, 10), (30, 20, 16, 9, 10, 9), (23, 20, 26, 12, 9, 5)], start=1
+):
+    inside = ((i - cx) / rx) ** 2 + ((j - cy) / ry) ** 2 + ((k - cz) / rz) ** 2 <= 1
+    seg[inside & (seg == 0)] = label
+affine = np.diag([1.0, 1.0, 1.5, 1.0])
+nib.save(nib.Nifti1Image(seg, affine), out / "labels.nii.gz")
 
 (out / "expected.json").write_text(json.dumps(expected, indent=1) + "\n")
 print("wrote", ", ".join(expected["files"]), "to", out)

@@ -416,6 +416,18 @@ fn readme_examples_run() {
         }
     }
     std::fs::write(dir.path().join("ct.npy"), npy).unwrap();
+    // The volumes in tests/data, at the same relative paths as in a clone.
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+    let copy = dir.path().join("tests/data/volumes");
+    std::fs::create_dir_all(copy.join("dicom")).unwrap();
+    for sub in ["", "dicom"] {
+        for entry in std::fs::read_dir(data.join(sub)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_file() {
+                std::fs::copy(&path, copy.join(sub).join(path.file_name().unwrap())).unwrap();
+            }
+        }
+    }
     let mut in_block = false;
     let mut ran = 0;
     for line in readme.lines() {
@@ -1011,4 +1023,41 @@ fn oriented_volumes_give_meshes_in_world_coordinates() {
             assert_eq!(*a, expect, "{name}");
         }
     }
+}
+
+#[test]
+fn labels_give_one_closed_surface_each() {
+    let dir = tempfile::tempdir().unwrap();
+    let seg = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes/labels.nii.gz");
+    let seg = seg.to_str().unwrap();
+    ok(
+        dir.path(),
+        &["extract", seg, "--labels", "-o", "organs.ply", "--quiet"],
+    );
+    for label in 1..=3 {
+        let r = info(dir.path(), &format!("organs-{label}.ply"));
+        assert_eq!(r["watertight"], true, "{label}: {r}");
+        assert_eq!(r["components"], 1);
+        assert_eq!(r["euler"], 2);
+    }
+    ok(
+        dir.path(),
+        &[
+            "extract", seg, "--labels", "2", "-o", "two.obj", "--quiet", "--smooth", "0",
+        ],
+    );
+    assert!(dir.path().join("two-2.obj").exists() && !dir.path().join("two-1.obj").exists());
+    for bad in [
+        vec!["extract", seg, "--labels", "x", "-o", "bad.ply"],
+        vec!["extract", seg, "--labels", "9", "-o", "bad.ply"],
+        vec!["extract", "sample:sphere:12", "--labels", "-o", "bad.ply"],
+    ] {
+        let out = isocube(dir.path(), &bad);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+    }
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert!(names.iter().all(|n| !n.starts_with("bad")), "{names:?}");
 }

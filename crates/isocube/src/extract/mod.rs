@@ -77,6 +77,7 @@
 
 mod binary;
 mod classify;
+mod labels;
 mod place;
 
 pub(crate) use classify::{cell_config, face_decisions};
@@ -85,6 +86,7 @@ mod ternary;
 mod weld;
 mod window;
 
+pub use labels::{extract_labels, LabelOptions, LabelSelection, LabelSurface};
 pub use stream::{extract_streamed, MeshSink, StreamError};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
@@ -250,6 +252,14 @@ pub enum ExtractError {
     /// The mesh would need more than `u32::MAX` vertices.
     #[error("the mesh would have more than {} vertices", u32::MAX)]
     TooManyVertices,
+    /// A labelled grid holds a value that is not an integer label.
+    #[error("point {point:?} holds {value}, which is not an integer label")]
+    Label {
+        /// The grid point.
+        point: [usize; 3],
+        /// Its value.
+        value: f32,
+    },
 }
 
 /// Extracts the isosurface into a new mesh.
