@@ -148,6 +148,26 @@ for name, mode, compress, encode, header64, rotated in [
     assert w.Write() == 1
     record(name, direction @ np.diag([0.6, 0.7, 0.8]), [-1.0, -2.0, -3.0])
 
+# NRRD with pynrrd: oblique space directions, gzip; NumPy .npy with numpy itself (x fastest
+# means a Fortran-order [x, y, z] array, isocube's default axes).
+import nrrd
+
+directions = rotation_z(60) @ np.diag([0.3, 0.3, 1.1])
+nrrd.write(
+    str(out / "oblique.nrrd"),
+    values().astype(np.int32),
+    header={
+        "space": "left-posterior-superior",
+        "space directions": directions.T,  # one row per axis
+        "space origin": np.array([5.0, 6.0, -7.0]),
+        "encoding": "gzip",
+    },
+    index_order="F",
+)
+record("oblique.nrrd", directions, [5.0, 6.0, -7.0])
+np.save(out / "fortran.npy", np.asfortranarray(values().astype(np.float64)))
+record("fortran.npy", np.eye(3), [0.0, 0.0, 0.0])
+
 # A DICOM series with pydicom: oblique slices (rows along a rotated axis), 1.5 mm apart,
 # CT-style stored values with a rescale intercept, files named out of slice order.
 import pydicom

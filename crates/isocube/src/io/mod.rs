@@ -64,7 +64,7 @@ pub use metaimage::read_metaimage;
 #[cfg(feature = "nifti")]
 pub use nifti::read_nifti;
 pub use npy::{read_npy, NpyAxes};
-pub use nrrd::read_nrrd;
+pub use nrrd::{read_nrrd, read_nrrd_oriented};
 pub use poly::{read_poly_mesh, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
 #[cfg(feature = "tiff")]
@@ -217,7 +217,7 @@ pub fn read_volume_oriented(
     let (grid, orientation) = match ext.as_str() {
         _ if path.is_dir() => read_dicom_volume(path)?,
         "npy" => identity(read_npy(path, options.npy_axes)?),
-        "nrrd" | "nhdr" => identity(read_nrrd(path)?),
+        "nrrd" | "nhdr" => read_nrrd_oriented(path)?,
         "mha" | "mhd" => read_metaimage(path)?,
         "vti" => read_vti(path)?,
         _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => read_nifti_volume(path)?,

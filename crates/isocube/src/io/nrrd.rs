@@ -1,21 +1,32 @@
 //! NRRD volumes: attached (`.nrrd`) and detached (`.nhdr` + data file) headers, raw, gzip and
 //! ASCII encodings, 3-D scalar data.
 //!
-//! Spacing comes from `spacings` or from the lengths of the `space directions` vectors (axis-
-//! aligned directions are expected; the orientation of oblique ones is not applied), the origin
-//! from `space origin`.
+//! Spacing comes from `spacings` or from the lengths of the `space directions` vectors, the
+//! orientation from those vectors' directions ([`read_nrrd_oriented`]), the origin from
+//! `space origin`.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{read_file, IoError, Position};
-use crate::field::Grid;
+use crate::field::{Grid, Orientation};
 
-/// Reads an NRRD file (attached or detached header).
+/// Reads an NRRD file (attached or detached header) in its grid frame (see
+/// [`read_nrrd_oriented`]).
 pub fn read_nrrd(path: &Path) -> Result<Grid, IoError> {
+    read_nrrd_oriented(path).map(|(grid, _)| grid)
+}
+
+/// Reads an NRRD file and the orientation of its `space directions`.
+pub fn read_nrrd_oriented(path: &Path) -> Result<(Grid, Orientation), IoError> {
     let bytes = read_file(path)?;
     let header = Header::parse(path, &bytes)?;
+    let grid = read_data(path, &bytes, &header)?;
+    Ok((grid, header.orientation))
+}
+
+fn read_data(path: &Path, bytes: &[u8], header: &Header) -> Result<Grid, IoError> {
     let dims = header.dims;
     let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
     let (data_path, data): (PathBuf, Vec<u8>) = match &header.data_file {
@@ -51,7 +62,7 @@ pub fn read_nrrd(path: &Path) -> Result<Grid, IoError> {
                 })?;
             out
         }
-        Encoding::Ascii => return ascii_grid(&data_path, &data, &header, count),
+        Encoding::Ascii => return ascii_grid(&data_path, &data, header, count),
     };
     let size = header.scalar.size();
     let need = count * size;
@@ -78,7 +89,7 @@ pub fn read_nrrd(path: &Path) -> Result<Grid, IoError> {
         ));
     }
     let values = decode_all(&data[..need], header.scalar, header.endian);
-    finish(path, dims, values, &header)
+    finish(path, dims, values, header)
 }
 
 fn ascii_grid(path: &Path, data: &[u8], header: &Header, count: usize) -> Result<Grid, IoError> {
@@ -136,6 +147,7 @@ struct Header {
     encoding: Encoding,
     spacing: [f64; 3],
     origin: [f64; 3],
+    orientation: Orientation,
     data_file: Option<String>,
     line_skip: usize,
     byte_skip: i64,
@@ -286,9 +298,12 @@ impl Header {
                             "space directions needs three 3-vectors",
                         ));
                     }
-                    directions = Some(
-                        [0, 1, 2].map(|a| vectors[a].iter().map(|c| c * c).sum::<f64>().sqrt()),
-                    );
+                    // Each vector is one axis's step: the columns of the index-to-world map.
+                    let linear: [[f64; 3]; 3] =
+                        std::array::from_fn(|r| std::array::from_fn(|c| vectors[c][r]));
+                    directions = Some(Orientation::from_linear(linear).ok_or_else(|| {
+                        IoError::format(path, pos(), "the space directions are singular")
+                    })?);
                 }
                 "space origin" => {
                     let o = numbers(
@@ -352,8 +367,9 @@ impl Header {
             scalar,
             endian,
             encoding,
-            spacing: spacing.or(directions).unwrap_or([1.0; 3]),
+            spacing: spacing.or(directions.map(|d| d.0)).unwrap_or([1.0; 3]),
             origin,
+            orientation: directions.map_or(Orientation::IDENTITY, |d| d.1),
             data_file,
             line_skip,
             byte_skip,
