@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
 use isocube::field::{Grid, SampleSpec};
-use isocube::io::{read_mesh, read_volume, VolumeOptions};
+use isocube::io::{read_mesh, read_volume_oriented, VolumeOptions};
 use isocube::mesh::Mesh;
 use isocube::quality::{
     level_set_distance, quality_report, Distance, Field, QualityReport, Range, Trilinear,
@@ -82,10 +82,15 @@ fn distance(mesh: &Mesh, spec: &str, level: f64) -> Result<Distance, Failure> {
             min_spacing(&grid),
         ));
     }
-    let grid = read_volume(Path::new(spec), &VolumeOptions::default())
+    let (grid, orientation) = read_volume_oriented(Path::new(spec), &VolumeOptions::default())
         .map_err(|e| crate::io_failure(e, true))?;
     let field = Trilinear(&grid);
-    let f = |p: [f64; 3]| field.value_and_gradient(p).map_or(f64::NAN, |(v, _)| v);
+    // The mesh is in the file's world coordinates: evaluate in the grid's own frame (a
+    // rotation or reflection keeps distances).
+    let f = |p: [f64; 3]| {
+        let q = orientation.to_grid_frame(p, grid.origin());
+        field.value_and_gradient(q).map_or(f64::NAN, |(v, _)| v)
+    };
     Ok(level_set_distance(mesh, f, level, min_spacing(&grid)))
 }
 
