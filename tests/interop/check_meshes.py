@@ -69,24 +69,16 @@ def load(path):
         it.InitTraversal()
         _, _, arrays = vtk_arrays(it.GetCurrentDataObject())
         return np.asarray(m.vertices), np.asarray(m.faces), arrays.get("NORMAL"), values, "trimesh + VTK"
-    if ext == ".vtp":
+    if ext in (".vtp", ".vtk"):
         import vtk
 
-        r = vtk.vtkXMLPolyDataReader()
+        r = vtk.vtkXMLPolyDataReader() if ext == ".vtp" else vtk.vtkPolyDataReader()
         r.SetFileName(str(path))
         r.Update()
         points, polys, arrays = vtk_arrays(r.GetOutput())
         values = [v for k, v in arrays.items() if k != "Normals"]
-        return points, polys, arrays.get("Normals"), values[0] if values else None, "VTK XML"
-    if ext == ".vtk":
-        import vtk
-
-        r = vtk.vtkPolyDataReader()
-        r.SetFileName(str(path))
-        r.Update()
-        points, polys, arrays = vtk_arrays(r.GetOutput())
-        values = [v for k, v in arrays.items() if k != "Normals"]
-        return points, polys, arrays.get("Normals"), values[0] if values else None, "VTK legacy"
+        reader = "VTK XML" if ext == ".vtp" else "VTK legacy"
+        return points, polys, arrays.get("Normals"), values[0] if values else None, reader
     if ext == ".msh":
         import gmsh
 

@@ -10,7 +10,7 @@ use isocube::extract::{
     LabelSelection, Method, SnapPosition, Snapping, StreamError,
 };
 use isocube::field::SampleSpec;
-use isocube::field::{Orientation, PlaneSource};
+use isocube::field::{Grid, Orientation, PlaneSource};
 use isocube::io::{
     write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
 };
@@ -125,16 +125,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(volume) = streamable(args)? {
         return run_streamed(args, &volume, quiet);
     }
-    let (grid, orientation) = args.volume.load_oriented()?;
-    let (grid, orientation) = if args.index_space {
-        let grid = grid
-            .with_spacing([1.0; 3])
-            .and_then(|g| g.with_origin([0.0; 3]))
-            .map_err(Failure::input)?;
-        (grid, Orientation::IDENTITY)
-    } else {
-        (grid, orientation)
-    };
+    let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
     let exact = SampleSpec::is_sample(&args.volume.volume)
         .then(|| args.volume.volume.parse::<SampleSpec>().ok())
         .flatten()
@@ -204,6 +195,22 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The volume as meshed: in index space (spacing 1, origin 0, no direction) with
+/// `--index-space`, else as the file places it.
+fn in_frame(
+    args: &Args,
+    (grid, orientation): (Grid, Orientation),
+) -> Result<(Grid, Orientation), Failure> {
+    if !args.index_space {
+        return Ok((grid, orientation));
+    }
+    let grid = grid
+        .with_spacing([1.0; 3])
+        .and_then(|g| g.with_origin([0.0; 3]))
+        .map_err(Failure::input)?;
+    Ok((grid, Orientation::IDENTITY))
+}
+
 fn parse_labels(s: &str) -> Result<LabelSelection, String> {
     if s == "all" {
         return Ok(LabelSelection::All);
@@ -227,16 +234,7 @@ fn label_path(output: &std::path::Path, label: i64) -> PathBuf {
 
 /// `--labels`: one closed surface per label, in world coordinates unless `--index-space`.
 fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<(), Failure> {
-    let (grid, orientation) = args.volume.load_oriented()?;
-    let (grid, orientation) = if args.index_space {
-        let grid = grid
-            .with_spacing([1.0; 3])
-            .and_then(|g| g.with_origin([0.0; 3]))
-            .map_err(Failure::input)?;
-        (grid, Orientation::IDENTITY)
-    } else {
-        (grid, orientation)
-    };
+    let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
     let started = Instant::now();
     let options = LabelOptions {
         background: args.background,
@@ -299,16 +297,7 @@ fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, V
         volume: spec.to_string(),
         ..args.volume.clone()
     };
-    let (grid, orientation) = volume.load_oriented()?;
-    let (grid, orientation) = if args.index_space {
-        let grid = grid
-            .with_spacing([1.0; 3])
-            .and_then(|g| g.with_origin([0.0; 3]))
-            .map_err(Failure::input)?;
-        (grid, Orientation::IDENTITY)
-    } else {
-        (grid, orientation)
-    };
+    let (grid, orientation) = in_frame(args, volume.load_oriented()?)?;
     let field = Trilinear(&grid);
     let dims = grid.dims();
     let (h, o) = (grid.spacing(), grid.origin());

@@ -864,18 +864,50 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
-/// OFF (and its `NOFF`/`COFF`/`CNOFF` headers, whose extra vertex columns are skipped):
-/// `#` comments, counts, vertices, then faces as a count and indices (extra face colours are
-/// skipped too).
-fn read_off(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
+/// The first three words of a vertex line as checked coordinates.
+fn vertex_from_words<'a>(
+    path: &Path,
+    pos: impl Fn() -> Position + Copy,
+    words: impl Iterator<Item = &'a str>,
+) -> Result<[f32; 3], IoError> {
+    let c: Vec<f64> = words
+        .take(3)
+        .map(|w| {
+            w.parse::<f64>()
+                .map_err(|_| IoError::format(path, pos(), format!("'{w}' is not a number")))
+        })
+        .collect::<Result<_, _>>()?;
+    if c.len() < 3 {
+        return Err(IoError::format(
+            path,
+            pos(),
+            "a vertex needs three coordinates",
+        ));
+    }
+    Ok([
+        check_coordinate(path, pos, c[0])?,
+        check_coordinate(path, pos, c[1])?,
+        check_coordinate(path, pos, c[2])?,
+    ])
+}
+
+/// A text file's content, or an error naming the line where it stops being UTF-8.
+fn utf8_text<'a>(path: &Path, bytes: &'a [u8]) -> Result<&'a str, IoError> {
+    std::str::from_utf8(bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()]
             .iter()
             .filter(|&&b| b == b'\n')
             .count()
             + 1;
         IoError::format(path, Position::Line(line), "not valid UTF-8 text")
-    })?;
+    })
+}
+
+/// OFF (and its `NOFF`/`COFF`/`CNOFF` headers, whose extra vertex columns are skipped):
+/// `#` comments, counts, vertices, then faces as a count and indices (extra face colours are
+/// skipped too).
+fn read_off(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
+    let text = utf8_text(path, bytes)?;
     let mut lines = text
         .lines()
         .enumerate()
@@ -923,26 +955,8 @@ fn read_off(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
     for _ in 0..vertices {
         let (n, l) = lines.next().ok_or_else(|| end("all vertices"))?;
         let pos = || Position::Line(n);
-        let c: Vec<f64> = l
-            .split_whitespace()
-            .take(3)
-            .map(|w| {
-                w.parse::<f64>()
-                    .map_err(|_| IoError::format(path, pos(), format!("'{w}' is not a number")))
-            })
-            .collect::<Result<_, _>>()?;
-        if c.len() < 3 {
-            return Err(IoError::format(
-                path,
-                pos(),
-                "a vertex needs three coordinates",
-            ));
-        }
-        mesh.positions.push([
-            check_coordinate(path, pos, c[0])?,
-            check_coordinate(path, pos, c[1])?,
-            check_coordinate(path, pos, c[2])?,
-        ]);
+        mesh.positions
+            .push(vertex_from_words(path, pos, l.split_whitespace())?);
     }
     for _ in 0..faces {
         let (n, l) = lines.next().ok_or_else(|| end("all faces"))?;
@@ -974,14 +988,7 @@ fn read_off(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
 }
 
 fn read_obj(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        IoError::format(path, Position::Line(line), "not valid UTF-8 text")
-    })?;
+    let text = utf8_text(path, bytes)?;
     let mut mesh = Mesh::new();
     let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
     for (n, line) in text.lines().enumerate() {
@@ -989,26 +996,7 @@ fn read_obj(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
-                let c: Vec<f64> = words
-                    .take(3)
-                    .map(|w| {
-                        w.parse::<f64>().map_err(|_| {
-                            IoError::format(path, pos(), format!("'{w}' is not a number"))
-                        })
-                    })
-                    .collect::<Result<_, _>>()?;
-                if c.len() < 3 {
-                    return Err(IoError::format(
-                        path,
-                        pos(),
-                        "a vertex needs three coordinates",
-                    ));
-                }
-                mesh.positions.push([
-                    check_coordinate(path, pos, c[0])?,
-                    check_coordinate(path, pos, c[1])?,
-                    check_coordinate(path, pos, c[2])?,
-                ]);
+                mesh.positions.push(vertex_from_words(path, pos, words)?);
             }
             Some("f") => {
                 let count = mesh.positions.len() as i64;
