@@ -13,6 +13,7 @@ use dicom_object::{open_file, DefaultDicomObject};
 
 use super::{IoError, Position};
 use crate::field::{Grid, Orientation};
+use crate::mesh::{cross, dot, sub};
 
 /// Uncompressed little-endian transfer syntaxes: implicit VR, explicit VR, deflated explicit VR.
 const UNCOMPRESSED: [&str; 3] = [
@@ -300,20 +301,4 @@ fn read_slice(path: &Path) -> Result<Slice, IoError> {
         intercept: optional(tags::RESCALE_INTERCEPT).unwrap_or(0.0),
         data,
     })
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
