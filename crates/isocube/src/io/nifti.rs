@@ -16,7 +16,13 @@ use crate::field::{Grid, Orientation};
 pub fn read_nifti(path: &Path) -> Result<(Grid, Orientation), IoError> {
     let fail = |reason: String| IoError::format(path, Position::File, reason);
     let object = ReaderOptions::new().read_file(path).map_err(|e| match e {
-        nifti::NiftiError::Io(io) => IoError::os(path, io),
+        nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            fail("the file ends inside its header or data".into())
+        }
+        nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::NotFound => {
+            IoError::os(path, io)
+        }
+        nifti::NiftiError::Io(io) => fail(format!("not a readable NIfTI-1 file: {io}")),
         other => fail(format!("not a readable NIfTI-1 file: {other}")),
     })?;
     let header = object.header().clone();

@@ -1,0 +1,203 @@
+//! Malformed inputs of every format the command reads: each one exits with code 2, an error
+//! that names the file and says what is wrong, no panic, and no output file.
+
+use std::process::Command;
+
+fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+    let mut header =
+        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}").into_bytes();
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(&header);
+    out.extend_from_slice(data);
+    out
+}
+
+/// A NIfTI-1 header (348 bytes + 4 bytes of extension flag) for `dims` of int16.
+fn nifti(dims: &[u16], datatype: i16, magic: &[u8; 4]) -> Vec<u8> {
+    let mut h = vec![0u8; 352];
+    h[0..4].copy_from_slice(&348i32.to_le_bytes());
+    let mut dim = [1u16; 8];
+    dim[0] = dims.len() as u16;
+    dim[1..=dims.len()].copy_from_slice(dims);
+    for (i, d) in dim.iter().enumerate() {
+        h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
+    }
+    h[70..72].copy_from_slice(&datatype.to_le_bytes());
+    h[72..74].copy_from_slice(&16i16.to_le_bytes());
+    for i in 0..8 {
+        h[76 + 4 * i..80 + 4 * i].copy_from_slice(&1f32.to_le_bytes());
+    }
+    h[108..112].copy_from_slice(&352f32.to_le_bytes());
+    h[344..348].copy_from_slice(magic);
+    h
+}
+
+fn zlib(data: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(data).unwrap();
+    e.finish().unwrap()
+}
+
+fn tiff_page(width: u32, height: u32, samples: u16, data_len: u32) -> Vec<u8> {
+    // A minimal little-endian baseline TIFF: one strip, 8-bit grey (or RGB).
+    let entries: Vec<(u16, u16, u32, u32)> = vec![
+        (256, 4, 1, width),
+        (257, 4, 1, height),
+        (258, 3, 1, 8),
+        (259, 3, 1, 1),
+        (262, 3, 1, if samples == 3 { 2 } else { 1 }),
+        (273, 4, 1, 8 + 2 + 12 * 9 + 4),
+        (277, 3, 1, u32::from(samples)),
+        (278, 4, 1, height),
+        (279, 4, 1, data_len),
+    ];
+    let mut out = b"II*\0".to_vec();
+    out.extend_from_slice(&8u32.to_le_bytes());
+    out.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    for (tag, kind, count, value) in entries {
+        out.extend_from_slice(&tag.to_le_bytes());
+        out.extend_from_slice(&kind.to_le_bytes());
+        out.extend_from_slice(&count.to_le_bytes());
+        out.extend_from_slice(&value.to_le_bytes());
+    }
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.resize(out.len() + data_len as usize, 7u8);
+    out
+}
+
+const MHA: &str = "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n";
+const VTI_HEAD: &str =
+    r#"<VTKFile type="ImageData" version="1.0" byte_order="LittleEndian" header_type="UInt32">"#;
+
+/// (file name, content, extra command-line arguments, what the error must say)
+fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
+    let ply = |body: &str| body.as_bytes().to_vec();
+    let vti = |image: &str, array: &str| {
+        format!("{VTI_HEAD}<ImageData {image}><Piece Extent=\"0 1 0 1 0 1\"><PointData>{array}</PointData></Piece></ImageData></VTKFile>").into_bytes()
+    };
+    vec![
+        // Raw volumes.
+        ("short.raw", vec![0; 100], vec!["--dims", "4,4,4", "--type", "u16"], "need 128 bytes"),
+        ("huge.raw", vec![0; 8], vec!["--dims", "4294967296,4294967296,65536", "--type", "u8"], "overflow"),
+        ("half.raw", vec![0; 8], vec!["--dims", "2,2,2"], "need both --dims and --type"),
+        ("nodims.dat", vec![0; 8], vec![], "unknown volume extension"),
+        // NumPy.
+        ("magic.npy", b"NUMPY\x01\x00".to_vec(), vec![], "NUMPY magic"),
+        ("cut.npy", npy("<f4", "(2, 2, 2)", &[0; 32])[..20].to_vec(), vec![], "header runs past"),
+        ("complex.npy", npy("<c8", "(2, 2, 2)", &[0; 64]), vec![], "dtype '<c8'"),
+        ("flat.npy", npy("<f4", "(8,)", &[0; 32]), vec![], "3-D array"),
+        ("short.npy", npy("<f4", "(2, 2, 2)", &[0; 31]), vec![], "the file has 31"),
+        ("dict.npy", npy("<f4", "(2, 2, 2", &[0; 32]), vec![], "not a size"),
+        ("bigshape.npy", npy("|u1", "(100000, 100000, 100000)", &[0; 8]), vec![], "needs 1000000000000000 data bytes"),
+        // NRRD.
+        ("nomagic.nrrd", b"NRD0004\ntype: uchar\n\n".to_vec(), vec![], "NRRD"),
+        ("type.nrrd", b"NRRD0004\ntype: quaternion\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n".to_vec(), vec![], "type 'quaternion'"),
+        ("nosizes.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nencoding: raw\n\n\0\0\0\0\0\0\0\0".to_vec(), vec![], "sizes"),
+        ("short.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n\0\0\0".to_vec(), vec![], "the data has 3"),
+        ("badgz.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: gzip\n\nnot gzip at all".to_vec(), vec![], "gzip"),
+        ("detached.nhdr", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\ndata file: gone.raw\n\n".to_vec(), vec![], "gone.raw"),
+        ("fourd.nrrd", b"NRRD0004\ntype: uchar\ndimension: 4\nsizes: 2 2 2 2\nencoding: raw\n\n".to_vec(), vec![], "4 axes"),
+        // NIfTI.
+        ("cut.nii", nifti(&[2, 2, 2], 4, b"n+1\0")[..100].to_vec(), vec![], "ends inside its header"),
+        ("magic.nii", nifti(&[2, 2, 2], 4, b"xyz\0").into_iter().chain([0u8; 16]).collect(), vec![], "Invalid NIfTI-1 file"),
+        ("short.nii", nifti(&[2, 2, 2], 4, b"n+1\0").into_iter().chain([0u8; 7]).collect(), vec![], "buffer length (7)"),
+        ("frames.nii", nifti(&[2, 2, 2, 3], 4, b"n+1\0").into_iter().chain([0u8; 48]).collect(), vec![], "frames"),
+        ("badgz.nii.gz", b"\x1f\x8b\x08\0this is not deflate".to_vec(), vec![], "ends inside"),
+        ("bigdims.nii", nifti(&[30000, 30000, 30000], 4, b"n+1\0").into_iter().chain([0u8; 16]).collect(), vec![], "54000000000000 elements"),
+        ("type.nii", nifti(&[2, 2, 2], 1999, b"n+1\0").into_iter().chain([0u8; 16]).collect(), vec![], "1999"),
+        // MetaImage.
+        ("nodims.mha", b"NDims = 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n".to_vec(), vec![], "DimSize"),
+        ("rgb.mha", format!("{MHA}ElementNumberOfChannels = 3\nElementDataFile = LOCAL\n").into_bytes(), vec![], "channels"),
+        ("short.mha", [format!("{MHA}ElementDataFile = LOCAL\n").into_bytes(), vec![1; 5]].concat(), vec![], "need 8 bytes"),
+        ("badzlib.mha", [format!("{MHA}CompressedData = True\nElementDataFile = LOCAL\n").into_bytes(), b"garbage".to_vec()].concat(), vec![], "zlib"),
+        ("gone.mhd", format!("{MHA}ElementDataFile = gone.raw\n").into_bytes(), vec![], "gone.raw"),
+        ("ndims.mha", b"NDims = 5\n".to_vec(), vec![], "NDims 5"),
+        ("type.mha", b"NDims = 3\nDimSize = 2 2 2\nElementType = MET_STRING\nElementDataFile = LOCAL\n".to_vec(), vec![], "MET_STRING"),
+        ("zlibsize.mha", [format!("{MHA}CompressedData = True\nElementDataFile = LOCAL\n").into_bytes(), zlib(&[1; 5])].concat(), vec![], "zlib stream gives 5"),
+        // VTK ImageData.
+        ("poly.vti", br#"<VTKFile type="PolyData"><PolyData/></VTKFile>"#.to_vec(), vec![], "PolyData"),
+        ("noextent.vti", vti("Origin=\"0 0 0\"", ""), vec![], "WholeExtent"),
+        ("words.vti", vti("WholeExtent=\"0 1 0 1 0 1\"", r#"<DataArray type="Float32" Name="v" format="ascii">1 2 x 4 5 6 7 8</DataArray>"#), vec![], "not a list of numbers"),
+        ("count.vti", vti("WholeExtent=\"0 1 0 1 0 1\"", r#"<DataArray type="Float32" Name="v" format="ascii">1 2 3</DataArray>"#), vec![], "3 values"),
+        ("base64.vti", vti("WholeExtent=\"0 1 0 1 0 1\"", r#"<DataArray type="UInt8" Name="v" format="binary">@@@@####</DataArray>"#), vec![], "base64"),
+        ("offset.vti", [vti("WholeExtent=\"0 1 0 1 0 1\"", r#"<DataArray type="UInt8" Name="v" format="appended" offset="999"/>"#), b"<AppendedData encoding=\"raw\">_\x08\0\0\0".to_vec()].concat(), vec![], "offset 999"),
+        ("nodata.vti", vti("WholeExtent=\"0 1 0 1 0 1\"", ""), vec![], "no point data array"),
+        ("lz4.vti", br#"<VTKFile type="ImageData" compressor="vtkLZ4DataCompressor"><ImageData WholeExtent="0 1 0 1 0 1"/></VTKFile>"#.to_vec(), vec![], "vtkLZ4DataCompressor"),
+        ("xml.vti", b"<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 1 0 1 0 1\"></Other></VTKFile>".to_vec(), vec![], "XML"),
+        // TIFF.
+        ("text.tif", b"this is not a tiff".to_vec(), vec![], "TIFF"),
+        ("cut.tif", tiff_page(4, 4, 1, 16)[..60].to_vec(), vec![], "not a readable TIFF"),
+        ("rgb.tif", tiff_page(2, 2, 3, 12), vec![], "grey"),
+        ("strip.tif", tiff_page(4, 4, 1, 16)[..126].to_vec(), vec![], "page 0"),
+        // Meshes (read by `info`).
+        ("magic.ply", ply("plx\nformat ascii 1.0\nend_header\n"), vec![], "not a PLY file"),
+        ("count.ply", ply("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n"), vec![], "data ends before"),
+        ("index.ply", ply("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n"), vec![], "outside 0..3"),
+        ("nan.ply", ply("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"), vec![], "not a finite number"),
+        ("binary.ply", [b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec(), vec![0; 20]].concat(), vec![], "data ends before"),
+        ("zero.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n".to_vec(), vec![], "index 0"),
+        ("word.obj", b"v 0 zero 0\n".to_vec(), vec![], "'zero' is not a number"),
+        ("utf8.obj", b"v 0 0 0\n# \xff\xfe\n".to_vec(), vec![], "UTF-8"),
+        ("short.stl", [vec![0u8; 80], 10u32.to_le_bytes().to_vec(), vec![0u8; 100]].concat(), vec![], "does not match the triangle count"),
+        ("lies.off", b"OFF\n3 5 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n".to_vec(), vec![], "all faces"),
+        ("index.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n".to_vec(), vec![], "outside 0..3"),
+        ("written.glb", b"glTF".to_vec(), vec![], "reads only"),
+        // Contours.
+        ("bad.csv", b"section,z,contour,x,y\n0,0,0,1,one\n".to_vec(), vec![], "'one' is not a number"),
+        ("bad.json", b"{\"sections\": [".to_vec(), vec![], "EOF while parsing"),
+    ]
+}
+
+#[test]
+fn malformed_inputs_exit_2_with_a_specific_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let all = cases();
+    assert!(all.len() >= 50, "{} cases", all.len());
+    let mut failures = Vec::new();
+    for (name, content, extra, says) in all {
+        std::fs::write(dir.path().join(name), &content).unwrap();
+        let (command, output) = if name.ends_with(".csv") || name.ends_with(".json") {
+            ("contours", "out.ply")
+        } else if [".ply", ".obj", ".stl", ".off", ".glb"]
+            .iter()
+            .any(|e| name.ends_with(e))
+        {
+            ("render", "out.png")
+        } else {
+            ("extract", "out.ply")
+        };
+        let mut args = vec![command, name, "-o", output];
+        args.extend(&extra);
+        let out = Command::new(env!("CARGO_BIN_EXE_isocube"))
+            .args(&args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).trim().to_string();
+        let named =
+            err.contains(name) || (!says.is_empty() && err.contains(says)) || name == "half.raw";
+        let ok = out.status.code() == Some(2)
+            && !err.contains("panicked")
+            && named
+            && err.contains(says)
+            && !dir.path().join(output).exists();
+        if !ok {
+            failures.push(format!("{name}: exit {:?}: {err}", out.status.code()));
+        }
+        if std::env::var_os("SHOW").is_some() {
+            eprintln!("CASE {name}: {err}");
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of the malformed inputs:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
