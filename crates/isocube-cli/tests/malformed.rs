@@ -201,3 +201,82 @@ fn malformed_inputs_exit_2_with_a_specific_error() {
         failures.join("\n")
     );
 }
+
+/// A full disk, simulated by a file-size limit (`ulimit -f`, with SIGXFSZ ignored so that the
+/// write fails with EFBIG as it would with ENOSPC): every writer fails with exit code 1, leaves
+/// the existing target as it was and no temporary file behind.
+#[test]
+fn a_full_disk_leaves_the_target_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &str| {
+        Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "trap '' XFSZ; ulimit -f 4; exec '{}' {args}",
+                env!("CARGO_BIN_EXE_isocube")
+            ))
+            .current_dir(dir.path())
+            .output()
+            .unwrap()
+    };
+    // Inputs first, without the limit.
+    let ok = Command::new(env!("CARGO_BIN_EXE_isocube"))
+        .args(["extract", "sample:torus:40", "-o", "torus.ply", "--quiet"])
+        .current_dir(dir.path())
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let n = 40usize;
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    let mut header =
+        format!("{{'descr': '<f4', 'fortran_order': True, 'shape': ({n}, {n}, {n}), }}")
+            .into_bytes();
+    while (11 + header.len()) % 64 != 0 {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    npy.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    npy.extend_from_slice(&header);
+    for p in 0..n * n * n {
+        let c = [p % n, p / n % n, p / (n * n)].map(|c| c as f32 - 19.5);
+        npy.extend_from_slice(&(c.iter().map(|x| x * x).sum::<f32>().sqrt() - 12.0).to_le_bytes());
+    }
+    std::fs::write(dir.path().join("ball.npy"), npy).unwrap();
+    for (command, target) in [
+        ("extract sample:sphere:40 -o out.ply", "out.ply"),
+        ("extract sample:sphere:40 -o out.glb", "out.glb"),
+        ("extract ball.npy -o out.ply --stream", "out.ply"),
+        (
+            "extract sample:sphere:40 -o out.vtp --method ternary",
+            "out.vtp",
+        ),
+        ("render torus.ply -o out.png", "out.png"),
+        ("quality torus.ply --histogram out.png", "out.png"),
+        ("subdivide torus.ply -o out.obj --levels 1", "out.obj"),
+        ("contours sample:orebody -o out.ply", "out.ply"),
+    ] {
+        std::fs::write(dir.path().join(target), b"precious").unwrap();
+        let before: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        let out = run(command);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{command}: {err}");
+        assert!(
+            err.contains("too large") && err.contains(target),
+            "{command}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{command}: {err}");
+        assert_eq!(
+            std::fs::read(dir.path().join(target)).unwrap(),
+            b"precious",
+            "{command}"
+        );
+        let after: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(before.len(), after.len(), "{command} left {after:?}");
+    }
+}
