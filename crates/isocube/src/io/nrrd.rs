@@ -54,13 +54,17 @@ fn read_data(path: &Path, bytes: &[u8], header: &Header) -> Result<Grid, IoError
     let data = match header.encoding {
         Encoding::Raw => data,
         Encoding::Gzip => {
-            let mut out = Vec::new();
-            flate2::read::MultiGzDecoder::new(&data[..])
-                .read_to_end(&mut out)
-                .map_err(|e| {
-                    IoError::format(&data_path, Position::File, format!("gzip data: {e}"))
-                })?;
-            out
+            // Decompress no more than the values need (after a known byte skip): a small file
+            // cannot unpack into gigabytes the header never asked for.
+            let limit = match u64::try_from(header.byte_skip) {
+                Ok(skip) => (count as u64)
+                    .saturating_mul(header.scalar.size() as u64)
+                    .saturating_add(skip),
+                Err(_) => u64::MAX,
+            };
+            gunzip(&data, limit).map_err(|e| {
+                IoError::format(&data_path, Position::File, format!("gzip data: {e}"))
+            })?
         }
         Encoding::Ascii => return ascii_grid(&data_path, &data, header, count),
     };
@@ -90,6 +94,15 @@ fn read_data(path: &Path, bytes: &[u8], header: &Header) -> Result<Grid, IoError
     }
     let values = decode_all(&data[..need], header.scalar, header.endian);
     finish(path, dims, values, header)
+}
+
+/// The first `limit` bytes a gzip stream unpacks to (all of it when it is shorter).
+fn gunzip(data: &[u8], limit: u64) -> std::io::Result<Vec<u8>> {
+    let mut out = Vec::new();
+    flate2::read::MultiGzDecoder::new(data)
+        .take(limit)
+        .read_to_end(&mut out)?;
+    Ok(out)
 }
 
 fn ascii_grid(path: &Path, data: &[u8], header: &Header, count: usize) -> Result<Grid, IoError> {
@@ -453,6 +466,28 @@ mod tests {
         let p = dir.path().join("vol.nhdr");
         std::fs::write(&p, header("gzip", "data file: vol.raw.gz\n")).unwrap();
         check(&read_nrrd(&p).unwrap());
+    }
+
+    /// A few hundred bytes of gzip that would unpack to 64 MiB: only the 8 bytes the header
+    /// asks for are unpacked.
+    #[test]
+    fn gzip_data_is_unpacked_only_as_far_as_needed() {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        let zeros = vec![1u8; 1 << 20];
+        for _ in 0..64 {
+            e.write_all(&zeros).unwrap();
+        }
+        let packed = e.finish().unwrap();
+        assert!(packed.len() < 100_000);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bomb.nrrd");
+        let head = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: gzip\n\n";
+        std::fs::write(&p, [&head[..], &packed].concat()).unwrap();
+        let grid = read_nrrd(&p).unwrap();
+        assert_eq!(grid.values(), &[1.0; 8]);
+        assert_eq!(gunzip(&packed, 8).unwrap().len(), 8);
+        assert_eq!(gunzip(&packed, u64::MAX).unwrap().len(), 64 << 20);
     }
 
     #[test]
