@@ -4,6 +4,8 @@ use std::collections::{HashMap, HashSet};
 use std::path::Path;
 use std::process::{Command, Output};
 
+mod common;
+
 fn isocube(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_isocube"))
         .args(args)
@@ -394,16 +396,7 @@ fn readme_examples_run() {
     let dir = tempfile::tempdir().unwrap();
     // The file the streaming example reads: a small u16 `a[z, y, x]` volume with a bright ball.
     let n = 24usize;
-    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
-    let mut header =
-        format!("{{'descr': '<u2', 'fortran_order': False, 'shape': ({n}, {n}, {n}), }}")
-            .into_bytes();
-    while (11 + header.len()) % 64 != 0 {
-        header.push(b' ');
-    }
-    header.push(b'\n');
-    npy.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    npy.extend_from_slice(&header);
+    let mut data = Vec::with_capacity(2 * n * n * n);
     for k in 0..n {
         for j in 0..n {
             for i in 0..n {
@@ -411,10 +404,11 @@ fn readme_examples_run() {
                     .map(|c| (c as f64 - 11.5).powi(2))
                     .iter()
                     .sum::<f64>();
-                npy.extend_from_slice(&(if r2 < 64.0 { 1700u16 } else { 1000 }).to_le_bytes());
+                data.extend_from_slice(&(if r2 < 64.0 { 1700u16 } else { 1000 }).to_le_bytes());
             }
         }
     }
+    let npy = common::npy("<u2", &format!("({n}, {n}, {n})"), &data);
     std::fs::write(dir.path().join("ct.npy"), npy).unwrap();
     // The volumes in tests/data, at the same relative paths as in a clone.
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");

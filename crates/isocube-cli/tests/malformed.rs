@@ -3,19 +3,8 @@
 
 use std::process::Command;
 
-fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
-    let mut header =
-        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}").into_bytes();
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(b' ');
-    }
-    header.push(b'\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    out.extend_from_slice(&header);
-    out.extend_from_slice(data);
-    out
-}
+mod common;
+use common::npy;
 
 /// A NIfTI-1 header (348 bytes + 4 bytes of extension flag) for `dims` of int16.
 fn nifti(dims: &[u16], datatype: i16, magic: &[u8; 4]) -> Vec<u8> {
@@ -226,21 +215,14 @@ fn a_full_disk_leaves_the_target_untouched() {
         .status()
         .unwrap();
     assert!(ok.success());
+    // A ball of radius 12 in a 40³ field, stored a[z, y, x] (C order, x fastest).
     let n = 40usize;
-    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
-    let mut header =
-        format!("{{'descr': '<f4', 'fortran_order': True, 'shape': ({n}, {n}, {n}), }}")
-            .into_bytes();
-    while (11 + header.len()) % 64 != 0 {
-        header.push(b' ');
-    }
-    header.push(b'\n');
-    npy.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    npy.extend_from_slice(&header);
+    let mut data = Vec::with_capacity(4 * n * n * n);
     for p in 0..n * n * n {
         let c = [p % n, p / n % n, p / (n * n)].map(|c| c as f32 - 19.5);
-        npy.extend_from_slice(&(c.iter().map(|x| x * x).sum::<f32>().sqrt() - 12.0).to_le_bytes());
+        data.extend_from_slice(&(c.iter().map(|x| x * x).sum::<f32>().sqrt() - 12.0).to_le_bytes());
     }
+    let npy = npy("<f4", &format!("({n}, {n}, {n})"), &data);
     std::fs::write(dir.path().join("ball.npy"), npy).unwrap();
     for (command, target) in [
         ("extract sample:sphere:40 -o out.ply", "out.ply"),
