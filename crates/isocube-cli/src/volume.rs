@@ -5,7 +5,8 @@ use std::path::Path;
 use clap::Args;
 use isocube::field::{Grid, Orientation, SampleSpec};
 use isocube::io::{
-    read_volume_oriented, Endian, MappedVolume, NpyAxes, RawOptions, ScalarType, VolumeOptions,
+    read_volume_oriented, Endian, IoError, MappedVolume, NpyAxes, RawOptions, ScalarType,
+    VolumeOptions,
 };
 
 use crate::Failure;
@@ -37,6 +38,61 @@ pub(crate) struct VolumeArgs {
     /// .npy files: array axes are x,y,z (`xyz`, default) or z,y,x (`zyx`).
     #[arg(long, default_value = "xyz")]
     pub axes: NpyAxes,
+    /// The most memory reading the volume may take: `512M`, `8G`, `1.5T` (binary units), a
+    /// number of bytes, or `none`. Files whose header asks for more are refused before anything
+    /// is allocated. [default: the machine's physical memory]
+    #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
+    pub max_memory: Option<MemoryLimit>,
+}
+
+/// A `--max-memory` value: `None` for no limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct MemoryLimit(pub Option<u64>);
+
+impl MemoryLimit {
+    /// The limit given, else the machine's physical memory (no limit where that is unknown).
+    pub(crate) fn or_default(given: Option<MemoryLimit>) -> Option<u64> {
+        match given {
+            Some(MemoryLimit(limit)) => limit,
+            None => physical_memory(),
+        }
+    }
+}
+
+/// `MemTotal` of `/proc/meminfo`: past it a read would only end in swapping or the OOM killer.
+fn physical_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// `512M`, `8G`, `8GiB`, `1.5T`, `4096`, `none`.
+pub(crate) fn parse_memory(s: &str) -> Result<MemoryLimit, String> {
+    let t = s.trim();
+    if t.eq_ignore_ascii_case("none") {
+        return Ok(MemoryLimit(None));
+    }
+    let upper = t.to_ascii_uppercase();
+    let number = upper.trim_end_matches("IB").trim_end_matches('B');
+    let (digits, shift) = match number.chars().last() {
+        Some('K') => (&number[..number.len() - 1], 10),
+        Some('M') => (&number[..number.len() - 1], 20),
+        Some('G') => (&number[..number.len() - 1], 30),
+        Some('T') => (&number[..number.len() - 1], 40),
+        _ => (number, 0),
+    };
+    let value: f64 = digits
+        .trim()
+        .parse()
+        .ok()
+        .filter(|v: &f64| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| format!("'{s}' is not a size such as 512M, 8G or 4096 (or none)"))?;
+    let bytes = value * (1u64 << shift) as f64;
+    if bytes >= u64::MAX as f64 {
+        return Err(format!("'{s}' is too large"));
+    }
+    Ok(MemoryLimit(Some(bytes as u64)))
 }
 
 impl VolumeArgs {
@@ -62,6 +118,16 @@ impl VolumeArgs {
                 .volume
                 .parse()
                 .map_err(|e: String| Failure::input(anyhow::anyhow!(e)))?;
+            // Samples are computed, not read, but take the same memory.
+            let limit = MemoryLimit::or_default(self.max_memory);
+            let needed = (spec.n as u64).pow(3) * 4;
+            if limit.is_some_and(|l| needed > l) {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "{}: its values need {needed} bytes, more than the --max-memory limit of {} bytes",
+                    self.volume,
+                    limit.unwrap_or_default()
+                )));
+            }
             let mut grid = spec.grid();
             if let Some(s) = self.spacing {
                 grid = grid.with_spacing(s).map_err(Failure::input)?;
@@ -72,12 +138,20 @@ impl VolumeArgs {
             return Ok((grid, Orientation::IDENTITY));
         }
         let options = self.file_options()?;
-        read_volume_oriented(Path::new(&self.volume), &options)
-            .map_err(|e| crate::io_failure(e, true))
-            .map_err(|f| Failure {
-                error: f.error.context("cannot read the volume"),
-                ..f
-            })
+        read_volume_oriented(Path::new(&self.volume), &options).map_err(volume_failure)
+    }
+}
+
+/// A failure to read a volume, with a hint where the memory limit refused it.
+pub(crate) fn volume_failure(e: IoError) -> Failure {
+    let context = match e {
+        IoError::TooLarge { .. } => "cannot read the volume (raise the limit with --max-memory)",
+        _ => "cannot read the volume",
+    };
+    let f = crate::io_failure(e, true);
+    Failure {
+        error: f.error.context(context),
+        ..f
     }
 }
 
@@ -102,6 +176,7 @@ impl VolumeArgs {
             npy_axes: self.axes,
             spacing: self.spacing,
             origin: self.origin,
+            max_memory: MemoryLimit::or_default(self.max_memory),
         })
     }
 

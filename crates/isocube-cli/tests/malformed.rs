@@ -33,6 +33,13 @@ fn zlib(data: &[u8]) -> Vec<u8> {
     e.finish().unwrap()
 }
 
+fn gzip(data: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    e.write_all(data).unwrap();
+    e.finish().unwrap()
+}
+
 fn tiff_page(width: u32, height: u32, samples: u16, data_len: u32) -> Vec<u8> {
     // A minimal little-endian baseline TIFF: one strip, 8-bit grey (or RGB).
     let entries: Vec<(u16, u16, u32, u32)> = vec![
@@ -95,10 +102,10 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         // NIfTI.
         ("cut.nii", nifti(&[2, 2, 2], 4, b"n+1\0")[..100].to_vec(), vec![], "ends inside its header"),
         ("magic.nii", nifti(&[2, 2, 2], 4, b"xyz\0").into_iter().chain([0u8; 16]).collect(), vec![], "Invalid NIfTI-1 file"),
-        ("short.nii", nifti(&[2, 2, 2], 4, b"n+1\0").into_iter().chain([0u8; 7]).collect(), vec![], "buffer length (7)"),
+        ("short.nii", nifti(&[2, 2, 2], 4, b"n+1\0").into_iter().chain([0u8; 7]).collect(), vec![], "need 16 bytes from byte 352, the file has 359"),
         ("frames.nii", nifti(&[2, 2, 2, 3], 4, b"n+1\0").into_iter().chain([0u8; 48]).collect(), vec![], "frames"),
         ("badgz.nii.gz", b"\x1f\x8b\x08\0this is not deflate".to_vec(), vec![], "ends inside"),
-        ("bigdims.nii", nifti(&[30000, 30000, 30000], 4, b"n+1\0").into_iter().chain([0u8; 16]).collect(), vec![], "54000000000000 elements"),
+        ("bigdims.nii", nifti(&[30000, 30000, 30000], 4, b"n+1\0").into_iter().chain([0u8; 16]).collect(), vec![], "need 54000000000000 bytes from byte 352"),
         ("type.nii", nifti(&[2, 2, 2], 1999, b"n+1\0").into_iter().chain([0u8; 16]).collect(), vec![], "1999"),
         // MetaImage.
         ("nodims.mha", b"NDims = 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n".to_vec(), vec![], "DimSize"),
@@ -124,6 +131,17 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         ("cut.tif", tiff_page(4, 4, 1, 16)[..60].to_vec(), vec![], "not a readable TIFF"),
         ("rgb.tif", tiff_page(2, 2, 3, 12), vec![], "grey"),
         ("strip.tif", tiff_page(4, 4, 1, 16)[..126].to_vec(), vec![], "page 0"),
+        // Absurd sizes: refused before allocating, under the default limit (the machine's
+        // memory) or a given one.
+        ("limit.npy", npy("<f4", "(64, 64, 64)", &[0; 1 << 20]), vec!["--max-memory", "1536K"], "header field 'shape': reading it needs 2.0 MiB of memory, more than the limit of 1.5 MiB"),
+        ("huge.mha", b"NDims = 3\nDimSize = 100000 100000 100000\nElementType = MET_UCHAR\nCompressedData = True\nElementDataFile = LOCAL\nxx".to_vec(), vec![], "header field 'DimSize': reading it needs 4.4 PiB"),
+        ("huge.vti", format!("{VTI_HEAD}<ImageData WholeExtent=\"0 99999 0 99999 0 99999\"><Piece Extent=\"0 99999 0 99999 0 99999\"><PointData><DataArray type=\"UInt8\" Name=\"v\" format=\"binary\">AAAA</DataArray></PointData></Piece></ImageData></VTKFile>").into_bytes(), vec![], "header field 'WholeExtent': reading it needs 4.4 PiB"),
+        ("huge.nii.gz", gzip(&nifti(&[30000, 30000, 30000], 4, b"n+1\0")), vec![], "header field 'dim': reading it needs 245.6 TiB"),
+        ("zeros.nrrd", [b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 1000 1000 1000\nencoding: gzip\n\n".to_vec(), gzip(&[0; 1000])].concat(), vec!["--max-memory", "64M"], "header field 'sizes': reading it needs 4.7 GiB"),
+        ("bomb.nrrd", [b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nbyte skip: -1\nencoding: gzip\n\n".to_vec(), gzip(&vec![0; 64 << 20])].concat(), vec!["--max-memory", "16M"], "header field 'byte skip': reading it needs 64.2 MiB of memory, more than the limit of 16.0 MiB"),
+        ("page.tif", tiff_page(60000, 60000, 1, 16), vec!["--max-memory", "1G"], "'page 0': reading it needs 40.2 GiB"),
+        ("limit.raw", vec![0; 4096], vec!["--dims", "16,16,16", "--type", "u8", "--max-memory", "16K"], "needs 20.0 KiB of memory, more than the limit of 16.0 KiB"),
+        ("size.npy", npy("<f4", "(2, 2, 2)", &[0; 32]), vec!["--max-memory", "lots"], "'lots' is not a size"),
         // Meshes (read by `info`).
         ("magic.ply", ply("plx\nformat ascii 1.0\nend_header\n"), vec![], "not a PLY file"),
         ("count.ply", ply("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n"), vec![], "data ends before"),
@@ -261,4 +279,94 @@ fn a_full_disk_leaves_the_target_untouched() {
             .collect();
         assert_eq!(before.len(), after.len(), "{command} left {after:?}");
     }
+}
+
+/// NaN and infinite values: by default the cells touching them are skipped and counted in the
+/// summary (the mesh gets a hole there); `--strict` refuses the volume with exit code 2 and
+/// writes nothing, in memory or streamed.
+#[test]
+fn non_finite_values_are_counted_or_refused_with_strict() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 10usize;
+    let mut values: Vec<f32> = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let d = |c: usize| c as f32 - 4.5;
+                values.push((d(i).powi(2) + d(j).powi(2) + d(k).powi(2)).sqrt() - 3.2);
+            }
+        }
+    }
+    let write = |name: &str, values: &[f32]| {
+        let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(dir.path().join(name), npy("<f4", "(10, 10, 10)", &data)).unwrap();
+    };
+    write("clean.npy", &values);
+    // One NaN just outside the surface on the x axis through the middle, one +∞ far outside.
+    let nan_at = 8 + n * (4 + n * 4);
+    values[nan_at] = f32::NAN;
+    values[0] = f32::INFINITY;
+    write("holes.npy", &values);
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_isocube"))
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(!err.contains("panicked"), "{err}");
+        (out.status.code(), err)
+    };
+    let (code, err) = run(&["extract", "holes.npy", "-o", "holes.ply"]);
+    assert_eq!(code, Some(0), "{err}");
+    // 8 cells around the NaN, 1 cell at the corner with +∞.
+    assert!(err.contains("9 skipped for NaN/Inf values"), "{err}");
+    assert!(err.contains("boundary edges"), "{err}");
+    let (code, err) = run(&["info", "holes.ply", "--json"]);
+    assert_eq!(code, Some(0), "{err}");
+    for args in [
+        vec!["extract", "holes.npy", "-o", "strict.ply", "--strict"],
+        vec![
+            "extract",
+            "holes.npy",
+            "-o",
+            "strict.ply",
+            "--strict",
+            "--method",
+            "ternary",
+        ],
+        vec![
+            "extract",
+            "holes.npy",
+            "-o",
+            "strict.ply",
+            "--strict",
+            "--stream",
+        ],
+    ] {
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("holes.npy: 9 cells touch NaN or infinite values")
+                && err.contains("nothing written (--strict)"),
+            "{err}"
+        );
+        if !args.contains(&"--stream") {
+            assert!(err.contains("the first at point (0, 0, 0)"), "{err}");
+        }
+        assert!(!dir.path().join("strict.ply").exists());
+    }
+    let (code, err) = run(&["extract", "clean.npy", "-o", "clean.ply", "--strict"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("watertight") && !err.contains("skipped"),
+        "{err}"
+    );
+    // Nothing but the inputs and the two meshes: no temporary file left by the refusals.
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["clean.npy", "clean.ply", "holes.npy", "holes.ply"]);
 }

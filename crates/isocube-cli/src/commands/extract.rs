@@ -98,6 +98,10 @@ pub(crate) struct Args {
     /// no relaxation). The mesh is the same, byte for byte.
     #[arg(long)]
     stream: bool,
+    /// Fail (exit code 2, nothing written) when any cell touches a NaN or infinite value. By
+    /// default such cells are skipped, leaving a hole, and counted in the summary.
+    #[arg(long)]
+    strict: bool,
 }
 
 /// Volumes whose values take more than this as `f32` are extracted slab by slab when they can.
@@ -139,6 +143,19 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     })
     .map_err(Failure::input)?;
     progress.finish();
+    if args.strict && stats.skipped_cells > 0 {
+        let first = grid.values().iter().position(|v| !v.is_finite());
+        let [nx, ny, _] = grid.dims();
+        let at = first.map_or_else(String::new, |p| {
+            format!(
+                ", the first at point ({}, {}, {})",
+                p % nx,
+                p / nx % ny,
+                p / (nx * ny)
+            )
+        });
+        return Err(non_finite_failure(args, &stats, &at));
+    }
     if let (Some(sample), true) = (exact, args.relax > 0) {
         let h = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
         relax(
@@ -378,6 +395,10 @@ fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), F
         StreamError::Sink(e) => crate::io_failure(e, false),
     })?;
     progress.finish();
+    if args.strict && stats.skipped_cells > 0 {
+        // Dropping the writer removes its temporary file.
+        return Err(non_finite_failure(args, &stats, ""));
+    }
     let (vertices, triangles) = (ply.vertex_count(), ply.triangle_count());
     ply.finish().map_err(|e| crate::io_failure(e, false))?;
     if !quiet {
@@ -390,6 +411,15 @@ fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), F
         );
     }
     Ok(())
+}
+
+/// `--strict` refusing a volume with NaN or infinite values; `at` says where the first is.
+fn non_finite_failure(args: &Args, stats: &ExtractStats, at: &str) -> Failure {
+    Failure::input(anyhow::anyhow!(
+        "{}: {} cells touch NaN or infinite values{at}; nothing written (--strict)",
+        args.volume.volume,
+        stats.skipped_cells
+    ))
 }
 
 /// "N of M cells active, T tunnels[, S skipped for NaN/Inf values]".

@@ -11,6 +11,7 @@ use isocube::quality::{
 };
 use serde_json::json;
 
+use crate::volume::{parse_memory, volume_failure, MemoryLimit};
 use crate::Failure;
 
 #[derive(Debug, ClapArgs)]
@@ -31,6 +32,9 @@ pub(crate) struct Args {
     /// Write the angle histogram (5° bins) as a picture: .svg or .png.
     #[arg(long, value_name = "FILE")]
     histogram: Option<PathBuf>,
+    /// The most memory reading the --field volume may take (as for `extract`).
+    #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
+    max_memory: Option<MemoryLimit>,
 }
 
 pub(crate) fn run(args: &Args) -> Result<(), Failure> {
@@ -45,7 +49,7 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
     let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
     let report = quality_report(&mesh);
     let distance = match &args.field {
-        Some(spec) => Some(distance(&mesh, spec, args.level)?),
+        Some(spec) => Some(distance(&mesh, spec, args.level, args.max_memory)?),
         None => None,
     };
     if let Some(path) = &args.histogram {
@@ -68,7 +72,12 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
     Ok(())
 }
 
-fn distance(mesh: &Mesh, spec: &str, level: f64) -> Result<Distance, Failure> {
+fn distance(
+    mesh: &Mesh,
+    spec: &str,
+    level: f64,
+    max_memory: Option<MemoryLimit>,
+) -> Result<Distance, Failure> {
     if SampleSpec::is_sample(spec) {
         let s: SampleSpec = spec
             .parse()
@@ -82,8 +91,12 @@ fn distance(mesh: &Mesh, spec: &str, level: f64) -> Result<Distance, Failure> {
             min_spacing(&grid),
         ));
     }
-    let (grid, orientation) = read_volume_oriented(Path::new(spec), &VolumeOptions::default())
-        .map_err(|e| crate::io_failure(e, true))?;
+    let options = VolumeOptions {
+        max_memory: MemoryLimit::or_default(max_memory),
+        ..VolumeOptions::default()
+    };
+    let (grid, orientation) =
+        read_volume_oriented(Path::new(spec), &options).map_err(volume_failure)?;
     let field = Trilinear(&grid);
     // The mesh is in the file's world coordinates: evaluate in the grid's own frame (a
     // rotation or reflection keeps distances).

@@ -80,17 +80,14 @@ fn vertices_lie_on_a_linear_field_level_set() {
 #[test]
 fn nan_cells_are_skipped_and_leave_a_hole() {
     let mut grid = Sample::Sphere.grid(20);
-    // A NaN on the surface: the eight cells around it are skipped.
-    let idx = grid.index(10, 10, 18);
-    let mut poke = None;
-    for k in (0..20).rev() {
-        if grid.value(10, 10, k) < 0.0 {
-            poke = Some(grid.index(10, 10, k + 1));
-            break;
-        }
-    }
-    let _ = idx;
-    grid.values_mut()[poke.unwrap()] = f32::NAN;
+    // A NaN just outside the surface, on the column through the middle: the eight cells around
+    // it are skipped.
+    let k = (0..20)
+        .rev()
+        .find(|&k| grid.value(10, 10, k) < 0.0)
+        .unwrap();
+    let poke = grid.index(10, 10, k + 1);
+    grid.values_mut()[poke] = f32::NAN;
     let (mesh, stats) = run(&grid, 0.0);
     assert_eq!(stats.skipped_cells, 8);
     let r = mesh.report();
@@ -205,6 +202,87 @@ proptest! {
                 assert_closed_manifold(&r);
             }
             prop_assert!(mesh.positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
+        }
+    }
+}
+
+/// The cells (by their lowest corner) with a NaN or infinite corner.
+fn cells_touching_non_finite(grid: &Grid) -> Vec<[usize; 3]> {
+    let [nx, ny, nz] = grid.dims();
+    let mut cells = Vec::new();
+    for k in 0..nz - 1 {
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                let bad = (0..8).any(|c| {
+                    let v = grid.value(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2));
+                    !v.is_finite()
+                });
+                if bad {
+                    cells.push([i, j, k]);
+                }
+            }
+        }
+    }
+    cells
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 1_500, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// NaN, +∞ and −∞ sprinkled over random closed surfaces, for every method and
+    /// triangulation: exactly the cells touching them are skipped and counted, every vertex is
+    /// finite, the mesh stays edge-manifold and oriented, and its open edges all lie in skipped
+    /// cells (without the bad values it is closed).
+    #[test]
+    fn non_finite_values_leave_holes_only_around_them(
+        grid in closed_grid(),
+        spots in proptest::collection::vec((any::<proptest::sample::Index>(), 0u8..3), 1..4),
+        ternary: bool,
+        strategy in prop_oneof![
+            Just(crate::quality::Strategy::Fan),
+            Just(crate::quality::Strategy::Local),
+            Just(crate::quality::Strategy::Optimal),
+        ],
+        classic: bool,
+    ) {
+        let mut grid = grid;
+        let n = grid.values().len();
+        for (at, kind) in &spots {
+            grid.values_mut()[at.index(n)] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][usize::from(*kind)];
+        }
+        let mut options = ExtractOptions::default()
+            .with_triangulation(strategy)
+            .with_topology(if classic { Topology::Classic } else { Topology::Mc33 });
+        if ternary {
+            options = options.with_method(Method::Ternary(Snapping { snap: 0.5, ..Snapping::default() }));
+        }
+        let (mesh, stats) = extract(&grid, &options).unwrap();
+        let skipped = cells_touching_non_finite(&grid);
+        prop_assert_eq!(stats.skipped_cells, skipped.len());
+        mesh.validate().unwrap();
+        prop_assert!(mesh.positions.iter().flatten().all(|c| c.is_finite()));
+        let r = mesh.report();
+        prop_assert_eq!(r.nonmanifold_edges, 0);
+        prop_assert!(r.oriented);
+        // Open edges: those used by one triangle. Both ends must lie in a skipped cell's box.
+        let mut uses: std::collections::HashMap<(u32, u32), usize> = std::collections::HashMap::new();
+        for t in &mesh.triangles {
+            for e in 0..3 {
+                let (a, b) = (t[e], t[(e + 1) % 3]);
+                *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        let in_skipped = |v: u32| {
+            let p = mesh.positions[v as usize];
+            skipped.iter().any(|c| (0..3).all(|a| {
+                let x = f64::from(p[a]);
+                x >= c[a] as f64 - 1e-6 && x <= c[a] as f64 + 1.0 + 1e-6
+            }))
+        };
+        for (&(a, b), &count) in &uses {
+            if count == 1 {
+                prop_assert!(in_skipped(a) && in_skipped(b), "open edge {a}–{b} away from the skipped cells");
+            }
         }
     }
 }

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use dicom_dictionary_std::tags;
 use dicom_object::{open_file, DefaultDicomObject};
 
-use super::{IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::{Grid, Orientation};
 use crate::mesh::{cross, dot, sub};
 
@@ -39,6 +39,13 @@ struct Slice {
 
 /// Reads every DICOM file of a folder (files that are not DICOM are skipped) as one volume.
 pub fn read_dicom_series(dir: &Path) -> Result<(Grid, Orientation), IoError> {
+    read_dicom_within(dir, Budget::UNLIMITED)
+}
+
+pub(super) fn read_dicom_within(
+    dir: &Path,
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
     let entries = std::fs::read_dir(dir).map_err(|e| IoError::os(dir, e))?;
     let mut files: Vec<PathBuf> = Vec::new();
     for entry in entries {
@@ -49,6 +56,7 @@ pub fn read_dicom_series(dir: &Path) -> Result<(Grid, Orientation), IoError> {
     }
     files.sort();
     let mut slices = Vec::new();
+    let mut held = 0u64;
     for path in files {
         // A DICOM file has "DICM" after its 128-byte preamble; anything else is not a slice.
         let mut magic = [0u8; 132];
@@ -57,7 +65,14 @@ pub fn read_dicom_series(dir: &Path) -> Result<(Grid, Orientation), IoError> {
             .is_ok()
             && &magic[128..] == b"DICM";
         if is_dicom {
-            slices.push(read_slice(&path)?);
+            // A slice is held whole while it is parsed, then its pixel data stays.
+            let len = std::fs::metadata(&path)
+                .map_err(|e| IoError::os(&path, e))?
+                .len();
+            budget.check(&path, Position::File, held.saturating_add(2 * len))?;
+            let slice = read_slice(&path, budget.limit().saturating_sub(held))?;
+            held += slice.data.len() as u64;
+            slices.push(slice);
         }
     }
     let first = slices.first().ok_or_else(|| {
@@ -120,7 +135,9 @@ pub fn read_dicom_series(dir: &Path) -> Result<(Grid, Orientation), IoError> {
             ));
         }
     }
-    let mut values = Vec::with_capacity(nx * ny * nz);
+    let count = Grid::point_count([nx, ny, nz]).map_err(|e| IoError::grid(dir, e))?;
+    budget.check_values(dir, Position::Field("Rows".into()), held, count)?;
+    let mut values = Vec::with_capacity(count);
     for s in &slices {
         let width = s.bits / 8;
         for px in s.data.chunks_exact(width).take(nx * ny) {
@@ -165,7 +182,171 @@ pub fn read_dicom_series(dir: &Path) -> Result<(Grid, Orientation), IoError> {
     Ok((grid, orientation))
 }
 
-fn read_slice(path: &Path) -> Result<Slice, IoError> {
+/// Walks a slice's data elements before dicom-rs reads it. dicom-rs allocates every value at its
+/// declared length before reading it, so a few bytes declaring a gigabyte would be allocated:
+/// here each defined length must fit in the bytes that follow it. Refuses an unsupported
+/// transfer syntax at once. `limit` caps what a deflated data set may unpack to.
+fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
+    if bytes.len() < 132 || &bytes[128..132] != b"DICM" {
+        return Err(IoError::format(path, Position::Byte(128), "no DICM marker"));
+    }
+    // The file meta group (0002) is always explicit VR little endian.
+    let mut at = 132;
+    let mut syntax = None;
+    while bytes.get(at..at + 2) == Some(&[2, 0]) {
+        let e = element(path, bytes, at, true, 0)?;
+        if e.tag == (2, 0x10) {
+            let value = &bytes[e.value..e.value + e.len];
+            syntax = Some(
+                String::from_utf8_lossy(value)
+                    .trim_end_matches(['\0', ' '])
+                    .to_string(),
+            );
+        }
+        at = e.value + e.len;
+    }
+    let syntax = syntax.ok_or_else(|| {
+        IoError::format(path, Position::Field("TransferSyntaxUID".into()), "missing")
+    })?;
+    match syntax.as_str() {
+        "1.2.840.10008.1.2" => walk(path, &bytes[at..], at, false),
+        "1.2.840.10008.1.2.1" => walk(path, &bytes[at..], at, true),
+        "1.2.840.10008.1.2.1.99" => {
+            use std::io::Read;
+            let mut data = Vec::new();
+            flate2::read::DeflateDecoder::new(&bytes[at..])
+                .take(limit.saturating_add(1))
+                .read_to_end(&mut data)
+                .map_err(|e| IoError::format(path, Position::Byte(at as u64), format!("deflated data set: {e}")))?;
+            if data.len() as u64 > limit {
+                return Err(IoError::TooLarge {
+                    path: path.to_path_buf(),
+                    position: Position::Byte(at as u64),
+                    needed: data.len() as u64,
+                    limit,
+                });
+            }
+            // Offsets in errors are in the unpacked data set.
+            walk(path, &data, 0, true)
+        }
+        other => Err(IoError::unsupported(
+            path,
+            Position::Field("TransferSyntaxUID".into()),
+            format!("transfer syntax {other} (compressed or big-endian pixel data): isocube reads uncompressed little-endian series"),
+        )),
+    }
+}
+
+/// A data element's header: its tag, where its value starts, its length (`u32::MAX` as usize
+/// when undefined) and whether it holds a sequence.
+struct Element {
+    tag: (u16, u16),
+    value: usize,
+    len: usize,
+    sequence: bool,
+}
+
+/// Reads the element header at `at` of `data` (which starts at byte `base` of the file); a
+/// defined length must fit in what follows.
+fn element(
+    path: &Path,
+    data: &[u8],
+    at: usize,
+    explicit: bool,
+    base: usize,
+) -> Result<Element, IoError> {
+    use dicom_core::dictionary::{DataDictionary, DataDictionaryEntry, VirtualVr};
+    let ends = || {
+        IoError::format(
+            path,
+            Position::Byte((base + at) as u64),
+            "the file ends inside a data element's header",
+        )
+    };
+    let u16_at = |i: usize| -> Result<u16, IoError> {
+        data.get(i..i + 2)
+            .map(|b| u16::from_le_bytes([b[0], b[1]]))
+            .ok_or_else(ends)
+    };
+    let u32_at = |i: usize| -> Result<u32, IoError> {
+        data.get(i..i + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .ok_or_else(ends)
+    };
+    let tag = (u16_at(at)?, u16_at(at + 2)?);
+    let (len, value, sequence) = if tag.0 == 0xFFFE {
+        // Items and delimiters: no VR; an item's contents are elements, walked in turn.
+        (u32_at(at + 4)?, at + 8, true)
+    } else if explicit {
+        let vr = data.get(at + 4..at + 6).ok_or_else(ends)?;
+        let long = matches!(
+            vr,
+            b"OB"
+                | b"OD"
+                | b"OF"
+                | b"OL"
+                | b"OV"
+                | b"OW"
+                | b"SQ"
+                | b"SV"
+                | b"UC"
+                | b"UN"
+                | b"UR"
+                | b"UT"
+                | b"UV"
+        );
+        if long {
+            (u32_at(at + 8)?, at + 12, vr == b"SQ")
+        } else {
+            (u32::from(u16_at(at + 6)?), at + 8, false)
+        }
+    } else {
+        let dictionary = dicom_dictionary_std::StandardDataDictionary;
+        let sequence = dictionary
+            .by_tag(dicom_core::Tag(tag.0, tag.1))
+            .is_some_and(|e| matches!(e.vr(), VirtualVr::Exact(dicom_core::VR::SQ)));
+        (u32_at(at + 4)?, at + 8, sequence)
+    };
+    let len = len as usize;
+    if len != u32::MAX as usize && !sequence && len > data.len().saturating_sub(value) {
+        return Err(IoError::format(
+            path,
+            Position::Byte((base + at) as u64),
+            format!(
+                "element ({:04X},{:04X}) declares {len} bytes, {} remain",
+                tag.0,
+                tag.1,
+                data.len().saturating_sub(value)
+            ),
+        ));
+    }
+    Ok(Element {
+        tag,
+        value,
+        len,
+        sequence,
+    })
+}
+
+/// Checks every element of a data set (see [`check_lengths`]).
+fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<(), IoError> {
+    let mut at = 0;
+    while at < data.len() {
+        let e = element(path, data, at, explicit, base)?;
+        // Sequences, items and undefined lengths (encapsulated data) hold elements of their own.
+        at = if e.sequence || e.len == u32::MAX as usize {
+            e.value
+        } else {
+            e.value + e.len
+        };
+    }
+    Ok(())
+}
+
+fn read_slice(path: &Path, limit: u64) -> Result<Slice, IoError> {
+    let bytes = super::read_file(path)?;
+    check_lengths(path, &bytes, limit)?;
+    drop(bytes);
     let obj: DefaultDicomObject = open_file(path).map_err(|e| {
         IoError::format(
             path,

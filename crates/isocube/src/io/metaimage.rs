@@ -7,12 +7,19 @@ use std::io::Read;
 use std::path::Path;
 
 use super::raw::{decode_all, Endian, ScalarType};
-use super::{read_file, IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::{Grid, Orientation};
 
 /// Reads a MetaImage volume and its orientation.
 pub fn read_metaimage(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    let bytes = read_file(path)?;
+    read_metaimage_within(path, Budget::UNLIMITED)
+}
+
+pub(super) fn read_metaimage_within(
+    path: &Path,
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    let bytes = budget.read_file(path)?;
     let header = Header::parse(path, &bytes)?;
     let count = header
         .dims
@@ -32,12 +39,17 @@ pub fn read_metaimage(path: &Path) -> Result<(Grid, Orientation), IoError> {
             "dimensions overflow",
         )
     })?;
+    // The file, the unpacked data when compressed, and the values.
+    let unpacked = if header.compressed { need as u64 } else { 0 };
+    let held = bytes.len() as u64 + unpacked;
+    let dim_size = Position::Field("DimSize".into());
+    budget.check_values(path, dim_size.clone(), held, count)?;
     match &header.data_file {
         None => finish(path, &header, path, &bytes[header.length..], count, need),
         Some(name) => {
             // `.mhd` + `.raw`: errors about the data name the data file.
             let file = path.parent().unwrap_or(Path::new(".")).join(name);
-            let data = read_file(&file)?;
+            let data = budget.read_file_holding(&file, held + 4 * count as u64)?;
             finish(path, &header, &file, &data, count, need)
         }
     }
@@ -54,7 +66,7 @@ fn finish(
     let raw: std::borrow::Cow<[u8]> = if header.compressed {
         // Never trust the declared size for the allocation: read at most what the dims need,
         // then check that exactly that much came out.
-        let mut out = Vec::with_capacity(need.min(1 << 30));
+        let mut out = Vec::with_capacity(need);
         flate2::read::ZlibDecoder::new(stored)
             .take(need as u64 + 1)
             .read_to_end(&mut out)

@@ -128,6 +128,23 @@ pub enum IoError {
         /// What is not supported.
         reason: String,
     },
+    /// Reading the file would take more memory than allowed ([`VolumeOptions::max_memory`]).
+    /// Checked before anything large is allocated.
+    #[error(
+        "{}: {position}: reading it needs {}",
+        path.display(),
+        over_limit(*needed, *limit)
+    )]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// What sets the size (usually the dimensions field).
+        position: Position,
+        /// Bytes the reader would hold at its peak.
+        needed: u64,
+        /// The limit.
+        limit: u64,
+    },
     /// The file describes an invalid grid.
     #[error("{}: {source}", path.display())]
     Grid {
@@ -186,6 +203,97 @@ pub struct VolumeOptions {
     pub spacing: Option<[f64; 3]>,
     /// Overrides the file's origin.
     pub origin: Option<[f64; 3]>,
+    /// The most memory, in bytes, the reader may hold at its peak (file bytes, unpacked data and
+    /// the `f32` values). Headers claiming more are refused with [`IoError::TooLarge`] before
+    /// anything that size is allocated, and compressed data is never unpacked beyond it.
+    /// `None`: no limit beyond what the file's own header asks for.
+    pub max_memory: Option<u64>,
+}
+
+/// The memory a volume reader may take, checked before each large allocation.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Budget {
+    limit: Option<u64>,
+}
+
+impl Budget {
+    pub(crate) const UNLIMITED: Budget = Budget { limit: None };
+
+    pub(crate) fn new(limit: Option<u64>) -> Budget {
+        Budget { limit }
+    }
+
+    /// The limit, or `u64::MAX`.
+    pub(crate) fn limit(self) -> u64 {
+        self.limit.unwrap_or(u64::MAX)
+    }
+
+    /// Errs when holding `needed` bytes would pass the limit.
+    pub(crate) fn check(self, path: &Path, position: Position, needed: u64) -> Result<(), IoError> {
+        match self.limit {
+            Some(limit) if needed > limit => Err(IoError::TooLarge {
+                path: path.to_path_buf(),
+                position,
+                needed,
+                limit,
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// Errs when `held` bytes plus `count` values of `f32` would pass the limit.
+    pub(crate) fn check_values(
+        self,
+        path: &Path,
+        position: Position,
+        held: u64,
+        count: usize,
+    ) -> Result<(), IoError> {
+        let needed = (count as u64).saturating_mul(4).saturating_add(held);
+        self.check(path, position, needed)
+    }
+
+    /// Reads a whole file, refusing first one larger than the limit.
+    pub(crate) fn read_file(self, path: &Path) -> Result<Vec<u8>, IoError> {
+        self.read_file_holding(path, 0)
+    }
+
+    /// Reads a whole file while `held` bytes are already held, refusing first one that would
+    /// take the total past the limit.
+    pub(crate) fn read_file_holding(self, path: &Path, held: u64) -> Result<Vec<u8>, IoError> {
+        if self.limit.is_some() {
+            let len = std::fs::metadata(path)
+                .map_err(|e| IoError::os(path, e))?
+                .len();
+            self.check(path, Position::File, held.saturating_add(len))?;
+        }
+        read_file(path)
+    }
+}
+
+/// "X of memory, more than the limit of Y", exact where rounding would make the two look equal.
+fn over_limit(needed: u64, limit: u64) -> String {
+    let (mut n, mut l) = (human_bytes(needed), human_bytes(limit));
+    if n == l {
+        (n, l) = (format!("{needed} bytes"), format!("{limit} bytes"));
+    }
+    format!("{n} of memory, more than the limit of {l}")
+}
+
+/// `1536` → "1.5 KiB": sizes in messages.
+pub(crate) fn human_bytes(n: u64) -> String {
+    const UNITS: [&str; 6] = ["bytes", "KiB", "MiB", "GiB", "TiB", "PiB"];
+    let mut v = n as f64;
+    let mut unit = 0;
+    while v >= 1024.0 && unit + 1 < UNITS.len() {
+        v /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{n} bytes")
+    } else {
+        format!("{v:.1} {}", UNITS[unit])
+    }
 }
 
 /// Reads a volume, choosing the reader by extension (see [`read_volume_oriented`]), and drops
@@ -214,16 +322,19 @@ pub fn read_volume_oriented(
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     let identity = |grid| (grid, Orientation::IDENTITY);
+    let budget = Budget::new(options.max_memory);
     let (grid, orientation) = match ext.as_str() {
-        _ if path.is_dir() => read_dicom_volume(path)?,
-        "npy" => identity(read_npy(path, options.npy_axes)?),
-        "nrrd" | "nhdr" => read_nrrd_oriented(path)?,
-        "mha" | "mhd" => read_metaimage(path)?,
-        "vti" => read_vti(path)?,
-        _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => read_nifti_volume(path)?,
-        "tif" | "tiff" => identity(read_tiff_volume(path)?),
+        _ if path.is_dir() => read_dicom_volume(path, budget)?,
+        "npy" => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
+        "nrrd" | "nhdr" => nrrd::read_nrrd_within(path, budget)?,
+        "mha" | "mhd" => metaimage::read_metaimage_within(path, budget)?,
+        "vti" => vti::read_vti_within(path, budget)?,
+        _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => {
+            read_nifti_volume(path, budget)?
+        }
+        "tif" | "tiff" => identity(read_tiff_volume(path, budget)?),
         _ => match &options.raw {
-            Some(raw) => identity(read_raw(path, raw)?),
+            Some(raw) => identity(raw::read_raw_within(path, raw, budget)?),
             None => {
                 return Err(IoError::unsupported(
                     path,
@@ -245,12 +356,12 @@ pub fn read_volume_oriented(
 }
 
 #[cfg(feature = "dicom")]
-fn read_dicom_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    read_dicom_series(path)
+fn read_dicom_volume(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
+    dicom::read_dicom_within(path, budget)
 }
 
 #[cfg(not(feature = "dicom"))]
-fn read_dicom_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
+fn read_dicom_volume(path: &Path, _: Budget) -> Result<(Grid, Orientation), IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,
@@ -259,12 +370,12 @@ fn read_dicom_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
 }
 
 #[cfg(feature = "tiff")]
-fn read_tiff_volume(path: &Path) -> Result<Grid, IoError> {
-    read_tiff_stack(path)
+fn read_tiff_volume(path: &Path, budget: Budget) -> Result<Grid, IoError> {
+    tiff_stack::read_tiff_within(path, budget)
 }
 
 #[cfg(not(feature = "tiff"))]
-fn read_tiff_volume(path: &Path) -> Result<Grid, IoError> {
+fn read_tiff_volume(path: &Path, _: Budget) -> Result<Grid, IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,
@@ -273,12 +384,12 @@ fn read_tiff_volume(path: &Path) -> Result<Grid, IoError> {
 }
 
 #[cfg(feature = "nifti")]
-fn read_nifti_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    read_nifti(path)
+fn read_nifti_volume(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
+    nifti::read_nifti_within(path, budget)
 }
 
 #[cfg(not(feature = "nifti"))]
-fn read_nifti_volume(path: &Path) -> Result<(Grid, Orientation), IoError> {
+fn read_nifti_volume(path: &Path, _: Budget) -> Result<(Grid, Orientation), IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,

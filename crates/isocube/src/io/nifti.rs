@@ -6,14 +6,90 @@
 
 use std::path::Path;
 
-use nifti::{IntoNdArray, NiftiObject, ReaderOptions};
+use nifti::{IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
 
-use super::{IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::{Grid, Orientation};
 
 /// Reads a NIfTI-1 volume and its orientation. The grid's spacing and origin are the lengths of
 /// the index-to-world map's columns and its translation; the orientation is the rest.
 pub fn read_nifti(path: &Path) -> Result<(Grid, Orientation), IoError> {
+    read_nifti_within(path, Budget::UNLIMITED)
+}
+
+/// Reads the header on its own (from a `.nii.gz`, only the bytes it takes are unpacked) and
+/// refuses a volume that the file cannot hold or that passes the budget, before the crate
+/// reserves the space its header asks for.
+fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
+    let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
+    let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
+    let gz = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.to_ascii_lowercase().ends_with(".gz"));
+    let reader = std::io::BufReader::new(file);
+    let header = if gz {
+        NiftiHeader::from_reader(flate2::read::MultiGzDecoder::new(reader))
+    } else {
+        NiftiHeader::from_reader(reader)
+    };
+    // A header the crate cannot parse is reported by the crate, with its reason.
+    let Ok(header) = header else { return Ok(()) };
+    let rank = usize::from(header.dim[0]);
+    if !(1..=7).contains(&rank) {
+        return Ok(());
+    }
+    // The crate trusts datatype and bitpix to agree (and panics where they do not): check them.
+    let bits = match header.datatype {
+        2 | 256 => 8,
+        4 | 512 => 16,
+        8 | 16 | 768 => 32,
+        64 | 1024 | 1280 => 64,
+        other => {
+            return Err(IoError::unsupported(
+                path,
+                Position::Field("datatype".into()),
+                format!("datatype {other}: isocube reads one integer or real scalar per voxel"),
+            ))
+        }
+    };
+    if header.bitpix != bits {
+        return Err(IoError::format(
+            path,
+            Position::Field("bitpix".into()),
+            format!(
+                "{} bits, datatype {} has {bits}",
+                header.bitpix, header.datatype
+            ),
+        ));
+    }
+    let count = header.dim[1..=rank]
+        .iter()
+        .fold(1u64, |n, &d| n.saturating_mul(u64::from(d)));
+    let bytes = count.saturating_mul(header.bitpix as u64 / 8);
+    let dim = || Position::Field("dim".into());
+    let single_file = &header.magic == b"n+1\0";
+    let offset = f64::from(header.vox_offset).max(352.0);
+    if single_file && !gz && offset + bytes as f64 > len as f64 {
+        return Err(IoError::format(
+            path,
+            dim(),
+            format!(
+                "{:?} voxels of {} bits need {bytes} bytes from byte {offset}, the file has {len}",
+                &header.dim[1..=rank],
+                header.bitpix
+            ),
+        ));
+    }
+    // The stored bytes, the crate's f32 array and the grid's copy.
+    budget.check(path, dim(), bytes.saturating_add(count.saturating_mul(8)))
+}
+
+pub(super) fn read_nifti_within(
+    path: &Path,
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    check_size(path, budget)?;
     let fail = |reason: String| IoError::format(path, Position::File, reason);
     let object = ReaderOptions::new().read_file(path).map_err(|e| match e {
         nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {

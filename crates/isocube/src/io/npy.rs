@@ -12,7 +12,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use super::raw::{decode_into, Endian, ScalarType};
-use super::{read_file, IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::Grid;
 
 /// How the three axes of a `.npy` array map to x, y, z.
@@ -57,9 +57,19 @@ pub(super) struct Layout {
 
 /// Reads a 3-D `.npy` array (unit spacing, zero origin).
 pub fn read_npy(path: &Path, axes: NpyAxes) -> Result<Grid, IoError> {
-    let bytes = read_file(path)?;
+    read_npy_within(path, axes, Budget::UNLIMITED)
+}
+
+pub(super) fn read_npy_within(path: &Path, axes: NpyAxes, budget: Budget) -> Result<Grid, IoError> {
+    let bytes = budget.read_file(path)?;
     let layout = layout(path, &bytes, axes)?;
     let [nx, ny, nz] = layout.dims;
+    budget.check_values(
+        path,
+        Position::Field("shape".into()),
+        bytes.len() as u64,
+        nx * ny * nz,
+    )?;
     let size = layout.scalar.size();
     let data = &bytes[layout.data_offset..];
     let [sx, sy, sz] = layout.strides;

@@ -9,7 +9,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use super::raw::{decode_all, Endian, ScalarType};
-use super::{read_file, IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::{Grid, Orientation};
 
 /// Reads an NRRD file (attached or detached header) in its grid frame (see
@@ -20,22 +20,40 @@ pub fn read_nrrd(path: &Path) -> Result<Grid, IoError> {
 
 /// Reads an NRRD file and the orientation of its `space directions`.
 pub fn read_nrrd_oriented(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    let bytes = read_file(path)?;
+    read_nrrd_within(path, Budget::UNLIMITED)
+}
+
+pub(super) fn read_nrrd_within(
+    path: &Path,
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    let bytes = budget.read_file(path)?;
     let header = Header::parse(path, &bytes)?;
-    let grid = read_data(path, &bytes, &header)?;
+    let grid = read_data(path, &bytes, &header, budget)?;
     Ok((grid, header.orientation))
 }
 
-fn read_data(path: &Path, bytes: &[u8], header: &Header) -> Result<Grid, IoError> {
+fn read_data(path: &Path, bytes: &[u8], header: &Header, budget: Budget) -> Result<Grid, IoError> {
     let dims = header.dims;
     let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
+    let sizes = Position::Field("sizes".into());
+    // The header and the stored data are held while the values are decoded; gzip data also
+    // holds what it unpacks to.
+    let unpacked = match header.encoding {
+        Encoding::Gzip => (count as u64)
+            .saturating_mul(header.scalar.size() as u64)
+            .saturating_add(header.byte_skip.max(0) as u64),
+        _ => 0,
+    };
+    let held = 2 * bytes.len() as u64 + unpacked;
+    budget.check_values(path, sizes.clone(), held, count)?;
     let (data_path, data): (PathBuf, Vec<u8>) = match &header.data_file {
         Some(name) => {
             let p = path
                 .parent()
                 .map(|d| d.join(name))
                 .unwrap_or_else(|| PathBuf::from(name));
-            let d = read_file(&p)?;
+            let d = budget.read_file_holding(&p, held + 4 * count as u64)?;
             (p, d)
         }
         None => (path.to_path_buf(), bytes[header.data_offset..].to_vec()),
@@ -56,15 +74,32 @@ fn read_data(path: &Path, bytes: &[u8], header: &Header) -> Result<Grid, IoError
         Encoding::Gzip => {
             // Decompress no more than the values need (after a known byte skip): a small file
             // cannot unpack into gigabytes the header never asked for.
-            let limit = match u64::try_from(header.byte_skip) {
-                Ok(skip) => (count as u64)
-                    .saturating_mul(header.scalar.size() as u64)
-                    .saturating_add(skip),
-                Err(_) => u64::MAX,
+            // With `byte skip: -1` the values are the stream's last bytes, so all of it is
+            // unpacked, within what the memory limit leaves.
+            let others = held - unpacked + data.len() as u64 + 4 * count as u64;
+            let room = budget.limit().saturating_sub(others);
+            let whole = header.byte_skip < 0;
+            let limit = if whole {
+                room.saturating_add(1)
+            } else {
+                unpacked
             };
-            gunzip(&data, limit).map_err(|e| {
+            let out = gunzip(&data, limit).map_err(|e| {
                 IoError::format(&data_path, Position::File, format!("gzip data: {e}"))
-            })?
+            })?;
+            if whole && out.len() as u64 > room {
+                // Count the rest without keeping it, so the message gives the real size.
+                let mut rest = flate2::read::MultiGzDecoder::new(&data[..]);
+                let total =
+                    std::io::copy(&mut rest, &mut std::io::sink()).unwrap_or(out.len() as u64);
+                return Err(IoError::TooLarge {
+                    path: data_path,
+                    position: Position::Field("byte skip".into()),
+                    needed: others.saturating_add(total),
+                    limit: budget.limit(),
+                });
+            }
+            out
         }
         Encoding::Ascii => return ascii_grid(&data_path, &data, header, count),
     };

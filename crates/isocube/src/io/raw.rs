@@ -4,7 +4,7 @@ use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
-use super::{read_file, IoError, Position};
+use super::{read_file, Budget, IoError, Position};
 use crate::field::Grid;
 
 /// Scalar type of stored values.
@@ -180,7 +180,20 @@ impl RawOptions {
 
 /// Reads a raw volume. The file must hold exactly `header_bytes + product(dims) × size` bytes.
 pub fn read_raw(path: &Path, options: &RawOptions) -> Result<Grid, IoError> {
+    read_raw_within(path, options, Budget::UNLIMITED)
+}
+
+pub(super) fn read_raw_within(
+    path: &Path,
+    options: &RawOptions,
+    budget: Budget,
+) -> Result<Grid, IoError> {
     let count = Grid::point_count(options.dims).map_err(|e| IoError::grid(path, e))?;
+    let len = std::fs::metadata(path)
+        .map_err(|e| IoError::os(path, e))?
+        .len();
+    check_raw_size(path, options, count, len)?;
+    budget.check_values(path, Position::File, len, count)?;
     let bytes = read_file(path)?;
     check_raw_size(path, options, count, bytes.len() as u64)?;
     let values = decode_all(

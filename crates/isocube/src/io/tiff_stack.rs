@@ -10,11 +10,15 @@ use tiff::decoder::{ifd::Value, Decoder, DecodingResult, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
-use super::{IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::Grid;
 
 /// Reads a multi-page TIFF as a volume.
 pub fn read_tiff_stack(path: &Path) -> Result<Grid, IoError> {
+    read_tiff_within(path, Budget::UNLIMITED)
+}
+
+pub(super) fn read_tiff_within(path: &Path, budget: Budget) -> Result<Grid, IoError> {
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
     let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
     let page_error = |page: usize, e: tiff::TiffError| {
@@ -25,6 +29,9 @@ pub fn read_tiff_stack(path: &Path) -> Result<Grid, IoError> {
     let limits = {
         let mut l = Limits::default();
         l.decoding_buffer_size = (len as usize).saturating_mul(64).max(1 << 26);
+        l.decoding_buffer_size = l
+            .decoding_buffer_size
+            .min(usize::try_from(budget.limit()).unwrap_or(usize::MAX));
         l.intermediate_buffer_size = l.decoding_buffer_size;
         l
     };
@@ -75,6 +82,13 @@ pub fn read_tiff_stack(path: &Path) -> Result<Grid, IoError> {
                 ))
             }
         }
+        // The values so far and this page's, plus its decoded samples (at most 8 bytes each).
+        budget.check_values(
+            path,
+            Position::Field(format!("page {page}")),
+            (nx * ny) as u64 * 8,
+            values.len().saturating_add(nx * ny),
+        )?;
         let image = decoder.read_image().map_err(|e| page_error(page, e))?;
         let before = values.len();
         match image {

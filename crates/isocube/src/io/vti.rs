@@ -11,20 +11,31 @@ use base64::Engine;
 use quick_xml::events::{BytesStart, Event};
 
 use super::raw::{decode_all, Endian, ScalarType};
-use super::{read_file, IoError, Position};
+use super::{Budget, IoError, Position};
 use crate::field::{Grid, Orientation};
 
 /// Reads a VTK ImageData file and its orientation.
 pub fn read_vti(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    let bytes = read_file(path)?;
+    read_vti_within(path, Budget::UNLIMITED)
+}
+
+pub(super) fn read_vti_within(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
+    let bytes = budget.read_file(path)?;
     // Raw appended data is not XML: parse only what comes before it.
     let appended_tag = find(&bytes, b"<AppendedData");
     let head = &bytes[..appended_tag.unwrap_or(bytes.len())];
     let doc = Document::parse(path, head)?;
     let extent = doc.extent;
-    let dims: [usize; 3] =
-        std::array::from_fn(|a| (extent[2 * a + 1] - extent[2 * a] + 1) as usize);
-    let count = dims.iter().product::<usize>();
+    let whole_extent = || Position::Field("WholeExtent".into());
+    let mut dims = [0usize; 3];
+    for (a, d) in dims.iter_mut().enumerate() {
+        *d = extent[2 * a + 1]
+            .checked_sub(extent[2 * a])
+            .and_then(|n| n.checked_add(1))
+            .and_then(|n| usize::try_from(n).ok())
+            .ok_or_else(|| IoError::format(path, whole_extent(), "the extent overflows"))?;
+    }
+    let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
     let array = doc.array.as_ref().ok_or_else(|| {
         IoError::format(
             path,
@@ -40,7 +51,16 @@ pub fn read_vti(path: &Path) -> Result<(Grid, Orientation), IoError> {
             format!("{} components: isocube meshes one scalar", array.components),
         ));
     }
-    let need = count * array.scalar.size();
+    let need = count
+        .checked_mul(array.scalar.size())
+        .ok_or_else(|| IoError::format(path, whole_extent(), "the extent overflows"))?;
+    // The file, a copy of its encoded text, the decoded bytes and the values.
+    budget.check_values(
+        path,
+        whole_extent(),
+        2 * bytes.len() as u64 + need as u64,
+        count,
+    )?;
     let raw: Vec<u8> = match array.format.as_str() {
         "ascii" => {
             let values: Vec<f32> = array

@@ -1,0 +1,138 @@
+//! What each fuzz target does with its input, shared with the replay test
+//! (`crates/isocube/tests/fuzz_corpus.rs`), which feeds every checked-in corpus file through the
+//! same function.
+//!
+//! A target names a reader. The input is written to a file with that reader's extension and
+//! read through the public entry point, exactly as `isocube` would read a user's file. A reader
+//! may refuse the input with an error; it must never panic, never allocate beyond the memory
+//! limit, and whatever it accepts must satisfy the invariants checked below.
+
+use std::path::{Path, PathBuf};
+
+use isocube::io::{self, VolumeOptions};
+
+/// Every fuzz target: its name (the file under `fuzz_targets/` and the corpus folder) and the
+/// extension its input is given. `dicom` is a folder holding the input as its one slice.
+pub const TARGETS: &[(&str, &str)] = &[
+    ("npy", "npy"),
+    ("nrrd", "nrrd"),
+    ("metaimage", "mha"),
+    ("vti", "vti"),
+    ("nifti", "nii"),
+    ("nifti_gz", "nii.gz"),
+    ("tiff", "tif"),
+    ("dicom", "dcm"),
+    ("ply", "ply"),
+    ("obj", "obj"),
+    ("stl", "stl"),
+    ("off", "off"),
+    ("poly_obj", "obj"),
+    ("contours_csv", "csv"),
+    ("contours_json", "json"),
+    ("contours_dxf", "dxf"),
+];
+
+/// The memory a volume reader may use on a fuzz input: far below libFuzzer's `-malloc_limit_mb`,
+/// so a reader that allocates before checking shows up as a crash.
+pub const MAX_MEMORY: u64 = 64 << 20;
+
+/// Runs target `name` on `data`, using `dir` for the input file.
+///
+/// # Panics
+/// When a reader panics or accepts something that breaks an invariant: that is the bug the
+/// fuzzer looks for.
+pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
+    let &(_, ext) = TARGETS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .unwrap_or_else(|| panic!("no fuzz target {name}"));
+    let path = if name == "dicom" {
+        let series = dir.join("series");
+        std::fs::create_dir_all(&series).unwrap();
+        series.join("slice.dcm")
+    } else {
+        dir.join(format!("input.{ext}"))
+    };
+    std::fs::write(&path, data).unwrap();
+    let read = if name == "dicom" {
+        path.parent().unwrap()
+    } else {
+        &path
+    };
+    match name {
+        "ply" | "obj" | "stl" | "off" => {
+            if let Ok(mesh) = io::read_mesh(read) {
+                check_mesh(&mesh);
+            }
+        }
+        "poly_obj" => {
+            if let Ok(poly) = io::read_poly_mesh(read) {
+                check_poly(&poly);
+            }
+        }
+        n if n.starts_with("contours") => {
+            if let Ok(stack) = io::read_contours(read) {
+                for section in stack.sections() {
+                    assert!(section.z().is_finite());
+                    for c in section.contours() {
+                        assert!(c.points().len() >= 3);
+                        assert!(c.points().iter().flatten().all(|v| v.is_finite()));
+                    }
+                }
+            }
+        }
+        _ => {
+            let options = VolumeOptions {
+                max_memory: Some(MAX_MEMORY),
+                ..VolumeOptions::default()
+            };
+            if let Ok((grid, orientation)) = io::read_volume_oriented(read, &options) {
+                let [nx, ny, nz] = grid.dims();
+                assert_eq!(grid.values().len(), nx * ny * nz);
+                assert!(grid.values().len() as u64 * 4 <= MAX_MEMORY);
+                assert!(grid.spacing().iter().all(|s| s.is_finite() && *s > 0.0));
+                assert!(grid.origin().iter().all(|o| o.is_finite()));
+                let far = grid.dims().map(|d| (d - 1) as f64);
+                let corner = orientation.world(&grid, far);
+                assert!(corner.iter().all(|c| c.is_finite()));
+                assert!(orientation.determinant().abs() > 0.0);
+            }
+        }
+    }
+}
+
+/// [`run_in`] with a folder of this process's own under the system's temporary directory
+/// (`/dev/shm` where there is one, so the fuzzer does not wear a disk).
+pub fn run(name: &str, data: &[u8]) {
+    thread_local! {
+        static DIR: PathBuf = {
+            let base = Path::new("/dev/shm");
+            let base = if base.is_dir() { base.to_path_buf() } else { std::env::temp_dir() };
+            let dir = base.join(format!("isocube-fuzz-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            dir
+        };
+    }
+    DIR.with(|dir| run_in(dir, name, data));
+}
+
+fn check_mesh(mesh: &isocube::mesh::Mesh) {
+    let n = mesh.positions.len();
+    assert!(mesh.positions.iter().flatten().all(|c| c.is_finite()));
+    assert!(mesh.triangles.iter().flatten().all(|&i| (i as usize) < n));
+    assert!(mesh.normals.is_empty() || mesh.normals.len() == n);
+    // What every command does next with a mesh it has read.
+    let _ = mesh.report();
+}
+
+fn check_poly(poly: &isocube::subdiv::PolyMesh) {
+    assert!(poly.positions.iter().flatten().all(|c| c.is_finite()));
+    if poly.validate().is_err() || poly.faces.len() > 2_000 {
+        return;
+    }
+    // A cage that validates must subdivide: one level, and the result is finite.
+    let options = isocube::subdiv::SubdivOptions::default();
+    if let Ok(fine) = isocube::subdiv::subdivide(poly, 1, &options) {
+        assert!(fine.positions.iter().flatten().all(|c| c.is_finite()));
+    }
+}
