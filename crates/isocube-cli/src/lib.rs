@@ -72,6 +72,46 @@ impl Failure {
     }
 }
 
+/// Whether two paths name one file: the same path, the same file through symbolic links, or (on
+/// Unix) hard links to one inode. A path that does not exist yet is no existing file.
+pub(crate) fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    if a == b {
+        return true;
+    }
+    let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        (ma.dev(), ma.ino()) == (mb.dev(), mb.ino())
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (ma, mb);
+        matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
+    }
+}
+
+/// Refuses (exit code 2, before any work) an output that would replace one of the inputs.
+pub(crate) fn refuse_overwrite(
+    output: &std::path::Path,
+    inputs: &[(&std::path::Path, &str)],
+) -> Result<(), Failure> {
+    for (input, what) in inputs {
+        if same_file(input, output) {
+            return Err(Failure::input(anyhow::anyhow!(
+                "{}: the output would overwrite the {what}",
+                output.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Classifies a library I/O error: OS errors on output are failures, everything else is bad
 /// input.
 pub(crate) fn io_failure(e: isocube::io::IoError, reading: bool) -> Failure {

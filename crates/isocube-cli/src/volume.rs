@@ -96,20 +96,6 @@ pub(crate) fn parse_memory(s: &str) -> Result<MemoryLimit, String> {
 }
 
 impl VolumeArgs {
-    /// Whether the volume argument is this file path.
-    pub(crate) fn is_file(&self, path: &Path) -> bool {
-        if SampleSpec::is_sample(&self.volume) {
-            return false;
-        }
-        match (
-            std::fs::canonicalize(&self.volume),
-            std::fs::canonicalize(path),
-        ) {
-            (Ok(a), Ok(b)) => a == b,
-            _ => Path::new(&self.volume) == path,
-        }
-    }
-
     /// The volume and how its axes lie in the world (identity for samples and formats without a
     /// direction).
     pub(crate) fn load_oriented(&self) -> Result<(Grid, Orientation), Failure> {

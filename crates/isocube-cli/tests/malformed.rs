@@ -144,10 +144,10 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         ("size.npy", npy("<f4", "(2, 2, 2)", &[0; 32]), vec!["--max-memory", "lots"], "'lots' is not a size"),
         // Meshes (read by `info`).
         ("magic.ply", ply("plx\nformat ascii 1.0\nend_header\n"), vec![], "not a PLY file"),
-        ("count.ply", ply("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n"), vec![], "data ends before"),
+        ("count.ply", ply("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0.000 0.000 0.000\n"), vec![], "data ends before"),
         ("index.ply", ply("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n"), vec![], "outside 0..3"),
         ("nan.ply", ply("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"), vec![], "not a finite number"),
-        ("binary.ply", [b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec(), vec![0; 20]].concat(), vec![], "data ends before"),
+        ("binary.ply", [b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec(), vec![0; 20]].concat(), vec![], "3 items cannot fit in the 20 bytes"),
         ("zero.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n".to_vec(), vec![], "index 0"),
         ("word.obj", b"v 0 zero 0\n".to_vec(), vec![], "'zero' is not a number"),
         ("utf8.obj", b"v 0 0 0\n# \xff\xfe\n".to_vec(), vec![], "UTF-8"),
@@ -369,4 +369,105 @@ fn non_finite_values_are_counted_or_refused_with_strict() {
         .collect();
     names.sort();
     assert_eq!(names, ["clean.npy", "clean.ply", "holes.npy", "holes.ply"]);
+}
+
+/// No command writes over one of its inputs, whether the output names it directly, through a
+/// symbolic link or as a hard link: exit code 2 and the input unchanged.
+#[cfg(unix)]
+#[test]
+fn outputs_never_replace_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_isocube"))
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap()
+    };
+    // Inputs: a raw volume, a mesh and a cage, a contour file.
+    let raw: Vec<u8> = (0..64u8).map(|v| if v == 21 { 9 } else { 0 }).collect();
+    std::fs::write(path("v.raw"), &raw).unwrap();
+    let ok = run(&["extract", "sample:sphere:8", "-o", "m.ply"]);
+    assert!(ok.status.success());
+    let ok = run(&["subdivide", "sample:cube", "--levels", "0", "-o", "c.obj"]);
+    assert!(ok.status.success());
+    std::fs::write(
+        path("s.csv"),
+        "section,z,contour,x,y\na,0,o,0,0\na,0,o,1,0\na,0,o,1,1\na,0,o,0,0\nb,1,o,0,0\nb,1,o,1,0\nb,1,o,1,1\nb,1,o,0,0\n",
+    )
+    .unwrap();
+    std::fs::hard_link(path("v.raw"), path("hard.ply")).unwrap();
+    let symlink =
+        |target: &str, name: &str| std::os::unix::fs::symlink(path(target), path(name)).unwrap();
+    symlink("m.ply", "to-mesh.png");
+    symlink("m.ply", "to-mesh.svg");
+    symlink("c.obj", "to-cage.obj");
+    symlink("s.csv", "to-csv.ply");
+    symlink("v.raw", "to-raw.ply");
+    let raw_args = ["--dims", "4,4,4", "--type", "u8", "--level", "4"];
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            [&["extract", "v.raw", "-o", "hard.ply"], &raw_args[..]].concat(),
+            "v.raw",
+            "input volume",
+        ),
+        (
+            [&["extract", "v.raw", "-o", "to-raw.ply"], &raw_args[..]].concat(),
+            "v.raw",
+            "input volume",
+        ),
+        (
+            [
+                &[
+                    "extract",
+                    "sample:sphere:4",
+                    "--values",
+                    "v.raw",
+                    "-o",
+                    "to-raw.ply",
+                ],
+                &raw_args[..2],
+            ]
+            .concat(),
+            "v.raw",
+            "--values volume",
+        ),
+        (
+            vec!["subdivide", "c.obj", "-o", "c.obj"],
+            "c.obj",
+            "input mesh",
+        ),
+        (
+            vec!["subdivide", "c.obj", "-o", "to-cage.obj"],
+            "c.obj",
+            "input mesh",
+        ),
+        (
+            vec!["render", "m.ply", "-o", "to-mesh.png"],
+            "m.ply",
+            "mesh",
+        ),
+        (
+            vec!["quality", "m.ply", "--histogram", "to-mesh.svg"],
+            "m.ply",
+            "mesh",
+        ),
+        (
+            vec!["contours", "s.csv", "-o", "to-csv.ply"],
+            "s.csv",
+            "input",
+        ),
+    ];
+    for (args, input, what) in cases {
+        let before = std::fs::read(path(input)).unwrap();
+        let out = run(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("the output would overwrite the {what}")),
+            "{args:?}: {err}"
+        );
+        assert_eq!(std::fs::read(path(input)).unwrap(), before, "{args:?}");
+    }
 }

@@ -95,17 +95,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         SectionStack::sample_orebody()
     } else {
         let input = Path::new(&args.input);
-        if let (Ok(a), Ok(b)) = (
-            std::fs::canonicalize(input),
-            std::fs::canonicalize(&args.output),
-        ) {
-            if a == b {
-                return Err(Failure::input(anyhow::anyhow!(
-                    "{}: the output would overwrite the input",
-                    args.output.display()
-                )));
-            }
-        }
+        crate::refuse_overwrite(&args.output, &[(input, "input")])?;
         read_contours(input).map_err(|e| crate::io_failure(e, true))?
     };
     let plane = match (args.grid, args.cell) {

@@ -117,11 +117,17 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             )));
         }
     }
-    if args.volume.is_file(&args.output) {
-        return Err(Failure::input(anyhow::anyhow!(
-            "{}: the output would overwrite the input volume",
-            args.output.display()
-        )));
+    if !SampleSpec::is_sample(&args.volume.volume) {
+        crate::refuse_overwrite(
+            &args.output,
+            &[(std::path::Path::new(&args.volume.volume), "input volume")],
+        )?;
+    }
+    if let Some(values) = args.values.as_deref().filter(|v| !SampleSpec::is_sample(v)) {
+        crate::refuse_overwrite(
+            &args.output,
+            &[(std::path::Path::new(values), "--values volume")],
+        )?;
     }
     if let Some(selection) = &args.labels {
         return run_labels(args, selection, quiet);
@@ -271,6 +277,15 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         )));
     }
     let elapsed = started.elapsed();
+    if !SampleSpec::is_sample(&args.volume.volume) {
+        let input = std::path::Path::new(&args.volume.volume);
+        for surface in &surfaces {
+            crate::refuse_overwrite(
+                &label_path(&args.output, surface.label),
+                &[(input, "input volume")],
+            )?;
+        }
+    }
     for mut surface in surfaces {
         orientation.orient_mesh(&mut surface.mesh, grid.origin());
         if args.no_normals {

@@ -39,6 +39,10 @@ pub(crate) struct Args {
 
 pub(crate) fn run(args: &Args) -> Result<(), Failure> {
     if let Some(path) = &args.histogram {
+        let field = args.field.as_deref().filter(|f| !SampleSpec::is_sample(f));
+        let mut inputs = vec![(args.mesh.as_path(), "mesh")];
+        inputs.extend(field.map(|f| (Path::new(f), "--field volume")));
+        crate::refuse_overwrite(path, &inputs)?;
         if picture_format(path).is_none() {
             return Err(Failure::input(anyhow::anyhow!(
                 "{}: unknown picture extension (expected .svg or .png)",

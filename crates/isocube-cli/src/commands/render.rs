@@ -41,12 +41,7 @@ pub(crate) fn parse_size(s: &str) -> Result<(usize, usize), String> {
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     check_png(&args.output)?;
-    if same_file(&args.mesh, &args.output) {
-        return Err(Failure::input(anyhow::anyhow!(
-            "{}: the picture would overwrite the mesh",
-            args.output.display()
-        )));
-    }
+    crate::refuse_overwrite(&args.output, &[(&args.mesh, "mesh")])?;
     let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
     let picture = picture(&mesh, args.view, args.size, args.wireframe);
     write_png(&args.output, &picture)?;
@@ -87,13 +82,6 @@ pub(crate) fn check_png(path: &Path) -> Result<(), Failure> {
             "{}: pictures are written as .png",
             path.display()
         )))
-    }
-}
-
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => a == b,
     }
 }
 

@@ -59,6 +59,9 @@ const MAX_FACES: usize = 1 << 28;
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
+    if !args.mesh.starts_with("sample:") {
+        crate::refuse_overwrite(&args.output, &[(Path::new(&args.mesh), "input mesh")])?;
+    }
     let cage = match args.mesh.strip_prefix("sample:") {
         Some(name) => samples::sample(name).ok_or_else(|| {
             Failure::input(anyhow::anyhow!(

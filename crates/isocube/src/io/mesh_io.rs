@@ -699,16 +699,34 @@ fn read_ply(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
         .iter()
         .find(|e| e.name == "vertex")
         .map_or(0, |e| e.count);
-    // Guard against absurd counts before allocating: each vertex takes at least 3 bytes.
-    if vertex_count > bytes.len() {
-        return Err(IoError::format(
-            path,
-            Position::Field("element vertex".into()),
-            format!(
-                "{vertex_count} vertices cannot fit in {} bytes",
-                bytes.len()
-            ),
-        ));
+    // Absurd counts are refused before allocating or looping: every property of an item takes
+    // at least its size in binary, at least two characters (a digit and a separator) in ASCII.
+    let data_len = bytes.len().saturating_sub(data_start);
+    for e in &elements {
+        let least: usize = e
+            .properties
+            .iter()
+            .map(|p| match format {
+                0 => 2,
+                _ => p.list.unwrap_or(p.ty).size(),
+            })
+            .sum();
+        // (The last ASCII token needs no separator.)
+        let fits = if least == 0 {
+            e.count
+        } else {
+            (data_len + 1) / least
+        };
+        if e.count > fits {
+            return Err(IoError::format(
+                path,
+                Position::Field(format!("element {}", e.name)),
+                format!(
+                    "{} items cannot fit in the {data_len} bytes of data",
+                    e.count
+                ),
+            ));
+        }
     }
     let mut reader = PlyData {
         path,
@@ -753,7 +771,9 @@ fn read_ply(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
         }
         let mut scalars = vec![0.0f64; e.properties.len()];
         let mut polygon: Vec<i64> = Vec::new();
-        for _ in 0..e.count {
+        // Items without properties take no bytes: nothing to read, however many.
+        let count = if e.properties.is_empty() { 0 } else { e.count };
+        for _ in 0..count {
             for (pi, p) in e.properties.iter().enumerate() {
                 match p.list {
                     None => scalars[pi] = reader.scalar(p.ty)?,
@@ -1266,9 +1286,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let cases: [(&str, &[u8], &str); 8] = [
             ("a.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "outside 0..3"),
-            ("b.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0\n", "ends before"),
+            ("b.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0.0 0.0 0.0\n1.0 0.0\n", "ends before"),
             ("c.ply", b"plx\n", "end_header"),
-            ("d.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00", "ends before"),
+            ("d.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00", "2 items cannot fit in the 2 bytes"),
             ("e.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "line 4"),
             ("f.obj", b"v 0 0 nan\n", "not a finite"),
             ("g.stl", b"garbage that is not an stl", "neither binary"),
