@@ -712,11 +712,7 @@ fn read_ply(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
             })
             .sum();
         // (The last ASCII token needs no separator.)
-        let fits = if least == 0 {
-            e.count
-        } else {
-            (data_len + 1) / least
-        };
+        let fits = (data_len + 1).checked_div(least).unwrap_or(e.count);
         if e.count > fits {
             return Err(IoError::format(
                 path,
