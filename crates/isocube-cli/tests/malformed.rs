@@ -158,6 +158,19 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         // Contours.
         ("bad.csv", b"section,z,contour,x,y\n0,0,0,1,one\n".to_vec(), vec![], "'one' is not a number"),
         ("bad.json", b"{\"sections\": [".to_vec(), vec![], "EOF while parsing"),
+        ("nan.csv", b"section,z,contour,x,y\na,0,o,0,0\na,0,o,NaN,0\na,0,o,1,1\na,0,o,0,0\n".to_vec(), vec![], "finite"),
+        ("utf8.csv", b"section,z,contour,x,y\na,0,o,0,\xff\n".to_vec(), vec![], "not UTF-8 text"),
+        ("cross.csv", b"section,z,contour,x,y\na,0,p,0,0\na,0,p,2,0\na,0,p,2,2\na,0,p,0,0\na,0,q,1,-1\na,0,q,3,1\na,0,q,1,1\na,0,q,1,-1\n".to_vec(), vec![], "cross"),
+        ("inf.json", b"{\"sections\": [{\"z\": 0, \"contours\": [[[0,0],[1e999,0],[1,1],[0,0]]]}]}".to_vec(), vec![], "inf.json"),
+        ("samez.json", b"{\"sections\": [{\"z\": 1, \"contours\": [[[0,0],[1,0],[1,1],[0,0]]]}, {\"z\": 1, \"contours\": [[[0,0],[1,0],[1,1],[0,0]]]}]}".to_vec(), vec![], "header field 'sections[1].z': sections '0' and '1' are both at z = 1"),
+        ("open.dxf", b"0\nSECTION\n2\nENTITIES\n0\nLWPOLYLINE\n5\nA1\n90\n3\n70\n0\n38\n0\n10\n0\n20\n0\n10\n1\n20\n0\n10\n1\n20\n1\n0\nENDSEC\n0\nEOF\n".to_vec(), vec![], "is open"),
+        ("empty.dxf", b"0\nSECTION\n2\nENTITIES\n0\nENDSEC\n0\nEOF\n".to_vec(), vec![], "no LWPOLYLINE or POLYLINE entity"),
+        // Subdivision cages.
+        ("cage-index.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 5\n".to_vec(), vec![], "line 4: face 0: vertex 5 does not exist"),
+        ("cage-nan.obj", b"v 0 nan 0\n".to_vec(), vec![], "three finite coordinates"),
+        ("cage-crease.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nt crease 2/1/0 0 9 1.0\n".to_vec(), vec![], "line 5: tag crease: edge 0–9"),
+        ("cage-chaikin.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nt creasemethod 0/0/1 chaikin\n".to_vec(), vec![], "line 5: tag creasemethod: crease method `chaikin`"),
+        ("cage-repeat.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 1\n".to_vec(), vec![], "line 4: face 0: vertex 1 appears twice"),
     ]
 }
 
@@ -169,8 +182,10 @@ fn malformed_inputs_exit_2_with_a_specific_error() {
     let mut failures = Vec::new();
     for (name, content, extra, says) in all {
         std::fs::write(dir.path().join(name), &content).unwrap();
-        let (command, output) = if name.ends_with(".csv") || name.ends_with(".json") {
+        let (command, output) = if [".csv", ".json", ".dxf"].iter().any(|e| name.ends_with(e)) {
             ("contours", "out.ply")
+        } else if name.starts_with("cage-") {
+            ("subdivide", "out.obj")
         } else if [".ply", ".obj", ".stl", ".off", ".glb"]
             .iter()
             .any(|e| name.ends_with(e))

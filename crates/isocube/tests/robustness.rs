@@ -381,11 +381,17 @@ proptest! {
         if let Ok(fine) = subdivide(&cage, levels, &options) {
             fine.validate().unwrap();
             prop_assert!(fine.positions.iter().flatten().all(|c| c.is_finite()));
-            // Faces with inner loops triangulate only when their geometry allows (no loop
-            // collapsed onto itself): if the cage's do, the refined faces' must.
+            // Faces with inner loops triangulate only when their geometry allows: with distinct
+            // vertices, if the cage's do, the refined faces' must. (Coincident vertices can
+            // make refined loops overlap: an error, never a panic.)
+            let distinct = {
+                let mut p = cage.positions.clone();
+                p.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                p.windows(2).all(|w| w[0] != w[1])
+            };
             match fine.triangulate() {
                 Ok(mesh) => mesh.validate().unwrap(),
-                Err(e) => prop_assert!(cage.triangulate().is_err(), "{e}"),
+                Err(e) => prop_assert!(!distinct || cage.triangulate().is_err(), "{e}"),
             }
             if let Ok(limit) = limit_positions(&fine) {
                 prop_assert_eq!(limit.len(), fine.positions.len());

@@ -248,7 +248,7 @@ pub(crate) fn ear_clip(
                 continue;
             }
             let q = if choose { smallest(pa, pb, pc) } else { 0.0 };
-            if best.map_or(true, |(bq, _)| q > bq) {
+            if best.is_none_or(|(bq, _)| q > bq) {
                 best = Some((q, i));
             }
             if !choose {

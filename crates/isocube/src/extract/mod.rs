@@ -281,6 +281,9 @@ pub fn extract_into(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ExtractStats, ExtractError> {
     let stats = extract_cells(grid, options, mesh, progress)?;
+    if let Some(normals) = mesh.filled_normals() {
+        mesh.normals = normals;
+    }
     if options.relax > 0 {
         let spacing = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
         crate::quality::relax(

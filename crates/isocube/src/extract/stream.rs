@@ -151,6 +151,10 @@ impl Joiner {
         stats: &mut ExtractStats,
     ) -> Result<(), StreamError<S::Error>> {
         let mesh = &part.mesh;
+        // As extraction in memory does; the vertices concerned are inside one cell, so the
+        // part holds all their triangles.
+        let filled = mesh.filled_normals();
+        let normals = filled.as_ref().unwrap_or(&mesh.normals);
         self.remap.clear();
         self.remap.resize(mesh.positions.len(), u32::MAX);
         for &(slot, local) in &part.bottom {
@@ -168,7 +172,7 @@ impl Joiner {
                 *r = self.next as u32;
                 self.next += 1;
                 self.positions.push(mesh.positions[local]);
-                if let Some(n) = mesh.normals.get(local) {
+                if let Some(n) = normals.get(local) {
                     self.normals.push(*n);
                 }
             }

@@ -72,7 +72,7 @@ struct RawSection {
 fn build(
     mut sections: Vec<RawSection>,
     path: &Path,
-    where_is: &dyn Fn(&RawSection, usize) -> Position,
+    where_is: &dyn Fn(&RawSection, Option<usize>) -> Position,
 ) -> Result<SectionStack, IoError> {
     let format = |position: Position, reason: String| IoError::Format {
         path: path.to_path_buf(),
@@ -86,7 +86,7 @@ fn build(
     for w in sections.windows(2) {
         if w[0].z == w[1].z {
             return Err(format(
-                where_is(&w[1], 0),
+                where_is(&w[1], None),
                 format!(
                     "sections '{}' and '{}' are both at z = {}",
                     w[0].label, w[1].label, w[1].z
@@ -106,7 +106,7 @@ fn build(
                     gap,
                 };
                 return Err(format(
-                    where_is(s, c),
+                    where_is(s, Some(c)),
                     format!(
                         "section '{}' (z = {}), contour '{label}': {}",
                         s.label,
@@ -133,7 +133,7 @@ fn build(
             _ => detail(&e),
         };
         format(
-            where_is(sec, c.unwrap_or(0)),
+            where_is(sec, c),
             format!("section '{}' (z = {}), {reason}", sec.label, sec.z),
         )
     })
@@ -251,7 +251,7 @@ pub fn parse_contours_csv(text: &str, path: &Path) -> Result<SectionStack, IoErr
         }
     }
     build(sections, path, &|s, c| {
-        Position::Line(s.contours.get(c).map_or(0, |c| c.1))
+        Position::Line(s.contours.get(c.unwrap_or(0)).map_or(0, |c| c.1))
     })
 }
 
@@ -417,7 +417,7 @@ pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoErr
         sections[s].contours.push((p.name, p.line, p.line, points));
     }
     build(sections, path, &|s, c| {
-        Position::Line(s.contours.get(c).map_or(0, |c| c.1))
+        Position::Line(s.contours.get(c.unwrap_or(0)).map_or(0, |c| c.1))
     })
 }
 
@@ -491,8 +491,9 @@ pub fn parse_contours_json(text: &str, path: &Path) -> Result<SectionStack, IoEr
             contours: raw,
         });
     }
-    build(sections, path, &|s, c| {
-        Position::Field(format!("sections[{}].contours[{c}]", s.label))
+    build(sections, path, &|s, c| match c {
+        Some(c) => Position::Field(format!("sections[{}].contours[{c}]", s.label)),
+        None => Position::Field(format!("sections[{}].z", s.label)),
     })
 }
 

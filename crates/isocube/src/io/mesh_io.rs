@@ -155,7 +155,21 @@ pub(crate) fn write_atomic(
     }
     tmp.as_file().sync_all().map_err(|e| IoError::os(path, e))?;
     tmp.persist(path).map_err(|e| IoError::os(path, e.error))?;
+    sync_parent(path);
     Ok(())
+}
+
+/// Makes a rename durable: the directory entry is on disk only once the directory is synced.
+/// Best effort: some file systems and platforms cannot sync a directory, and the file itself is
+/// complete either way.
+pub(crate) fn sync_parent(path: &Path) {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let Ok(dir) = std::fs::File::open(parent) {
+        let _ = dir.sync_all();
+    }
 }
 
 /// Writes a mesh in a format to any writer.
@@ -341,6 +355,7 @@ impl PlyWriter {
         out.as_file().sync_all().map_err(os)?;
         out.persist(&path)
             .map_err(|e| IoError::os(&path, e.error))?;
+        sync_parent(&path);
         Ok(())
     }
 }

@@ -7,11 +7,29 @@ use super::mesh_io::{read_mesh, write_atomic, write_mesh, MeshFormat, MeshWriteO
 use super::{read_file, IoError, Position};
 use crate::subdiv::{Face, PolyMesh, SubdivError};
 
-fn subdiv_error(path: &Path, e: SubdivError) -> IoError {
-    match e {
-        SubdivError::Parse { line, reason } => IoError::format(path, Position::Line(line), reason),
-        other => IoError::format(path, Position::File, other.to_string()),
-    }
+/// Errors found after parsing name the line of the face or tag they are about.
+fn subdiv_error(path: &Path, text: &str, e: SubdivError) -> IoError {
+    // The 1-based line of the `n`-th line (from 0) whose first word is `word`, and for tags
+    // whose second word is `name`.
+    let find = |word: &str, name: Option<&str>, n: usize| {
+        text.lines()
+            .enumerate()
+            .filter(|(_, l)| {
+                let mut w = l.split_whitespace();
+                w.next() == Some(word) && name.is_none_or(|name| w.next() == Some(name))
+            })
+            .nth(n)
+            .map(|(k, _)| k + 1)
+    };
+    let line = match &e {
+        SubdivError::Parse { line, reason } => {
+            return IoError::format(path, Position::Line(*line), reason.clone())
+        }
+        SubdivError::Face { face, .. } | SubdivError::Holes { face, .. } => find("f", None, *face),
+        SubdivError::Tag { tag, .. } => find("t", Some(tag), 0),
+    };
+    let position = line.map_or(Position::File, Position::Line);
+    IoError::format(path, position, e.to_string())
 }
 
 /// Reads a polygon mesh: OBJ keeps its polygons and tags (creases, corners, holes, boundary
@@ -27,7 +45,7 @@ pub fn read_poly_mesh(path: &Path) -> Result<PolyMesh, IoError> {
                     "not UTF-8 text",
                 )
             })?;
-            PolyMesh::from_obj(text).map_err(|e| subdiv_error(path, e))
+            PolyMesh::from_obj(text).map_err(|e| subdiv_error(path, text, e))
         }
         _ => {
             let mesh = read_mesh(path)?;
@@ -58,7 +76,7 @@ pub fn write_poly_mesh(
             write_atomic(path, &mut |w| w.write_all(text.as_bytes()))
         }
         _ => {
-            let triangles = mesh.triangulate().map_err(|e| subdiv_error(path, e))?;
+            let triangles = mesh.triangulate().map_err(|e| subdiv_error(path, "", e))?;
             write_mesh(path, &triangles, options)
         }
     }

@@ -104,6 +104,40 @@ impl Mesh {
             .collect();
     }
 
+    /// The normals with every zero one (a flat spot of the field, or averaged normals that
+    /// cancel) replaced by the area-weighted normal of its triangles, or +z where those cancel
+    /// too; `None` when no normal is zero (or there are none).
+    pub(crate) fn filled_normals(&self) -> Option<Vec<[f32; 3]>> {
+        if self.normals.len() != self.positions.len() || !self.normals.contains(&[0.0; 3]) {
+            return None;
+        }
+        let mut normals = self.normals.clone();
+        let mut acc: Vec<[f64; 3]> = vec![[0.0; 3]; normals.len()];
+        for t in &self.triangles {
+            if t.iter().all(|&v| normals[v as usize] != [0.0; 3]) {
+                continue;
+            }
+            let p = t.map(|v| self.positions[v as usize].map(f64::from));
+            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            for &v in t {
+                for a in 0..3 {
+                    acc[v as usize][a] += n[a];
+                }
+            }
+        }
+        for (n, a) in normals.iter_mut().zip(&acc) {
+            if *n == [0.0; 3] {
+                let len = dot(*a, *a).sqrt();
+                *n = if len > 0.0 && len.is_finite() {
+                    a.map(|c| (c / len) as f32)
+                } else {
+                    [0.0, 0.0, 1.0]
+                };
+            }
+        }
+        Some(normals)
+    }
+
     /// Axis-aligned bounds `(min, max)`, or `None` for no vertices.
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         let mut it = self.positions.iter();

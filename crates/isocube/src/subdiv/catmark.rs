@@ -141,7 +141,7 @@ impl Level {
             let nf = self.start.len() - 1;
             let corner_face: Vec<u32> = (0..nf)
                 .flat_map(|f| {
-                    std::iter::repeat(f as u32).take((self.start[f + 1] - self.start[f]) as usize)
+                    std::iter::repeat_n(f as u32, (self.start[f + 1] - self.start[f]) as usize)
                 })
                 .collect();
             let (edge_face_start, edge_faces) = csr(
@@ -540,7 +540,7 @@ pub fn subdivide(
         origin = (0..level.face_count())
             .flat_map(|f| {
                 let n = (level.start[f + 1] - level.start[f]) as usize;
-                std::iter::repeat(origin[f]).take(n)
+                std::iter::repeat_n(origin[f], n)
             })
             .collect();
         level = level.refine(rule);
