@@ -152,6 +152,9 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         ("word.obj", b"v 0 zero 0\n".to_vec(), vec![], "'zero' is not a number"),
         ("utf8.obj", b"v 0 0 0\n# \xff\xfe\n".to_vec(), vec![], "UTF-8"),
         ("short.stl", [vec![0u8; 80], 10u32.to_le_bytes().to_vec(), vec![0u8; 100]].concat(), vec![], "does not match the triangle count"),
+        ("nan.stl", b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex nan 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n".to_vec(), vec![], "line 5: coordinate NaN is not a finite number"),
+        ("cut.stl", b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n".to_vec(), vec![], "line 5: the file ends before 'endsolid'"),
+        ("inf.off", b"OFF\n3 1 0\n0 0 0\ninf 0 0\n0 1 0\n3 0 1 2\n".to_vec(), vec![], "line 4: coordinate inf is not a finite number"),
         ("lies.off", b"OFF\n3 5 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n".to_vec(), vec![], "all faces"),
         ("index.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n".to_vec(), vec![], "outside 0..3"),
         ("written.glb", b"glTF".to_vec(), vec![], "reads only"),
@@ -484,5 +487,55 @@ fn outputs_never_replace_inputs() {
             "{args:?}: {err}"
         );
         assert_eq!(std::fs::read(path(input)).unwrap(), before, "{args:?}");
+    }
+}
+
+/// Broken DICOM series (a folder): a cut slice, a big-endian transfer syntax, a pixel data
+/// element declaring 2 GiB, a missing slice and a repeated one. Each exits with code 2, names
+/// the slice file and says what is wrong, and writes nothing.
+#[test]
+fn broken_dicom_series_exit_2() {
+    let fixture =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes/dicom");
+    let first = std::fs::read(fixture.join("slice-03-7.dcm")).unwrap();
+    assert_eq!(&first[272..291], b"1.2.840.10008.1.2.1");
+    assert_eq!(&first[884..888], b"\xe0\x7f\x10\x00");
+    let mut big_endian = first.clone();
+    big_endian[272..291].copy_from_slice(b"1.2.840.10008.1.2.2");
+    let mut liar = first.clone();
+    liar[892..896].copy_from_slice(&0x7fff_fff0u32.to_le_bytes());
+    // (what to do to the series, what the error says)
+    type Change = Box<dyn Fn(&std::path::Path)>;
+    let put = |bytes: Vec<u8>| -> Change {
+        Box::new(move |d| std::fs::write(d.join("slice-03-7.dcm"), &bytes).unwrap())
+    };
+    let cases: Vec<(Change, &str)> = vec![
+        (put(first[..700].to_vec()), "slice-03-7.dcm: byte 656: element (0020,0037) declares 86 bytes, only 36 remain (the file is cut short"),
+        (put(big_endian), "slice-03-7.dcm: header field 'TransferSyntaxUID': unsupported: transfer syntax 1.2.840.10008.1.2.2"),
+        (put(liar), "slice-03-7.dcm: byte 884: element (7FE0,0010) declares 2147483632 bytes, only 240 remain"),
+        (Box::new(|d| std::fs::remove_file(d.join("slice-07-3.dcm")).unwrap()), "uneven or repeated slices"),
+        (Box::new(|d| { std::fs::copy(d.join("slice-03-7.dcm"), d.join("slice-99.dcm")).unwrap(); }), "uneven or repeated slices"),
+    ];
+    for (change, says) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let series = dir.path().join("series");
+        std::fs::create_dir(&series).unwrap();
+        for entry in std::fs::read_dir(&fixture).unwrap() {
+            let p = entry.unwrap().path();
+            std::fs::copy(&p, series.join(p.file_name().unwrap())).unwrap();
+        }
+        change(&series);
+        let out = Command::new(env!("CARGO_BIN_EXE_isocube"))
+            .args(["extract", "series", "--level", "400", "-o", "out.ply"])
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{says}: {err}");
+        assert!(
+            err.contains(says) && !err.contains("panicked"),
+            "{says}: {err}"
+        );
+        assert!(!dir.path().join("out.ply").exists());
     }
 }

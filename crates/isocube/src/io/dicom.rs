@@ -313,7 +313,7 @@ fn element(
             path,
             Position::Byte((base + at) as u64),
             format!(
-                "element ({:04X},{:04X}) declares {len} bytes, {} remain",
+                "element ({:04X},{:04X}) declares {len} bytes, only {} remain (the file is cut short or the length is wrong)",
                 tag.0,
                 tag.1,
                 data.len().saturating_sub(value)

@@ -1092,6 +1092,7 @@ fn read_stl(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
             )
         })?;
         let mut corners: Vec<[f32; 3]> = Vec::new();
+        let mut ended = false;
         for (n, line) in text.lines().enumerate() {
             let pos = || Position::Line(n + 1);
             let mut words = line.split_whitespace();
@@ -1128,8 +1129,17 @@ fn read_stl(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
                     triangles.push([corners[0], corners[1], corners[2]]);
                     corners.clear();
                 }
+                Some("endsolid") => ended = true,
                 _ => {}
             }
+        }
+        // A cut file would otherwise pass for a smaller mesh.
+        if !corners.is_empty() || !ended {
+            return Err(IoError::format(
+                path,
+                Position::Line(text.lines().count()),
+                "the file ends before 'endsolid' (cut short?)",
+            ));
         }
     } else {
         return Err(IoError::format(
