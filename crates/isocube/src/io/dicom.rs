@@ -237,6 +237,9 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
     }
 }
 
+/// The value representations of the standard (PS3.5 6.2), two letters each.
+const VRS: &[u8] = b"AEASATCSDADSDTFDFLISLOLTOBODOFOLOVOWPNSHSLSQSSSTSVTMUCUIULUNURUSUTUV";
+
 /// A data element's header: its tag, where its value starts, its length (`u32::MAX` as usize
 /// when undefined) and whether it holds a sequence.
 struct Element {
@@ -279,6 +282,19 @@ fn element(
         (u32_at(at + 4)?, at + 8, true)
     } else if explicit {
         let vr = data.get(at + 4..at + 6).ok_or_else(ends)?;
+        // dicom-rs reads an unknown VR with a 4-byte length: refuse it here instead.
+        if !VRS.chunks(2).any(|v| v == vr) {
+            return Err(IoError::format(
+                path,
+                Position::Byte((base + at) as u64),
+                format!(
+                    "element ({:04X},{:04X}) has an unknown value representation {:?}",
+                    tag.0,
+                    tag.1,
+                    String::from_utf8_lossy(vr)
+                ),
+            ));
+        }
         let long = matches!(
             vr,
             b"OB"
