@@ -108,10 +108,12 @@ impl VolumeArgs {
             let limit = MemoryLimit::or_default(self.max_memory);
             let needed = (spec.n as u64).pow(3) * 4;
             if limit.is_some_and(|l| needed > l) {
+                let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
                 return Err(Failure::input(anyhow::anyhow!(
-                    "{}: its values need {needed} bytes, more than the --max-memory limit of {} bytes",
+                    "{}: its values need {:.1} GiB, more than the limit of {:.1} GiB (raise it with --max-memory)",
                     self.volume,
-                    limit.unwrap_or_default()
+                    gib(needed),
+                    gib(limit.unwrap_or_default())
                 )));
             }
             let mut grid = spec.grid();

@@ -539,3 +539,61 @@ fn broken_dicom_series_exit_2() {
         assert!(!dir.path().join("out.ply").exists());
     }
 }
+
+/// Resolutions that would exhaust memory are refused at once, with exit code 2, before any work:
+/// a contour grid far finer than the body, a sample larger than the limit, subdivision past the
+/// face limit, a picture too large.
+#[test]
+fn absurd_resolutions_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &[
+                "contours",
+                "sample:orebody",
+                "--cell",
+                "0.00001",
+                "-o",
+                "o.ply",
+            ],
+            "would make about 1.18e14 triangles",
+        ),
+        (
+            &[
+                "extract",
+                "sample:sphere:1024",
+                "--max-memory",
+                "1G",
+                "-o",
+                "s.ply",
+            ],
+            "its values need 4.0 GiB, more than the limit of 1.0 GiB",
+        ),
+        (
+            &["subdivide", "sample:boss", "--levels", "30", "-o", "b.ply"],
+            "at most 268435456 are supported",
+        ),
+        (
+            &[
+                "render",
+                "missing.ply",
+                "--size",
+                "100000x100000",
+                "-o",
+                "r.png",
+            ],
+            "each 1 to 16384 pixels",
+        ),
+    ];
+    for (args, says) in cases {
+        let out = Command::new(env!("CARGO_BIN_EXE_isocube"))
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+}
