@@ -4,6 +4,7 @@
 //! 1"). World coordinates are the file's (RAS+ by the format's convention). Values go through
 //! `scl_slope` and `scl_inter` when the slope is not zero.
 
+use std::io::Read;
 use std::path::Path;
 
 use nifti::{IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
@@ -28,13 +29,18 @@ fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
         .and_then(|n| n.to_str())
         .is_some_and(|n| n.to_ascii_lowercase().ends_with(".gz"));
     let reader = std::io::BufReader::new(file);
-    let header = if gz {
-        NiftiHeader::from_reader(flate2::read::MultiGzDecoder::new(reader))
+    let mut reader: Box<dyn Read> = if gz {
+        Box::new(flate2::read::MultiGzDecoder::new(reader))
     } else {
-        NiftiHeader::from_reader(reader)
+        Box::new(reader)
     };
     // A header the crate cannot parse is reported by the crate, with its reason.
-    let Ok(header) = header else { return Ok(()) };
+    let Ok(header) = NiftiHeader::from_reader(&mut reader) else {
+        return Ok(());
+    };
+    if &header.magic == b"n+1\0" {
+        check_extensions(path, &header, &mut reader)?;
+    }
     let rank = usize::from(header.dim[0]);
     if !(1..=7).contains(&rank) {
         return Ok(());
@@ -63,7 +69,18 @@ fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
             ),
         ));
     }
-    let count = header.dim[1..=rank]
+    // The crate's own view of the dimensions, which is what it reserves space for.
+    let dims = header.dim().map_err(|_| {
+        IoError::format(
+            path,
+            Position::Field("dim".into()),
+            format!(
+                "{:?}: every axis up to dim[0] needs at least one point",
+                header.dim
+            ),
+        )
+    })?;
+    let count = dims
         .iter()
         .fold(1u64, |n, &d| n.saturating_mul(u64::from(d)));
     let bytes = count.saturating_mul(header.bitpix as u64 / 8);
@@ -83,6 +100,52 @@ fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
     }
     // The stored bytes, the crate's f32 array and the grid's copy.
     budget.check(path, dim(), bytes.saturating_add(count.saturating_mul(8)))
+}
+
+/// The crate reserves each extension's declared size before reading it, and trusts sizes below
+/// 8 or past the data's start: walk the extensions (between the 352-byte header and
+/// `vox_offset`) first and refuse such sizes.
+fn check_extensions(
+    path: &Path,
+    header: &NiftiHeader,
+    reader: &mut dyn Read,
+) -> Result<(), IoError> {
+    let mut extender = [0u8; 4];
+    if reader.read_exact(&mut extender).is_err() || extender[0] == 0 {
+        return Ok(());
+    }
+    let len = (header.vox_offset as usize).saturating_sub(352);
+    let big = header.endianness == nifti::Endianness::Big;
+    let mut offset = 0usize;
+    while offset < len {
+        let mut head = [0u8; 8];
+        if reader.read_exact(&mut head).is_err() {
+            // Cut short: the crate says so.
+            return Ok(());
+        }
+        let esize = if big {
+            i32::from_be_bytes([head[0], head[1], head[2], head[3]])
+        } else {
+            i32::from_le_bytes([head[0], head[1], head[2], head[3]])
+        };
+        let fits = usize::try_from(esize)
+            .ok()
+            .filter(|&n| n >= 8 && offset + n <= len);
+        let Some(esize) = fits else {
+            return Err(IoError::format(
+                path,
+                Position::Byte((352 + offset) as u64),
+                format!(
+                    "an extension of {esize} bytes: extensions take at least 8 bytes each and end at vox_offset {}",
+                    header.vox_offset
+                ),
+            ));
+        };
+        std::io::copy(&mut reader.take(esize as u64 - 8), &mut std::io::sink())
+            .map_err(|e| IoError::os(path, e))?;
+        offset += esize;
+    }
+    Ok(())
 }
 
 pub(super) fn read_nifti_within(
