@@ -214,6 +214,19 @@ for k in range(NZ):
 linear = np.stack([row_dir * pixel[1], col_dir * pixel[0], normal * 1.5], axis=1)
 record("dicom", linear, first, 2.0, -1024.0)
 
+# The same series in implicit VR little endian (the DICOM default transfer syntax).
+from pydicom.uid import ImplicitVRLittleEndian
+
+implicit = out / "dicom-implicit"
+implicit.mkdir(exist_ok=True)
+for old in implicit.glob("*.dcm"):
+    old.unlink()
+for name in sorted(series.glob("*.dcm")):
+    ds = pydicom.dcmread(name)
+    ds.file_meta.TransferSyntaxUID = ImplicitVRLittleEndian
+    ds.save_as(implicit / name.name, enforce_file_format=True, implicit_vr=True, little_endian=True)
+record("dicom-implicit", linear, first, 2.0, -1024.0)
+
 # A small segmentation for `isocube extract --labels` (README): three touching ellipsoids,
 # labels 1, 2, 3, in background 0, 1 mm × 1 mm × 1.5 mm voxels.
 i, j, k = np.meshgrid(np.arange(48), np.arange(40), np.arange(32), indexing="ij")

@@ -240,6 +240,9 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
 /// The value representations of the standard (PS3.5 6.2), two letters each.
 const VRS: &[u8] = b"AEASATCSDADSDTFDFLISLOLTOBODOFOLOVOWPNSHSLSQSSSTSVTMUCUIULUNURUSUTUV";
 
+/// The VRs written with a 4-byte length (after two reserved bytes) in explicit VR.
+const LONG: &[u8] = b"OBODOFOLOVOWSQSVUCUNURUTUV";
+
 /// A data element's header: its tag, where its value starts, its length (`u32::MAX` as usize
 /// when undefined) and whether it holds a sequence.
 struct Element {
@@ -277,9 +280,9 @@ fn element(
             .ok_or_else(ends)
     };
     let tag = (u16_at(at)?, u16_at(at + 2)?);
-    let (len, value, sequence) = if tag.0 == 0xFFFE {
-        // Items and delimiters: no VR; an item's contents are elements, walked in turn.
-        (u32_at(at + 4)?, at + 8, true)
+    // The VR: written (explicit) or the dictionary's (implicit; unknown tags are UN).
+    let vr: Option<[u8; 2]> = if tag.0 == 0xFFFE {
+        None
     } else if explicit {
         let vr = data.get(at + 4..at + 6).ok_or_else(ends)?;
         // dicom-rs reads an unknown VR with a 4-byte length: refuse it here instead.
@@ -295,34 +298,48 @@ fn element(
                 ),
             ));
         }
-        let long = matches!(
-            vr,
-            b"OB"
-                | b"OD"
-                | b"OF"
-                | b"OL"
-                | b"OV"
-                | b"OW"
-                | b"SQ"
-                | b"SV"
-                | b"UC"
-                | b"UN"
-                | b"UR"
-                | b"UT"
-                | b"UV"
-        );
-        if long {
-            (u32_at(at + 8)?, at + 12, vr == b"SQ")
-        } else {
-            (u32::from(u16_at(at + 6)?), at + 8, false)
-        }
+        Some([vr[0], vr[1]])
     } else {
         let dictionary = dicom_dictionary_std::StandardDataDictionary;
-        let sequence = dictionary
+        let known = dictionary
             .by_tag(dicom_core::Tag(tag.0, tag.1))
-            .is_some_and(|e| matches!(e.vr(), VirtualVr::Exact(dicom_core::VR::SQ)));
-        (u32_at(at + 4)?, at + 8, sequence)
+            .map(|e| e.vr());
+        Some(match known {
+            Some(VirtualVr::Exact(vr)) => vr.to_bytes(),
+            // As dicom-core relaxes the context-dependent VRs (2-byte values either way).
+            Some(VirtualVr::Xs) => *b"US",
+            Some(VirtualVr::Ox | VirtualVr::Px | VirtualVr::Lt) => *b"OW",
+            _ => *b"UN",
+        })
     };
+    let (len, value) = match vr {
+        // Items and delimiters: no VR; an item's contents are elements, walked in turn.
+        None => (u32_at(at + 4)?, at + 8),
+        Some(_) if !explicit => (u32_at(at + 4)?, at + 8),
+        Some(vr) if LONG.chunks(2).any(|v| v == vr) => (u32_at(at + 8)?, at + 12),
+        Some(_) => (u32::from(u16_at(at + 6)?), at + 8),
+    };
+    // dicom-rs reads whole numbers of a fixed-size value, then skips the declared length without
+    // reading the rest: a remainder would shift every later element.
+    let size = match vr.as_ref().map(|v| &v[..]) {
+        Some(b"SS" | b"US" | b"OW") => 2,
+        Some(b"AT" | b"FL" | b"SL" | b"UL" | b"OF" | b"OL") => 4,
+        Some(b"FD" | b"SV" | b"UV" | b"OD" | b"OV") => 8,
+        _ => 1,
+    };
+    if len != u32::MAX && len % size != 0 {
+        return Err(IoError::format(
+            path,
+            Position::Byte((base + at) as u64),
+            format!(
+                "element ({:04X},{:04X}) of {} has {len} bytes, not a whole number of {size}-byte values",
+                tag.0,
+                tag.1,
+                String::from_utf8_lossy(&vr.unwrap_or_default())
+            ),
+        ));
+    }
+    let sequence = vr.is_none_or(|v| &v == b"SQ");
     let len = len as usize;
     if len != u32::MAX as usize && !sequence && len > data.len().saturating_sub(value) {
         return Err(IoError::format(

@@ -34,16 +34,38 @@ fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
     } else {
         Box::new(reader)
     };
-    // A header the crate cannot parse is reported by the crate, with its reason.
-    let Ok(header) = NiftiHeader::from_reader(&mut reader) else {
-        return Ok(());
-    };
+    let header = NiftiHeader::from_reader(&mut reader).map_err(|e| match e {
+        nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            IoError::format(path, Position::File, "the file ends inside its header")
+        }
+        other => IoError::format(
+            path,
+            Position::File,
+            format!("not a readable NIfTI-1 file: {other}"),
+        ),
+    })?;
+    // The crate neither checks the header's size field nor always the rank before trusting the
+    // rest: only headers that pass here reach it.
+    if header.sizeof_hdr != 348 {
+        return Err(IoError::format(
+            path,
+            Position::Field("sizeof_hdr".into()),
+            format!(
+                "{} (a NIfTI-1 header has 348 bytes; NIfTI-2 is not read)",
+                header.sizeof_hdr
+            ),
+        ));
+    }
     if &header.magic == b"n+1\0" {
         check_extensions(path, &header, &mut reader)?;
     }
     let rank = usize::from(header.dim[0]);
     if !(1..=7).contains(&rank) {
-        return Ok(());
+        return Err(IoError::format(
+            path,
+            Position::Field("dim".into()),
+            format!("dim[0] = {rank}: the rank must be 1 to 7"),
+        ));
     }
     // The crate trusts datatype and bitpix to agree (and panics where they do not): check them.
     let bits = match header.datatype {
