@@ -190,11 +190,28 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
     if bytes.len() < 132 || &bytes[128..132] != b"DICM" {
         return Err(IoError::format(path, Position::Byte(128), "no DICM marker"));
     }
-    // The file meta group (0002) is always explicit VR little endian.
-    let mut at = 132;
+    // The file meta group (0002) is always explicit VR little endian, and opens with its length
+    // (UL), which dicom-rs uses to find where the data set starts: it must be exact.
+    let group_length = Position::Field("FileMetaInformationGroupLength".into());
+    if bytes.get(132..138) != Some(b"\x02\x00\x00\x00UL") || bytes.get(138..140) != Some(&[4, 0]) {
+        return Err(IoError::format(
+            path,
+            group_length,
+            "missing or not a 4-byte UL",
+        ));
+    }
+    let declared = u32::from_le_bytes([bytes[140], bytes[141], bytes[142], bytes[143]]) as usize;
+    let mut at = 144;
     let mut syntax = None;
     while bytes.get(at..at + 2) == Some(&[2, 0]) {
         let e = element(path, bytes, at, true, 0)?;
+        if e.len == u32::MAX as usize || e.sequence {
+            return Err(IoError::format(
+                path,
+                Position::Byte(at as u64),
+                "a file meta element without a defined length",
+            ));
+        }
         if e.tag == (2, 0x10) {
             let value = &bytes[e.value..e.value + e.len];
             syntax = Some(
@@ -204,6 +221,13 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
             );
         }
         at = e.value + e.len;
+    }
+    if at - 144 != declared {
+        return Err(IoError::format(
+            path,
+            group_length,
+            format!("{declared} bytes, the group has {}", at - 144),
+        ));
     }
     let syntax = syntax.ok_or_else(|| {
         IoError::format(path, Position::Field("TransferSyntaxUID".into()), "missing")
