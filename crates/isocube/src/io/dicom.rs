@@ -193,14 +193,18 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
     // The file meta group (0002) is always explicit VR little endian, and opens with its length
     // (UL), which dicom-rs uses to find where the data set starts: it must be exact.
     let group_length = Position::Field("FileMetaInformationGroupLength".into());
-    if bytes.get(132..138) != Some(b"\x02\x00\x00\x00UL") || bytes.get(138..140) != Some(&[4, 0]) {
-        return Err(IoError::format(
-            path,
-            group_length,
-            "missing or not a 4-byte UL",
-        ));
-    }
-    let declared = u32::from_le_bytes([bytes[140], bytes[141], bytes[142], bytes[143]]) as usize;
+    let declared = match (bytes.get(132..140), bytes.get(140..144)) {
+        (Some(b"\x02\x00\x00\x00UL\x04\x00"), Some(&[a, b, c, d])) => {
+            u32::from_le_bytes([a, b, c, d]) as usize
+        }
+        _ => {
+            return Err(IoError::format(
+                path,
+                group_length,
+                "missing or not a 4-byte UL",
+            ))
+        }
+    };
     let mut at = 144;
     let mut syntax = None;
     while bytes.get(at..at + 2) == Some(&[2, 0]) {
