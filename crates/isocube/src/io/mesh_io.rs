@@ -657,6 +657,16 @@ fn read_ply(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
         let words: Vec<&str> = line.split_whitespace().collect();
         match words.as_slice() {
             [] | ["comment", ..] | ["obj_info", ..] => {}
+            ["format", ..] if format.is_some() => {
+                return Err(IoError::format(path, pos(), "a second 'format' line"));
+            }
+            ["element", name, _] if elements.iter().any(|e| e.name == *name) => {
+                return Err(IoError::format(
+                    path,
+                    pos(),
+                    format!("a second '{name}' element"),
+                ));
+            }
             ["format", f, _] => {
                 format = Some(match *f {
                     "ascii" => 0,
