@@ -326,6 +326,17 @@ fn element(
                 ),
             ));
         }
+        // dicom-rs reads Pixel Data its own way whatever the VR says: only OB and OW are valid.
+        if tag == (0x7FE0, 0x0010) && vr != b"OB" && vr != b"OW" {
+            return Err(IoError::format(
+                path,
+                Position::Byte((base + at) as u64),
+                format!(
+                    "Pixel Data (7FE0,0010) of {}: only OB and OW are valid",
+                    String::from_utf8_lossy(vr)
+                ),
+            ));
+        }
         Some([vr[0], vr[1]])
     } else {
         let dictionary = dicom_dictionary_std::StandardDataDictionary;
