@@ -402,14 +402,43 @@ fn element(
 
 /// Checks every element of a data set (see [`check_lengths`]).
 fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<(), IoError> {
+    // The sequences (and undefined-length values) the walk is inside: where each ends, `None`
+    // until its delimiter. Items and delimiters are valid only inside one.
+    let mut open: Vec<Option<usize>> = Vec::new();
     let mut at = 0;
     while at < data.len() {
+        while open
+            .last()
+            .is_some_and(|end| end.is_some_and(|end| at >= end))
+        {
+            open.pop();
+        }
         let e = element(path, data, at, explicit, base)?;
-        // Sequences, items and undefined lengths (encapsulated data) hold elements of their own.
-        at = if e.sequence || e.len == u32::MAX as usize {
-            e.value
-        } else {
-            e.value + e.len
+        let bad = |reason: &str| {
+            Err(IoError::format(
+                path,
+                Position::Byte((base + at) as u64),
+                format!("({:04X},{:04X}): {reason}", e.tag.0, e.tag.1),
+            ))
+        };
+        let undefined = e.len == u32::MAX as usize;
+        at = match e.tag {
+            (0xFFFE, 0xE000) if !open.is_empty() => e.value,
+            (0xFFFE, 0xE00D) if !open.is_empty() => e.value,
+            (0xFFFE, 0xE0DD) if open.last() == Some(&None) => {
+                open.pop();
+                e.value
+            }
+            (0xFFFE, 0xE000 | 0xE00D | 0xE0DD) => {
+                return bad("an item or delimiter outside a sequence")
+            }
+            (0xFFFE, _) => return bad("not an item or delimiter tag"),
+            _ if e.sequence || undefined => {
+                // Sequences and undefined lengths (encapsulated data) hold items of their own.
+                open.push((!undefined).then_some(e.value + e.len));
+                e.value
+            }
+            _ => e.value + e.len,
         };
     }
     Ok(())
