@@ -380,7 +380,7 @@ fn element(
     }
     let sequence = vr.is_none_or(|v| &v == b"SQ");
     let len = len as usize;
-    if len != u32::MAX as usize && !sequence && len > data.len().saturating_sub(value) {
+    if len != u32::MAX as usize && tag.0 != 0xFFFE && len > data.len().saturating_sub(value) {
         return Err(IoError::format(
             path,
             Position::Byte((base + at) as u64),
@@ -422,6 +422,13 @@ fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<(), IoE
             ))
         };
         let undefined = e.len == u32::MAX as usize;
+        let delimiter = matches!(e.tag, (0xFFFE, 0xE00D | 0xE0DD));
+        if delimiter && e.len != 0 {
+            return bad("a delimiter's length must be 0");
+        }
+        if e.tag == (0xFFFE, 0xE000) && !undefined && e.len > data.len() - e.value.min(data.len()) {
+            return bad("the item runs past the end of the file");
+        }
         at = match e.tag {
             (0xFFFE, 0xE000) if !open.is_empty() => e.value,
             (0xFFFE, 0xE00D) if !open.is_empty() => e.value,
