@@ -326,6 +326,20 @@ fn element(
                 ),
             ));
         }
+        // dicom-rs 0.8 reads these three (64-bit values, added in 2019) with a 2-byte length
+        // where the standard has 4 bytes: it would lose its place.
+        if matches!(vr, b"OV" | b"SV" | b"UV") {
+            return Err(IoError::unsupported(
+                path,
+                Position::Byte((base + at) as u64),
+                format!(
+                    "element ({:04X},{:04X}) of {}: 64-bit value representations are not read",
+                    tag.0,
+                    tag.1,
+                    String::from_utf8_lossy(vr)
+                ),
+            ));
+        }
         // dicom-rs reads Pixel Data its own way whatever the VR says: only OB and OW are valid.
         if tag == (0x7FE0, 0x0010) && vr != b"OB" && vr != b"OW" {
             return Err(IoError::format(
