@@ -1,5 +1,8 @@
-//! DICOM series: a folder of single-frame slices of one series (CT, MR), through the dicom-rs
-//! crates. Slices are sorted by their position along the normal of their orientation; the slice
+//! DICOM series: a folder of single-frame slices of one series (CT, MR). Each slice's data
+//! elements are walked by isocube itself (explicit and implicit VR little endian, deflated
+//! explicit VR), using dicom-rs's standard dictionary for implicit VRs; every length is checked
+//! against what the file holds before anything is taken from it, so a hostile file cannot make
+//! the reader allocate what it declares. Slices are sorted by their position along the normal of their orientation; the slice
 //! spacing comes from the positions (and must be even), the in-plane spacing from
 //! `PixelSpacing`, the axes from `ImageOrientationPatient`, the origin from the first slice's
 //! `ImagePositionPatient` (patient coordinates, LPS). Stored values go through `RescaleSlope`
@@ -8,19 +11,9 @@
 
 use std::path::{Path, PathBuf};
 
-use dicom_dictionary_std::tags;
-use dicom_object::{open_file, DefaultDicomObject};
-
 use super::{Budget, IoError, Position};
 use crate::field::{Grid, Orientation};
 use crate::mesh::{cross, dot, sub};
-
-/// Uncompressed little-endian transfer syntaxes: implicit VR, explicit VR, deflated explicit VR.
-const UNCOMPRESSED: [&str; 3] = [
-    "1.2.840.10008.1.2",
-    "1.2.840.10008.1.2.1",
-    "1.2.840.10008.1.2.1.99",
-];
 
 struct Slice {
     path: PathBuf,
@@ -182,16 +175,15 @@ pub(super) fn read_dicom_within(
     Ok((grid, orientation))
 }
 
-/// Walks a slice's data elements before dicom-rs reads it. dicom-rs allocates every value at its
-/// declared length before reading it, so a few bytes declaring a gigabyte would be allocated:
-/// here each defined length must fit in the bytes that follow it. Refuses an unsupported
-/// transfer syntax at once. `limit` caps what a deflated data set may unpack to.
-fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
+/// Walks a slice's data elements, checking every length against what follows it, and returns
+/// the data set with its top-level elements. Refuses an unsupported transfer syntax at once.
+/// `limit` caps what a deflated data set may unpack to.
+fn parse(path: &Path, bytes: &[u8], limit: u64) -> Result<(Vec<u8>, Vec<Element>), IoError> {
     if bytes.len() < 132 || &bytes[128..132] != b"DICM" {
         return Err(IoError::format(path, Position::Byte(128), "no DICM marker"));
     }
     // The file meta group (0002) is always explicit VR little endian, and opens with its length
-    // (UL), which dicom-rs uses to find where the data set starts: it must be exact.
+    // (UL), which says where the data set starts: it must be exact.
     let group_length = Position::Field("FileMetaInformationGroupLength".into());
     let declared = match (bytes.get(132..140), bytes.get(140..144)) {
         (Some(b"\x02\x00\x00\x00UL\x04\x00"), Some(&[a, b, c, d])) => {
@@ -237,8 +229,8 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
         IoError::format(path, Position::Field("TransferSyntaxUID".into()), "missing")
     })?;
     match syntax.as_str() {
-        "1.2.840.10008.1.2" => walk(path, &bytes[at..], at, false),
-        "1.2.840.10008.1.2.1" => walk(path, &bytes[at..], at, true),
+        "1.2.840.10008.1.2" => Ok((bytes[at..].to_vec(), walk(path, &bytes[at..], at, false)?)),
+        "1.2.840.10008.1.2.1" => Ok((bytes[at..].to_vec(), walk(path, &bytes[at..], at, true)?)),
         "1.2.840.10008.1.2.1.99" => {
             use std::io::Read;
             let mut data = Vec::new();
@@ -255,7 +247,8 @@ fn check_lengths(path: &Path, bytes: &[u8], limit: u64) -> Result<(), IoError> {
                 });
             }
             // Offsets in errors are in the unpacked data set.
-            walk(path, &data, 0, true)
+            let elements = walk(path, &data, 0, true)?;
+            Ok((data, elements))
         }
         other => Err(IoError::unsupported(
             path,
@@ -275,6 +268,8 @@ const LONG: &[u8] = b"OBODOFOLOVOWSQSVUCUNURUTUV";
 /// when undefined) and whether it holds a sequence.
 struct Element {
     tag: (u16, u16),
+    /// The VR, written or the dictionary's; `None` for items and delimiters.
+    vr: Option<[u8; 2]>,
     value: usize,
     len: usize,
     sequence: bool,
@@ -313,7 +308,7 @@ fn element(
         None
     } else if explicit {
         let vr = data.get(at + 4..at + 6).ok_or_else(ends)?;
-        // dicom-rs reads an unknown VR with a 4-byte length: refuse it here instead.
+        // With an unknown VR the size of the length field is unknown too.
         if !VRS.chunks(2).any(|v| v == vr) {
             return Err(IoError::format(
                 path,
@@ -326,21 +321,7 @@ fn element(
                 ),
             ));
         }
-        // dicom-rs 0.8 reads these three (64-bit values, added in 2019) with a 2-byte length
-        // where the standard has 4 bytes: it would lose its place.
-        if matches!(vr, b"OV" | b"SV" | b"UV") {
-            return Err(IoError::unsupported(
-                path,
-                Position::Byte((base + at) as u64),
-                format!(
-                    "element ({:04X},{:04X}) of {}: 64-bit value representations are not read",
-                    tag.0,
-                    tag.1,
-                    String::from_utf8_lossy(vr)
-                ),
-            ));
-        }
-        // dicom-rs reads Pixel Data its own way whatever the VR says: only OB and OW are valid.
+        // The standard allows only OB and OW for Pixel Data.
         if tag == (0x7FE0, 0x0010) && vr != b"OB" && vr != b"OW" {
             return Err(IoError::format(
                 path,
@@ -372,8 +353,7 @@ fn element(
         Some(vr) if LONG.chunks(2).any(|v| v == vr) => (u32_at(at + 8)?, at + 12),
         Some(_) => (u32::from(u16_at(at + 6)?), at + 8),
     };
-    // dicom-rs reads whole numbers of a fixed-size value, then skips the declared length without
-    // reading the rest: a remainder would shift every later element.
+    // A value of a fixed-size VR is a whole number of values.
     let size = match vr.as_ref().map(|v| &v[..]) {
         Some(b"SS" | b"US" | b"OW") => 2,
         Some(b"AT" | b"FL" | b"SL" | b"UL" | b"OF" | b"OL") => 4,
@@ -408,6 +388,7 @@ fn element(
     }
     Ok(Element {
         tag,
+        vr,
         value,
         len,
         sequence,
@@ -415,7 +396,8 @@ fn element(
 }
 
 /// Checks every element of a data set (see [`check_lengths`]).
-fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<(), IoError> {
+fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<Vec<Element>, IoError> {
+    let mut top = Vec::new();
     // The sequences (and undefined-length values) the walk is inside: where each ends, `None`
     // until its delimiter. Items and delimiters are valid only inside one.
     let mut open: Vec<Option<usize>> = Vec::new();
@@ -459,42 +441,48 @@ fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<(), IoE
                 open.push((!undefined).then_some(e.value + e.len));
                 e.value
             }
-            _ => e.value + e.len,
+            _ => {
+                let next = e.value + e.len;
+                if open.is_empty() {
+                    top.push(e);
+                }
+                next
+            }
         };
     }
-    Ok(())
+    Ok(top)
 }
 
 fn read_slice(path: &Path, limit: u64) -> Result<Slice, IoError> {
     let bytes = super::read_file(path)?;
-    check_lengths(path, &bytes, limit)?;
+    let (data, elements) = parse(path, &bytes, limit)?;
     drop(bytes);
-    let obj: DefaultDicomObject = open_file(path).map_err(|e| {
-        IoError::format(
-            path,
-            Position::File,
-            format!("not a readable DICOM file: {e}"),
-        )
-    })?;
-    let ts = obj
-        .meta()
-        .transfer_syntax()
-        .trim_end_matches('\0')
-        .to_string();
-    if !UNCOMPRESSED.contains(&ts.as_str()) {
-        return Err(IoError::unsupported(
-            path,
-            Position::Field("TransferSyntaxUID".into()),
-            format!("transfer syntax {ts} (compressed or big-endian pixel data): isocube reads uncompressed little-endian series"),
-        ));
-    }
     let field = |name: &str| Position::Field(name.into());
+    let get = |tag: (u16, u16)| -> Option<(&[u8], [u8; 2])> {
+        elements
+            .iter()
+            .find(|e| e.tag == tag)
+            .map(|e| (&data[e.value..e.value + e.len], e.vr.unwrap_or(*b"UN")))
+    };
+    let text = |v: &[u8]| -> String {
+        String::from_utf8_lossy(v)
+            .trim_end_matches(['\0', ' '])
+            .trim()
+            .to_string()
+    };
+    // Decimal strings (DS, IS), `\`-separated.
+    let numbers = |tag, name: &str| -> Result<Vec<f64>, IoError> {
+        let (v, _) = get(tag).ok_or_else(|| IoError::format(path, field(name), "missing"))?;
+        let t = text(v);
+        t.split('\\')
+            .map(|w| w.trim_matches(['\0', ' ']).parse::<f64>())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|_| {
+                IoError::format(path, field(name), format!("'{t}' is not a list of numbers"))
+            })
+    };
     let floats = |tag, name: &str, n: usize| -> Result<Vec<f64>, IoError> {
-        let v = obj
-            .element(tag)
-            .map_err(|_| IoError::format(path, field(name), "missing"))?
-            .to_multi_float64()
-            .map_err(|e| IoError::format(path, field(name), e.to_string()))?;
+        let v = numbers(tag, name)?;
         if v.len() != n || v.iter().any(|x| !x.is_finite()) {
             return Err(IoError::format(
                 path,
@@ -504,29 +492,38 @@ fn read_slice(path: &Path, limit: u64) -> Result<Slice, IoError> {
         }
         Ok(v)
     };
+    // Binary integers (US, UL, SS, SL) or an integer string.
     let int = |tag, name: &str| -> Result<usize, IoError> {
-        obj.element(tag)
-            .map_err(|_| IoError::format(path, field(name), "missing"))?
-            .to_int::<u32>()
-            .map(|x| x as usize)
-            .map_err(|e| IoError::format(path, field(name), e.to_string()))
+        let (v, vr) = get(tag).ok_or_else(|| IoError::format(path, field(name), "missing"))?;
+        let x = match (&vr, v.len()) {
+            (b"US", 2..) => i64::from(u16::from_le_bytes([v[0], v[1]])),
+            (b"SS", 2..) => i64::from(i16::from_le_bytes([v[0], v[1]])),
+            (b"UL", 4..) => i64::from(u32::from_le_bytes([v[0], v[1], v[2], v[3]])),
+            (b"SL", 4..) => i64::from(i32::from_le_bytes([v[0], v[1], v[2], v[3]])),
+            _ => text(v).parse::<i64>().map_err(|_| {
+                IoError::format(
+                    path,
+                    field(name),
+                    format!("'{}' is not a whole number", text(v)),
+                )
+            })?,
+        };
+        usize::try_from(x)
+            .map_err(|_| IoError::format(path, field(name), format!("{x} is negative")))
     };
     let optional = |tag| -> Option<f64> {
-        obj.element_opt(tag)
-            .ok()
-            .flatten()
-            .and_then(|e| e.to_float64().ok())
+        get(tag)
+            .and_then(|(v, _)| text(v).split('\\').next()?.trim().parse::<f64>().ok())
             .filter(|x| x.is_finite())
     };
-    let position = floats(tags::IMAGE_POSITION_PATIENT, "ImagePositionPatient", 3)?;
-    let orientation = floats(
-        tags::IMAGE_ORIENTATION_PATIENT,
-        "ImageOrientationPatient",
-        6,
-    )?;
-    let pixel = floats(tags::PIXEL_SPACING, "PixelSpacing", 2)?;
-    let (rows, columns) = (int(tags::ROWS, "Rows")?, int(tags::COLUMNS, "Columns")?);
-    let bits = int(tags::BITS_ALLOCATED, "BitsAllocated")?;
+    let position = floats((0x0020, 0x0032), "ImagePositionPatient", 3)?;
+    let orientation = floats((0x0020, 0x0037), "ImageOrientationPatient", 6)?;
+    let pixel = floats((0x0028, 0x0030), "PixelSpacing", 2)?;
+    let (rows, columns) = (
+        int((0x0028, 0x0010), "Rows")?,
+        int((0x0028, 0x0011), "Columns")?,
+    );
+    let bits = int((0x0028, 0x0100), "BitsAllocated")?;
     if !matches!(bits, 8 | 16 | 32) {
         return Err(IoError::unsupported(
             path,
@@ -534,42 +531,29 @@ fn read_slice(path: &Path, limit: u64) -> Result<Slice, IoError> {
             format!("{bits} bits"),
         ));
     }
-    if obj
-        .element_opt(tags::SAMPLES_PER_PIXEL)
-        .ok()
-        .flatten()
-        .and_then(|e| e.to_int::<u32>().ok())
-        .unwrap_or(1)
-        != 1
-    {
+    if get((0x0028, 0x0002)).is_some() && int((0x0028, 0x0002), "SamplesPerPixel")? != 1 {
         return Err(IoError::unsupported(
             path,
             field("SamplesPerPixel"),
             "colour images",
         ));
     }
-    if obj
-        .element_opt(tags::NUMBER_OF_FRAMES)
-        .ok()
-        .flatten()
-        .and_then(|e| e.to_int::<u32>().ok())
-        .unwrap_or(1)
-        > 1
-    {
+    if get((0x0028, 0x0008)).is_some() && int((0x0028, 0x0008), "NumberOfFrames")? > 1 {
         return Err(IoError::unsupported(
             path,
             field("NumberOfFrames"),
             "multi-frame files",
         ));
     }
-    let signed = int(tags::PIXEL_REPRESENTATION, "PixelRepresentation").unwrap_or(0) == 1;
-    let data = obj
-        .element(tags::PIXEL_DATA)
-        .map_err(|_| IoError::format(path, field("PixelData"), "missing"))?
-        .to_bytes()
-        .map_err(|e| IoError::format(path, field("PixelData"), e.to_string()))?
-        .into_owned();
-    let need = rows * columns * bits / 8;
+    let signed = int((0x0028, 0x0103), "PixelRepresentation").unwrap_or(0) == 1;
+    let data = get((0x7FE0, 0x0010))
+        .ok_or_else(|| IoError::format(path, field("PixelData"), "missing"))?
+        .0
+        .to_vec();
+    let need = rows
+        .checked_mul(columns)
+        .and_then(|n| n.checked_mul(bits / 8))
+        .ok_or_else(|| IoError::format(path, field("Rows"), "the image size overflows"))?;
     if data.len() < need {
         return Err(IoError::format(
             path,
@@ -580,15 +564,8 @@ fn read_slice(path: &Path, limit: u64) -> Result<Slice, IoError> {
             ),
         ));
     }
-    let series = obj
-        .element_opt(tags::SERIES_INSTANCE_UID)
-        .ok()
-        .flatten()
-        .and_then(|e| {
-            e.to_str()
-                .ok()
-                .map(|s| s.trim_end_matches('\0').trim().to_string())
-        })
+    let series = get((0x0020, 0x000E))
+        .map(|(v, _)| text(v))
         .unwrap_or_default();
     Ok(Slice {
         path: path.to_path_buf(),
@@ -600,8 +577,8 @@ fn read_slice(path: &Path, limit: u64) -> Result<Slice, IoError> {
         size: (rows, columns),
         signed,
         bits,
-        slope: optional(tags::RESCALE_SLOPE).unwrap_or(1.0),
-        intercept: optional(tags::RESCALE_INTERCEPT).unwrap_or(0.0),
+        slope: optional((0x0028, 0x1053)).unwrap_or(1.0),
+        intercept: optional((0x0028, 0x1052)).unwrap_or(0.0),
         data,
     })
 }
