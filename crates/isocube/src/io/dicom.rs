@@ -395,7 +395,8 @@ fn element(
     })
 }
 
-/// Checks every element of a data set (see [`check_lengths`]).
+/// Checks every element of a data set (see [`parse`]) and returns its top-level elements (those
+/// outside any sequence), for their values.
 fn walk(path: &Path, data: &[u8], base: usize, explicit: bool) -> Result<Vec<Element>, IoError> {
     let mut top = Vec::new();
     // The sequences (and undefined-length values) the walk is inside: where each ends, `None`
