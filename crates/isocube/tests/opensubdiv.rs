@@ -1,6 +1,5 @@
-//! Catmull–Clark against OpenSubdiv's own regression results (Hbr, OpenSubdiv 3.6.0), read from
-//! `../shared/reference/opensubdiv` next to the repository (see its README), or from the folder
-//! named by `ISOCUBE_OPENSUBDIV_REFERENCE`.
+//! Catmull–Clark against OpenSubdiv's own regression results (Hbr, OpenSubdiv 3.6.0), kept in
+//! `tests/data/opensubdiv` with OpenSubdiv's license (see the README there).
 //!
 //! For every Catmark shape except the Chaikin ones (another crease rule), after 1, 2 and 3
 //! levels: the vertex and face counts equal the baseline's, and every baseline vertex has an
@@ -11,16 +10,7 @@ use std::path::PathBuf;
 use isocube::subdiv::{subdivide, PolyMesh, SubdivOptions};
 
 fn reference() -> PathBuf {
-    let dir = std::env::var_os("ISOCUBE_OPENSUBDIV_REFERENCE").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/opensubdiv"),
-        PathBuf::from,
-    );
-    assert!(
-        dir.join("shapes").is_dir(),
-        "OpenSubdiv reference data not found at {} (set ISOCUBE_OPENSUBDIV_REFERENCE)",
-        dir.display()
-    );
-    dir
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/opensubdiv")
 }
 
 /// Largest distance from a baseline vertex to the nearest of `ours` (a uniform grid of cells
