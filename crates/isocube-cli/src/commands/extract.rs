@@ -6,8 +6,8 @@ use std::time::Instant;
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{
-    extract_into, extract_labels, extract_streamed, ExtractOptions, ExtractStats, LabelOptions,
-    LabelSelection, Method, SnapPosition, Snapping, StreamError,
+    extract_boxes_into, extract_into, extract_labels, extract_streamed, CellBox, ExtractOptions,
+    ExtractStats, LabelOptions, LabelSelection, Method, SnapPosition, Snapping, StreamError,
 };
 use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
@@ -98,6 +98,11 @@ pub(crate) struct Args {
     /// no relaxation). The mesh is the same, byte for byte.
     #[arg(long)]
     stream: bool,
+    /// Mesh boxes of this many cells per axis (`NX,NY,NZ`), in parallel and in any order, and
+    /// join them by their vertices' grid keys: the file is the same, byte for byte, as without
+    /// it (a check of the chunk engine, and the unit of work for volumes cut into chunks).
+    #[arg(long, value_name = "NX,NY,NZ", value_parser = parse_chunk, conflicts_with_all = ["stream", "labels"])]
+    chunk: Option<[usize; 3]>,
     /// Fail (exit code 2, nothing written) when any cell touches a NaN or infinite value. By
     /// default such cells are skipped, leaving a hole, and counted in the summary.
     #[arg(long)]
@@ -144,9 +149,16 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
-    let stats = extract_into(&grid, &options, &mut mesh, &mut |d, t| {
-        progress.update(d, t)
-    })
+    let stats = match args.chunk {
+        Some(size) => CellBox::tile(grid.dims(), size).and_then(|boxes| {
+            extract_boxes_into(&grid, &options, &boxes, &mut mesh, &mut |d, t| {
+                progress.update(d, t)
+            })
+        }),
+        None => extract_into(&grid, &options, &mut mesh, &mut |d, t| {
+            progress.update(d, t)
+        }),
+    }
     .map_err(Failure::input)?;
     progress.finish();
     if args.strict && stats.skipped_cells > 0 {
@@ -232,6 +244,20 @@ fn in_frame(
         .and_then(|g| g.with_origin([0.0; 3]))
         .map_err(Failure::input)?;
     Ok((grid, Orientation::IDENTITY))
+}
+
+fn parse_chunk(s: &str) -> Result<[usize; 3], String> {
+    let sizes: Vec<usize> = s
+        .split(',')
+        .map(|w| w.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not three cell counts (like 64,64,64)"))?;
+    match sizes[..] {
+        [x, y, z] if x > 0 && y > 0 && z > 0 => Ok([x, y, z]),
+        _ => Err(format!(
+            "'{s}' must be three cell counts of at least 1 (like 64,64,64)"
+        )),
+    }
 }
 
 fn parse_labels(s: &str) -> Result<LabelSelection, String> {
@@ -377,6 +403,8 @@ fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
         Some("vertex values need the whole mesh")
     } else if args.labels.is_some() {
         Some("labels are meshed in memory")
+    } else if args.chunk.is_some() {
+        Some("--chunk meshes boxes in memory")
     } else {
         None
     };

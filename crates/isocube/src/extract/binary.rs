@@ -1,31 +1,27 @@
-//! The binary (classic and MC33) extraction engine: empty space skipped 64 cells at a time, slabs
-//! of cell layers meshed in parallel, slabs stitched in order.
+//! The binary (classic and MC33) cell mesher: a box of cells at a time, empty space skipped 64
+//! cells at a time.
 //!
-//! 1. Sign masks: one bit per grid point (at or above the level), and, only if the slab has any,
-//!    one per non-finite point; rows of 64-bit words, computed by each slab for its own planes.
+//! 1. Sign masks: one bit per point of the box (at or above the level), and, only if the box has
+//!    any, one per non-finite point; rows of 64-bit words, computed by each box for its own
+//!    points.
 //! 2. A cell is empty when its eight corners agree; for 64 cells of a row that is a few word
 //!    operations on the masks of the four point rows around them (all above: the AND of the rows
 //!    and of the rows shifted by one; all below: the same on the complements). Only the other
 //!    cells are visited.
-//! 3. Cell layers are cut into slabs of a fixed height (a function of the grid's size only), each
-//!    meshed on its own with its own edge cache; slab `c`'s vertices on its bottom plane are the
-//!    ones slab `c − 1` made on its top plane, and are replaced by them when the slabs are joined,
-//!    in order. Vertices are thus numbered by first use along z exactly as a single pass would, and
-//!    the output is the same bytes whatever the number of threads.
+//! 3. Each vertex is made when a cell first asks for it, and carries its global key; the joiner
+//!    ([`super::chunk`]) welds boxes into the mesh of one pass, whatever the partition.
 
 use rayon::prelude::*;
 
+use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::place::Placer;
 use super::weld::EdgeCache;
 use super::window::Window;
-use super::{
-    cell_config, choose_tunnel, emit_polygon, face_decisions, place_interior, ExtractError,
-    ExtractOptions, ExtractStats,
-};
-use crate::cube::{CaseTable, Corner, Topology};
-use crate::field::Grid;
+use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
+use crate::cube::triangulate::{may_join, safe_triangulation};
+use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
 use crate::mesh::Mesh;
-use crate::quality::Strategy;
+use crate::quality::{triangulate_polygon, Chords, Strategy, MAX_CORNERS};
 
 /// Sign masks of every point row.
 pub(super) struct Masks {
@@ -37,17 +33,36 @@ pub(super) struct Masks {
 }
 
 impl Masks {
-    /// Masks of the point planes `k0..=k1` (rows indexed from `k0`).
-    pub(super) fn new(window: &Window, level: f32, k0: usize, k1: usize) -> Masks {
-        let [nx, ny, _] = window.dims();
-        let words = nx.div_ceil(64);
-        let values = window.planes(k0, k1);
-        let mut above = vec![0u64; ny * (k1 + 1 - k0) * words];
-        let invalid = pack_rows(values, nx, level, &mut above);
-        Masks::finish(values, nx, words, above, invalid)
+    /// Masks of the points of the cells of a box from cell `min` up to `max` (points `min..=max`
+    /// per axis); rows and bits are counted from `min`.
+    pub(super) fn new(window: &Window, level: f32, min: [usize; 3], max: [usize; 3]) -> Masks {
+        let width = max[0] + 1 - min[0];
+        let words = width.div_ceil(64);
+        let rows = (max[1] + 1 - min[1]) * (max[2] + 1 - min[2]);
+        let row_values = || {
+            (min[2]..=max[2])
+                .flat_map(move |k| (min[1]..=max[1]).map(move |j| window.row(j, k, min[0], max[0])))
+        };
+        let mut above = vec![0u64; rows * words];
+        let mut invalid = false;
+        for (row, out) in row_values().zip(above.chunks_exact_mut(words)) {
+            invalid |= pack_row(row, level, out);
+        }
+        let invalid = invalid.then(|| {
+            let mut bad = vec![0u64; above.len()];
+            for (row, out) in row_values().zip(bad.chunks_exact_mut(words)) {
+                invalid_row(row, out);
+            }
+            bad
+        });
+        Masks {
+            words,
+            above,
+            invalid,
+        }
     }
 
-    /// [`Masks::new`] for all of `window`'s planes, a plane per task.
+    /// [`Masks::new`] for all of `window`'s points, a plane per task.
     pub(super) fn new_parallel(window: &Window, level: f32) -> Masks {
         let [nx, ny, nz] = window.dims();
         let words = nx.div_ceil(64);
@@ -56,21 +71,17 @@ impl Masks {
         let invalid = values
             .par_chunks(nx * ny)
             .zip(above.par_chunks_mut(ny * words))
-            .map(|(plane, out)| pack_rows(plane, nx, level, out))
+            .map(|(plane, out)| {
+                plane
+                    .chunks_exact(nx)
+                    .zip(out.chunks_exact_mut(words))
+                    .fold(false, |bad, (row, out)| bad | pack_row(row, level, out))
+            })
             .reduce(|| false, |a, b| a | b);
-        Masks::finish(values, nx, words, above, invalid)
-    }
-
-    fn finish(values: &[f32], nx: usize, words: usize, above: Vec<u64>, invalid: bool) -> Masks {
         let invalid = invalid.then(|| {
             let mut bad = vec![0u64; above.len()];
             for (row, out) in values.chunks_exact(nx).zip(bad.chunks_exact_mut(words)) {
-                for (w, chunk) in row.chunks(64).enumerate() {
-                    out[w] = chunk
-                        .iter()
-                        .enumerate()
-                        .fold(0, |m, (b, v)| m | u64::from(!v.is_finite()) << b);
-                }
+                invalid_row(row, out);
             }
             bad
         });
@@ -135,32 +146,37 @@ impl Masks {
     }
 }
 
-/// Packs the above bits of `values` (rows of `nx`) into `out` (rows of whole words); returns
-/// whether some value is not finite.
-fn pack_rows(values: &[f32], nx: usize, level: f32, out: &mut [u64]) -> bool {
-    let words = nx.div_ceil(64);
-    let mut invalid = false;
-    for (row, out) in values.chunks_exact(nx).zip(out.chunks_exact_mut(words)) {
-        // v · 0 is NaN exactly for non-finite v: one sum per row finds them, and the loops
-        // stay simple enough to vectorise.
-        let mut probe = 0.0f32;
-        let full = row.chunks_exact(64);
-        let tail = full.remainder();
-        for (w, chunk) in full.enumerate() {
-            out[w] = pack_above(chunk, level);
-            probe += chunk.iter().map(|&v| v * 0.0).sum::<f32>();
-        }
-        if !tail.is_empty() {
-            let mut bits = 0u64;
-            for (b, &v) in tail.iter().enumerate() {
-                bits |= u64::from(v >= level) << b;
-                probe += v * 0.0;
-            }
-            out[words - 1] = bits;
-        }
-        invalid |= probe.is_nan();
+/// Packs the above bits of one row of values into `out` (whole words); returns whether some
+/// value is not finite.
+fn pack_row(row: &[f32], level: f32, out: &mut [u64]) -> bool {
+    // v · 0 is NaN exactly for non-finite v: one sum per row finds them, and the loops stay
+    // simple enough to vectorise.
+    let mut probe = 0.0f32;
+    let full = row.chunks_exact(64);
+    let tail = full.remainder();
+    for (w, chunk) in full.enumerate() {
+        out[w] = pack_above(chunk, level);
+        probe += chunk.iter().map(|&v| v * 0.0).sum::<f32>();
     }
-    invalid
+    if !tail.is_empty() {
+        let mut bits = 0u64;
+        for (b, &v) in tail.iter().enumerate() {
+            bits |= u64::from(v >= level) << b;
+            probe += v * 0.0;
+        }
+        out[out.len() - 1] = bits;
+    }
+    probe.is_nan()
+}
+
+/// The non-finite bits of one row.
+fn invalid_row(row: &[f32], out: &mut [u64]) {
+    for (w, chunk) in row.chunks(64).enumerate() {
+        out[w] = chunk
+            .iter()
+            .enumerate()
+            .fold(0, |m, (b, v)| m | u64::from(!v.is_finite()) << b);
+    }
 }
 
 /// The positions of the set bits of `words` (bit `b` of word `w` is `64 w + b`), in order: the
@@ -194,365 +210,315 @@ fn pack_above(values: &[f32], level: f32) -> u64 {
     bits
 }
 
-/// One slab's mesh, with the vertices on its bottom and top planes by edge slot.
-pub(super) struct Slab {
-    pub(super) mesh: Mesh,
-    pub(super) stats: ExtractStats,
-    /// Vertices on the bottom and top planes as (slot, local index): the slot names the
-    /// vertex's place on the plane (an edge slot, or a ternary key) so neighbours can match it.
-    pub(super) bottom: Vec<(u64, u32)>,
-    pub(super) top: Vec<(u64, u32)>,
-}
-
-/// Cell layers per slab: at least 16 slabs to balance the cores, and a slab's planes within
-/// about 8 MiB, so the values its masks read are still cached when its cells read them again;
-/// a function of the grid's size only, for determinism.
+/// Cell layers per slab of the default partition: at least 16 slabs to balance the cores, and a
+/// slab's planes within about 8 MiB, so the values its masks read are still cached when its
+/// cells read them again; a function of the grid's size only.
 pub(super) fn slab_height(nx: usize, ny: usize, nz: usize) -> usize {
     let plane = nx * ny * std::mem::size_of::<f32>();
     let fit = (8 << 20) / plane.max(1);
     fit.min(nz.div_ceil(16)).max(4)
 }
 
-pub(super) fn extract_binary(
-    grid: &Grid,
-    options: &ExtractOptions,
-    mesh: &mut Mesh,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<ExtractStats, ExtractError> {
-    let [nx, ny, nz] = grid.dims();
+/// The default partition: slabs of whole cell layers.
+pub(super) fn slabs(dims: [usize; 3]) -> Vec<CellBox> {
+    let [nx, ny, nz] = dims;
     let height = slab_height(nx, ny, nz - 1);
-    extract_in_slabs(grid, options, mesh, progress, height)
+    CellBox::tile(dims, [nx - 1, ny - 1, height]).expect("sizes of at least 1")
 }
 
-fn extract_in_slabs(
-    grid: &Grid,
-    options: &ExtractOptions,
-    mesh: &mut Mesh,
-    progress: &mut dyn FnMut(usize, usize),
-    height: usize,
-) -> Result<ExtractStats, ExtractError> {
-    let [nx, ny, nz] = grid.dims();
-    let slabs = (nz - 1).div_ceil(height);
-    let parts: Vec<Result<Slab, ExtractError>> = (0..slabs)
-        .into_par_iter()
-        .map_init(
-            || EdgeCache::new(nx, ny),
-            |cache, s| {
-                let k0 = s * height;
-                let k1 = ((s + 1) * height).min(nz - 1);
-                cache.reset();
-                mesh_slab(Window::whole(grid), options, cache, k0, k1)
-            },
-        )
-        .collect();
-    let parts: Vec<Slab> = parts.into_iter().collect::<Result<_, _>>()?;
-    let stats = join(parts, grid, mesh, &mut |s| {
-        progress(((s + 1) * height).min(nz - 1), nz - 1)
-    })?;
-    Ok(stats)
+/// The binary cell mesher: one box of cells at a time, from the values of a [`Window`] that
+/// holds the box's points and one more plane on each side where the grid has them (normals
+/// read one point beyond the cells).
+pub(super) struct BinaryCells<'a> {
+    table: &'static CaseTable,
+    options: &'a ExtractOptions,
+    grid: Window<'a>,
+    placer: Placer<'a>,
 }
 
-/// Joins the slabs in order: a slab's bottom-plane vertices are its predecessor's top-plane
-/// ones, every other vertex is new, numbered after all the earlier slabs' new vertices. The
-/// numbering needs only counts, so the copying runs in parallel.
-pub(super) fn join(
-    parts: Vec<Slab>,
-    grid: &Grid,
-    mesh: &mut Mesh,
-    progress: &mut dyn FnMut(usize),
-) -> Result<ExtractStats, ExtractError> {
-    let mut stats = ExtractStats {
-        cells: grid.cell_count(),
-        ..ExtractStats::default()
-    };
-    // For each slab, its bottom vertices that the slab below made too: (local, local below).
-    let shared: Vec<Vec<(u32, u32)>> = (0..parts.len())
-        .into_par_iter()
-        .map(|s| {
-            if s == 0 {
-                return Vec::new();
-            }
-            let mut below: Vec<(u64, u32)> = parts[s - 1].top.clone();
-            below.sort_unstable();
-            parts[s]
-                .bottom
-                .iter()
-                .filter_map(|&(slot, local)| {
-                    below
-                        .binary_search_by_key(&slot, |e| e.0)
-                        .ok()
-                        .map(|k| (local, below[k].1))
-                })
-                .collect()
-        })
-        .collect();
-    // New vertices per slab and where each slab's go.
-    let mut vertex_base = Vec::with_capacity(parts.len() + 1);
-    let mut triangle_base = Vec::with_capacity(parts.len() + 1);
-    vertex_base.push(0usize);
-    triangle_base.push(0usize);
-    for (part, shared) in parts.iter().zip(&shared) {
-        vertex_base.push(vertex_base.last().unwrap() + part.mesh.positions.len() - shared.len());
-        triangle_base.push(triangle_base.last().unwrap() + part.mesh.triangles.len());
-    }
-    let vertices = *vertex_base.last().unwrap();
-    if vertices > u32::MAX as usize {
-        return Err(ExtractError::TooManyVertices);
-    }
-    // Local → global, first for each slab's new vertices, then for its shared ones (the slab
-    // below's top vertices are always new there: its top and bottom planes differ).
-    let mut remaps: Vec<Vec<u32>> = parts
-        .par_iter()
-        .zip(&shared)
-        .zip(&vertex_base)
-        .map(|((part, shared), &base)| {
-            let mut remap = vec![u32::MAX; part.mesh.positions.len()];
-            for &(local, _) in shared {
-                remap[local as usize] = u32::MAX - 1;
-            }
-            let mut next = base as u32;
-            for r in remap.iter_mut() {
-                if *r == u32::MAX {
-                    *r = next;
-                    next += 1;
-                }
-            }
-            remap
-        })
-        .collect();
-    for s in 1..parts.len() {
-        let (lower, upper) = remaps.split_at_mut(s);
-        let below = &lower[s - 1];
-        for &(local, local_below) in &shared[s] {
-            upper[0][local as usize] = below[local_below as usize];
+impl<'a> BinaryCells<'a> {
+    pub(super) fn new(grid: Window<'a>, options: &'a ExtractOptions) -> BinaryCells<'a> {
+        BinaryCells {
+            table: CaseTable::binary(),
+            options,
+            grid,
+            placer: Placer::new(grid, options),
         }
     }
-    let normals = parts.iter().any(|p| !p.mesh.normals.is_empty());
-    mesh.positions.resize(vertices, [0.0; 3]);
-    if normals {
-        mesh.normals.resize(vertices, [0.0; 3]);
-    }
-    mesh.triangles
-        .resize(*triangle_base.last().unwrap(), [0; 3]);
-    // Disjoint output ranges per slab.
-    let mut positions: Vec<&mut [[f32; 3]]> = Vec::with_capacity(parts.len());
-    let mut normal_out: Vec<&mut [[f32; 3]]> = Vec::with_capacity(parts.len());
-    let mut triangles: Vec<&mut [[u32; 3]]> = Vec::with_capacity(parts.len());
-    let (mut p_rest, mut n_rest, mut t_rest) = (
-        &mut mesh.positions[..],
-        &mut mesh.normals[..],
-        &mut mesh.triangles[..],
-    );
-    for s in 0..parts.len() {
-        let nv = vertex_base[s + 1] - vertex_base[s];
-        let (p, rest) = p_rest.split_at_mut(nv);
-        positions.push(p);
-        p_rest = rest;
-        if normals {
-            let (n, rest) = n_rest.split_at_mut(nv);
-            normal_out.push(n);
-            n_rest = rest;
-        } else {
-            normal_out.push(&mut []);
-        }
-        let (t, rest) = t_rest.split_at_mut(triangle_base[s + 1] - triangle_base[s]);
-        triangles.push(t);
-        t_rest = rest;
-    }
-    parts
-        .par_iter()
-        .zip(&remaps)
-        .zip(&vertex_base)
-        .zip(positions)
-        .zip(normal_out)
-        .zip(triangles)
-        .for_each(|(((((part, remap), &base), p_out), n_out), t_out)| {
-            for (local, &global) in remap.iter().enumerate() {
-                let g = global as usize;
-                if g >= base && g < base + p_out.len() {
-                    p_out[g - base] = part.mesh.positions[local];
-                    if let Some(n) = part.mesh.normals.get(local) {
-                        n_out[g - base] = *n;
-                    }
-                }
-            }
-            for (out, t) in t_out.iter_mut().zip(&part.mesh.triangles) {
-                *out = t.map(|v| remap[v as usize]);
-            }
-        });
-    for (s, part) in parts.iter().enumerate() {
-        stats.active_cells += part.stats.active_cells;
-        stats.skipped_cells += part.stats.skipped_cells;
-        stats.interior_vertices += part.stats.interior_vertices;
-        stats.tunnels += part.stats.tunnels;
-        progress(s);
-    }
-    Ok(stats)
-}
 
-/// Meshes cell layers `k0..k1` (the window must hold point planes `k0 − 1..=k1 + 1` where the
-/// grid has them: normals read one plane beyond the cells).
-pub(super) fn mesh_slab(
-    grid: Window,
-    options: &ExtractOptions,
-    cache: &mut EdgeCache,
-    k0: usize,
-    k1: usize,
-) -> Result<Slab, ExtractError> {
-    let table = CaseTable::binary();
-    let [nx, ny, _] = grid.dims();
-    let level = options.level;
-    let mut stats = ExtractStats::default();
-    let mut mesh = Mesh::new();
-    let placer = Placer::new(grid, options);
-    let values = grid.values();
-    let (sy, sz) = (nx, nx * ny);
-    // Offsets of the cube vertices from the cell's first point, in the numbering of `cube`.
-    let corner_offsets = [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz];
-    // The slab's own masks: its planes are read once, just before their cells are visited.
-    let masks = Masks::new(&grid, level, k0, k1);
-    let mut visit = vec![0u64; masks.words];
-    // Room for what the slab will make (about one vertex and two triangles per cell visited),
-    // so the arrays are not copied as they grow.
-    let mut candidates = 0usize;
-    for k in k0..k1 {
-        for j in 0..ny - 1 {
-            masks.visit(j, k - k0, ny, nx - 1, &mut visit);
-            candidates += visit.iter().map(|w| w.count_ones() as usize).sum::<usize>();
+    /// Meshes the cells of `cells` (inside the window), reusing `cache`.
+    pub(super) fn mesh_box(
+        &self,
+        cache: &mut EdgeCache,
+        cells: CellBox,
+    ) -> Result<ChunkMesh, ExtractError> {
+        let grid = &self.grid;
+        let level = self.options.level;
+        let [bx, by, _] = cells.extent();
+        let [x0, y0, z0] = cells.min;
+        let mut out = ChunkMesh::new(cells);
+        cache.prepare(bx + 1, by + 1);
+        let values = grid.values();
+        let [nx, ny, _] = grid.dims();
+        let (sy, sz) = (nx, nx * ny);
+        // Offsets of the cube vertices from the cell's first point, in the numbering of `cube`.
+        let corner_offsets = [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz];
+        // The box's own masks: its planes are read once, just before their cells are visited.
+        let masks = Masks::new(grid, level, cells.min, cells.max);
+        let rows = by + 1;
+        let mut visit = vec![0u64; masks.words];
+        // Room for what the box will make (about one vertex and two triangles per cell
+        // visited), so the arrays are not copied as they grow.
+        let mut candidates = 0usize;
+        for k in 0..cells.extent()[2] {
+            for j in 0..by {
+                masks.visit(j, k, rows, bx, &mut visit);
+                candidates += visit.iter().map(|w| w.count_ones() as usize).sum::<usize>();
+            }
         }
-    }
-    mesh.positions.reserve(candidates + candidates / 8);
-    mesh.triangles.reserve(2 * candidates + candidates / 4);
-    if options.normals {
-        mesh.normals.reserve(candidates + candidates / 8);
-    }
-    let mut bottom = Vec::new();
-    let mut top = Vec::new();
-    for k in k0..k1 {
-        for j in 0..ny - 1 {
-            masks.visit(j, k - k0, ny, nx - 1, &mut visit);
-            {
+        let mesh = &mut out.mesh;
+        mesh.positions.reserve(candidates + candidates / 8);
+        out.keys.reserve(candidates + candidates / 8);
+        mesh.triangles.reserve(2 * candidates + candidates / 4);
+        if self.options.normals {
+            mesh.normals.reserve(candidates + candidates / 8);
+        }
+        for k in 0..cells.extent()[2] {
+            for j in 0..by {
+                masks.visit(j, k, rows, bx, &mut visit);
                 for i in set_bits(&visit) {
-                    let base = grid.index(i, j, k);
+                    let cell = [x0 + i, y0 + j, z0 + k];
+                    let base = grid.index(cell[0], cell[1], cell[2]);
                     let v = corner_offsets.map(|o| values[base + o]);
                     if v.iter().any(|x| !x.is_finite()) {
-                        stats.skipped_cells += 1;
+                        out.stats.skipped_cells += 1;
                         continue;
                     }
                     let config = cell_config(&v, level);
                     if config == 0 || config == 255 {
                         continue;
                     }
-                    mesh_cell(
-                        table,
-                        options,
-                        [i, j, k],
-                        &v,
-                        config,
-                        &grid,
-                        &placer,
-                        cache,
-                        &mut mesh,
-                        &mut stats,
-                    )?;
+                    self.mesh_cell(cache, &mut out, [i, j], cell, &v, config)?;
                 }
+                out.end_row()?;
             }
+            cache.next_layer();
         }
-        let wide = |entries: Vec<(u32, u32)>| -> Vec<(u64, u32)> {
-            entries
-                .into_iter()
-                .map(|(s, v)| (u64::from(s), v))
-                .collect()
-        };
-        if k == k0 {
-            bottom = wide(cache.plane_entries(false));
-        }
-        if k + 1 == k1 {
-            top = wide(cache.plane_entries(true));
-        }
-        cache.next_layer();
+        Ok(out)
     }
-    Ok(Slab {
-        mesh,
-        stats,
-        bottom,
-        top,
-    })
-}
 
-#[allow(clippy::too_many_arguments)]
-fn mesh_cell(
-    table: &CaseTable,
-    options: &ExtractOptions,
-    [i, j, k]: [usize; 3],
-    v: &[f32; 8],
-    config: u8,
-    grid: &Window,
-    placer: &Placer,
-    cache: &mut EdgeCache,
-    mesh: &mut Mesh,
-    stats: &mut ExtractStats,
-) -> Result<(), ExtractError> {
-    let level = options.level;
-    stats.active_cells += 1;
-    let decisions = face_decisions(v, level, table.ambiguous_faces(config));
-    let tunnel =
-        if options.topology == Topology::Mc33 && table.has_tunnel_candidates(config, decisions) {
+    /// The crossing on edge `e` of `cell`, made on first use (`local`: the cell in the box).
+    #[inline]
+    fn edge(
+        &self,
+        cache: &mut EdgeCache,
+        out: &mut ChunkMesh,
+        [li, lj]: [usize; 2],
+        cell: [usize; 3],
+        v: &[f32; 8],
+        e: u8,
+    ) -> Result<u32, ExtractError> {
+        cache.vertex(li, lj, e, || {
+            let id = self.placer.edge_vertex_of(cell, v, e, &mut out.mesh)?;
+            let start = VERTICES[usize::from(EDGES[usize::from(e)][0])];
+            let p = [0, 1, 2].map(|a| cell[a] + usize::from(start[a]));
+            out.keys.push(VertexKey::crossing(
+                self.grid.point_index(p),
+                usize::from(EDGE_AXIS[usize::from(e)]),
+            ));
+            Ok(id)
+        })
+    }
+
+    /// Interior point `index` of `cell`, made by `make`.
+    fn interior(
+        &self,
+        out: &mut ChunkMesh,
+        cell: [usize; 3],
+        index: usize,
+        make: impl FnOnce(&Placer, &mut Mesh) -> Result<u32, ExtractError>,
+    ) -> Result<u32, ExtractError> {
+        let id = make(&self.placer, &mut out.mesh)?;
+        out.keys
+            .push(VertexKey::interior(self.grid.point_index(cell), index));
+        out.stats.interior_vertices += 1;
+        Ok(id)
+    }
+
+    fn push(&self, out: &mut ChunkMesh, mut t: [u32; 3]) {
+        if self.options.flip {
+            t.swap(1, 2);
+        }
+        out.mesh.triangles.push(t);
+    }
+
+    fn mesh_cell(
+        &self,
+        cache: &mut EdgeCache,
+        out: &mut ChunkMesh,
+        local: [usize; 2],
+        cell: [usize; 3],
+        v: &[f32; 8],
+        config: u8,
+    ) -> Result<(), ExtractError> {
+        let (table, options) = (self.table, self.options);
+        let level = options.level;
+        out.stats.active_cells += 1;
+        let decisions = face_decisions(v, level, table.ambiguous_faces(config));
+        let tunnel = if options.topology == Topology::Mc33
+            && table.has_tunnel_candidates(config, decisions)
+        {
             choose_tunnel(table, config, decisions, v, level)
         } else {
             None
         };
-    stats.tunnels += usize::from(tunnel.is_some());
-    if options.triangulation != Strategy::Fan && tunnel.is_none() {
-        let bounds = (grid.point(i, j, k), grid.point(i + 1, j + 1, k + 1));
-        for polygon in table.polygons(config, decisions) {
-            emit_polygon(
-                polygon,
-                [i, j, k],
-                v,
-                bounds,
-                options,
-                cache,
-                placer,
-                mesh,
-                stats,
-            )?;
+        out.stats.tunnels += usize::from(tunnel.is_some());
+        if options.triangulation != Strategy::Fan && tunnel.is_none() {
+            let [i, j, k] = cell;
+            let bounds = (
+                self.grid.point(i, j, k),
+                self.grid.point(i + 1, j + 1, k + 1),
+            );
+            for (l, polygon) in table.polygons(config, decisions).enumerate() {
+                self.emit_polygon(cache, out, local, cell, v, l, polygon, bounds)?;
+            }
+            return Ok(());
         }
-        return Ok(());
+        let triangles = table.cell_triangles(config, decisions, options.topology, tunnel);
+        let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
+        for tri in triangles.triangles {
+            let mut ids = [0u32; 3];
+            for (slot, &corner) in ids.iter_mut().zip(tri) {
+                *slot = if let Some(e) = corner.as_edge() {
+                    self.edge(cache, out, local, cell, v, e)?
+                } else {
+                    let p = usize::from(
+                        corner
+                            .as_interior()
+                            .expect("binary cells have edge and interior corners"),
+                    );
+                    if interior[p] == u32::MAX {
+                        let support = triangles.interior_support(p);
+                        let ids = self.corner_ids(cache, out, local, cell, v, support)?;
+                        interior[p] = self.interior(out, cell, p, |placer, mesh| {
+                            placer.centroid_vertex(&ids, mesh)
+                        })?;
+                    }
+                    interior[p]
+                };
+            }
+            self.push(out, ids);
+        }
+        Ok(())
     }
-    let cell = table.cell_triangles(config, decisions, options.topology, tunnel);
-    let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
-    for tri in cell.triangles {
-        let mut ids = [0u32; 3];
-        for (slot, &corner) in ids.iter_mut().zip(tri) {
-            *slot = if let Some(e) = corner.as_edge() {
-                cache.vertex(i, j, e, || placer.edge_vertex_of([i, j, k], v, e, mesh))?
-            } else {
-                let p = usize::from(
-                    corner
-                        .as_interior()
-                        .expect("binary cells have edge and interior corners"),
-                );
-                if interior[p] == u32::MAX {
-                    interior[p] =
-                        place_interior(cell.interior_support(p), cache, placer, mesh, [i, j, k])?;
-                    stats.interior_vertices += 1;
+
+    fn corner_ids(
+        &self,
+        cache: &mut EdgeCache,
+        out: &mut ChunkMesh,
+        local: [usize; 2],
+        cell: [usize; 3],
+        v: &[f32; 8],
+        polygon: &[Corner],
+    ) -> Result<Vec<u32>, ExtractError> {
+        polygon
+            .iter()
+            .map(|c| {
+                let e = c.as_edge().expect("binary polygons have edge corners");
+                self.edge(cache, out, local, cell, v, e)
+            })
+            .collect()
+    }
+
+    /// Triangulates loop `l` of a cell by the options' strategy, from the actual positions of
+    /// its crossings. Diagonals follow the table's rule (never one a neighbour could draw too);
+    /// if the strategy finds nothing, the table's triangulation of the loop is used.
+    #[allow(clippy::too_many_arguments)]
+    fn emit_polygon(
+        &self,
+        cache: &mut EdgeCache,
+        out: &mut ChunkMesh,
+        local: [usize; 2],
+        cell: [usize; 3],
+        v: &[f32; 8],
+        l: usize,
+        polygon: &[Corner],
+        bounds: ([f64; 3], [f64; 3]),
+    ) -> Result<(), ExtractError> {
+        let n = polygon.len();
+        if n > MAX_CORNERS {
+            // Never for cell loops (at most 12 corners); kept total all the same.
+            let ids = self.corner_ids(cache, out, local, cell, v, polygon)?;
+            return self.table_triangles(out, cell, l, polygon, &ids);
+        }
+        let mut ids = [0u32; MAX_CORNERS];
+        let mut positions = [[0.0f64; 3]; MAX_CORNERS];
+        for (slot, c) in polygon.iter().enumerate() {
+            let e = c.as_edge().expect("binary polygons have edge corners");
+            ids[slot] = self.edge(cache, out, local, cell, v, e)?;
+            positions[slot] = out.mesh.positions[ids[slot] as usize].map(f64::from);
+        }
+        let ids = &ids[..n];
+        if n == 3 {
+            self.push(out, [ids[0], ids[1], ids[2]]);
+            return Ok(());
+        }
+        let chords = Chords::new(n, |a, b| may_join(polygon[a], polygon[b]));
+        match triangulate_polygon(&positions[..n], &chords, self.options.triangulation, bounds) {
+            Some((triangles, interior)) => {
+                let interior = match interior {
+                    Some(x) => self.interior(out, cell, INTERIOR_LOOPS + l, |placer, mesh| {
+                        placer.interior_vertex(x, ids, mesh)
+                    })?,
+                    None => u32::MAX,
+                };
+                for t in triangles.as_slice() {
+                    let id = |c: u8| ids.get(usize::from(c)).copied().unwrap_or(interior);
+                    self.push(out, t.map(id));
                 }
-                interior[p]
-            };
+                Ok(())
+            }
+            None => self.table_triangles(out, cell, l, polygon, ids),
         }
-        if options.flip {
-            ids.swap(1, 2);
-        }
-        mesh.triangles.push(ids);
     }
-    Ok(())
+
+    /// The table's triangulation of loop `l` (or a star around its centroid if it has none).
+    fn table_triangles(
+        &self,
+        out: &mut ChunkMesh,
+        cell: [usize; 3],
+        l: usize,
+        polygon: &[Corner],
+        ids: &[u32],
+    ) -> Result<(), ExtractError> {
+        match safe_triangulation(polygon) {
+            Some(tris) => {
+                for t in tris {
+                    let id =
+                        |c: Corner| ids[polygon.iter().position(|&x| x == c).expect("a corner")];
+                    self.push(out, t.map(id));
+                }
+            }
+            None => {
+                let centre = self.interior(out, cell, INTERIOR_LOOPS + l, |placer, mesh| {
+                    placer.centroid_vertex(ids, mesh)
+                })?;
+                for a in 0..ids.len() {
+                    self.push(out, [ids[a], ids[(a + 1) % ids.len()], centre]);
+                }
+            }
+        }
+        Ok(())
+    }
 }
+
+/// Interior keys of a cell: the table's points first, then one per loop.
+pub(super) const INTERIOR_LOOPS: usize = Corner::MAX_INTERIOR;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::field::Sample;
+    use crate::field::{Grid, Sample};
 
     #[test]
     fn packed_masks_match_the_comparisons() {
@@ -574,10 +540,11 @@ mod tests {
             .num_threads(threads)
             .build()
             .unwrap();
-        let mut mesh = Mesh::new();
-        pool.install(|| extract_in_slabs(grid, options, &mut mesh, &mut |_, _| {}, height))
-            .unwrap();
-        mesh
+        let [nx, ny, _] = grid.dims();
+        let boxes = CellBox::tile(grid.dims(), [nx - 1, ny - 1, height]).unwrap();
+        pool.install(|| super::super::extract_boxes(grid, options, &boxes))
+            .unwrap()
+            .0
     }
 
     /// The same mesh, to the bit, with 1, 2 or 3 threads and whatever the slab height (a single

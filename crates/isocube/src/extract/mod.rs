@@ -76,6 +76,7 @@
 //! ```
 
 mod binary;
+mod chunk;
 mod classify;
 mod labels;
 mod place;
@@ -86,6 +87,7 @@ mod ternary;
 mod weld;
 mod window;
 
+pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
 pub use labels::{extract_labels, LabelOptions, LabelSelection, LabelSurface};
 pub use stream::{extract_streamed, MeshSink, StreamError};
 
@@ -93,16 +95,18 @@ pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
 
 use thiserror::Error;
 
-use crate::cube::triangulate::{may_join, safe_triangulation};
-use crate::cube::{CaseTable, Corner, Topology};
+use rayon::prelude::*;
+
+use crate::cube::{CaseTable, Topology};
 use crate::field::Grid;
 use crate::mesh::Mesh;
 use crate::quality::Strategy;
-use crate::quality::{triangulate_polygon, Chords, MAX_CORNERS};
 
+use binary::BinaryCells;
 use classify::interior_links;
 use place::Placer;
 use weld::EdgeCache;
+use window::Window;
 
 /// Options of [`extract`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -223,6 +227,19 @@ pub struct ExtractStats {
     pub refused_points: usize,
 }
 
+impl ExtractStats {
+    /// Adds the counts of `other` (another box of the same grid).
+    pub fn add(&mut self, other: &ExtractStats) {
+        self.cells += other.cells;
+        self.active_cells += other.active_cells;
+        self.skipped_cells += other.skipped_cells;
+        self.interior_vertices += other.interior_vertices;
+        self.tunnels += other.tunnels;
+        self.snapped_points += other.snapped_points;
+        self.refused_points += other.refused_points;
+    }
+}
+
 /// Why extraction failed.
 #[derive(Debug, Error, Clone, PartialEq)]
 #[non_exhaustive]
@@ -252,6 +269,35 @@ pub enum ExtractError {
     /// The mesh would need more than `u32::MAX` vertices.
     #[error("the mesh would have more than {} vertices", u32::MAX)]
     TooManyVertices,
+    /// A chunk size of zero cells along some axis.
+    #[error("chunk sizes must be at least one cell along every axis, not {size:?}")]
+    ChunkSize {
+        /// The size given.
+        size: [usize; 3],
+    },
+    /// A box of cells that is empty or reaches outside the grid.
+    #[error("the box of cells {cells:?} is empty or outside a grid of {dims:?} points")]
+    CellBox {
+        /// The box.
+        cells: CellBox,
+        /// The grid's points per axis.
+        dims: [usize; 3],
+    },
+    /// Two boxes given to the joiner share cells.
+    #[error("the boxes of cells {first:?} and {second:?} overlap")]
+    OverlappingBoxes {
+        /// One box.
+        first: CellBox,
+        /// Another box with some of the same cells.
+        second: CellBox,
+    },
+    /// A chunk mesh whose parts do not agree (keys, rows, normals), or that does not follow the
+    /// previous one as a layered joiner needs.
+    #[error("the chunk mesh of cells {cells:?} is malformed or out of order")]
+    MalformedChunk {
+        /// The chunk's box.
+        cells: CellBox,
+    },
     /// A labelled grid holds a value that is not an integer label.
     #[error("point {point:?} holds {value}, which is not an integer label")]
     Label {
@@ -273,14 +319,64 @@ pub fn extract(
 }
 
 /// Extracts into `mesh` (cleared first, allocations reused), calling `progress(done, total)`
-/// after each layer of cells.
+/// as cells are meshed (counts of cells).
 pub fn extract_into(
     grid: &Grid,
     options: &ExtractOptions,
     mesh: &mut Mesh,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ExtractStats, ExtractError> {
-    let stats = extract_cells(grid, options, mesh, progress)?;
+    Grid::point_count(grid.dims())?;
+    let boxes = binary::slabs(grid.dims());
+    extract_boxes_into(grid, options, &boxes, mesh, progress)
+}
+
+/// Extracts the isosurface of the cells in `boxes` (disjoint; any sizes, any order), each box
+/// meshed on its own in parallel and the boxes joined: with boxes that cover the grid the result
+/// is [`extract`]'s, vertex for vertex and triangle for triangle.
+///
+/// ```
+/// use isocube::extract::{extract, extract_boxes, CellBox, ExtractOptions};
+/// use isocube::field::Sample;
+/// let grid = Sample::Gyroid.grid(20);
+/// let options = ExtractOptions::default();
+/// let boxes = CellBox::tile(grid.dims(), [1, 19, 13]).unwrap();
+/// assert_eq!(extract_boxes(&grid, &options, &boxes).unwrap(), extract(&grid, &options).unwrap());
+/// ```
+pub fn extract_boxes(
+    grid: &Grid,
+    options: &ExtractOptions,
+    boxes: &[CellBox],
+) -> Result<(Mesh, ExtractStats), ExtractError> {
+    let mut mesh = Mesh::new();
+    let stats = extract_boxes_into(grid, options, boxes, &mut mesh, &mut |_, _| {})?;
+    Ok((mesh, stats))
+}
+
+/// [`extract_boxes`] into `mesh` (cleared first), calling `progress(done, total)` as cells
+/// are meshed.
+pub fn extract_boxes_into(
+    grid: &Grid,
+    options: &ExtractOptions,
+    boxes: &[CellBox],
+    mesh: &mut Mesh,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ExtractStats, ExtractError> {
+    let extractor = Extractor::new(grid, options)?;
+    let chunks = extractor.mesh_boxes(boxes)?;
+    let total: usize = chunks.iter().map(|c| c.cells.cell_count()).sum();
+    let done: Vec<usize> = chunks
+        .iter()
+        .scan(0, |d, c| {
+            *d += c.cells.cell_count();
+            Some(*d)
+        })
+        .collect();
+    let mut stats = join(grid.dims(), chunks, mesh, &mut |c| {
+        progress(done[c - 1], total)
+    })?;
+    stats.snapped_points = extractor.snapping.0;
+    stats.refused_points = extractor.snapping.1;
     if let Some(normals) = mesh.filled_normals() {
         mesh.normals = normals;
     }
@@ -297,28 +393,86 @@ pub fn extract_into(
     Ok(stats)
 }
 
-fn extract_cells(
-    grid: &Grid,
-    options: &ExtractOptions,
-    mesh: &mut Mesh,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<ExtractStats, ExtractError> {
-    if !options.level.is_finite() {
-        return Err(ExtractError::Level(options.level));
-    }
-    mesh.clear();
-    if let Method::Ternary(snapping) = options.method {
-        snapping.validate()?;
-        let mut stats = ExtractStats {
-            cells: grid.cell_count(),
-            ..ExtractStats::default()
+/// A grid prepared for meshing boxes of its cells: the options checked and, for ternary
+/// extraction, the zero points chosen (on the whole grid, so every box sees the same ones).
+/// Boxes can then be meshed in any order, on any thread, and joined with [`join`].
+///
+/// ```
+/// use isocube::extract::{CellBox, Extractor, ExtractOptions};
+/// use isocube::field::Sample;
+/// let grid = Sample::Sphere.grid(12);
+/// let options = ExtractOptions::default();
+/// let extractor = Extractor::new(&grid, &options).unwrap();
+/// let chunk = extractor.mesh_box(CellBox::new([0, 0, 0], [6, 11, 11])).unwrap();
+/// assert_eq!(chunk.keys.len(), chunk.mesh.positions.len());
+/// assert!(chunk.stats.active_cells > 0);
+/// ```
+pub struct Extractor<'a> {
+    grid: &'a Grid,
+    options: ExtractOptions,
+    ternary: Option<ternary::Ternary<'a>>,
+    /// Ternary: (snapped, refused) points.
+    snapping: (usize, usize),
+}
+
+impl<'a> Extractor<'a> {
+    /// Checks the options and makes the choices that need the whole grid.
+    pub fn new(grid: &'a Grid, options: &ExtractOptions) -> Result<Extractor<'a>, ExtractError> {
+        if !options.level.is_finite() {
+            return Err(ExtractError::Level(options.level));
+        }
+        Grid::point_count(grid.dims())?;
+        let mut extractor = Extractor {
+            grid,
+            options: *options,
+            ternary: None,
+            snapping: (0, 0),
         };
-        let mut ternary = ternary::Ternary::new(grid, options, snapping);
-        (stats.snapped_points, stats.refused_points) = ternary.choose_zeros();
-        ternary.mesh(options, mesh, &mut stats, progress)?;
-        return Ok(stats);
+        if let Method::Ternary(snapping) = options.method {
+            snapping.validate()?;
+            let mut ternary = ternary::Ternary::new(grid, options, snapping);
+            extractor.snapping = ternary.choose_zeros();
+            extractor.ternary = Some(ternary);
+        }
+        Ok(extractor)
     }
-    binary::extract_binary(grid, options, mesh, progress)
+
+    /// Ternary extraction: the grid points made surface vertices, and those refused.
+    pub fn snapping_counts(&self) -> (usize, usize) {
+        self.snapping
+    }
+
+    /// Meshes one box of cells.
+    pub fn mesh_box(&self, cells: CellBox) -> Result<ChunkMesh, ExtractError> {
+        self.mesh_box_with(&mut EdgeCache::new(0, 0), cells)
+    }
+
+    /// Meshes boxes in parallel; the chunks come in the order of `boxes`.
+    pub fn mesh_boxes(&self, boxes: &[CellBox]) -> Result<Vec<ChunkMesh>, ExtractError> {
+        boxes
+            .par_iter()
+            .map_init(
+                || EdgeCache::new(0, 0),
+                |cache, &cells| self.mesh_box_with(cache, cells),
+            )
+            .collect()
+    }
+
+    fn mesh_box_with(
+        &self,
+        cache: &mut EdgeCache,
+        cells: CellBox,
+    ) -> Result<ChunkMesh, ExtractError> {
+        cells.check(self.grid.dims())?;
+        let window = Window::whole(self.grid);
+        match &self.ternary {
+            Some(ternary) => {
+                let placer = Placer::new(window, &self.options);
+                ternary.mesh_box(&placer, self.options.flip, cells)
+            }
+            None => BinaryCells::new(window, &self.options).mesh_box(cache, cells),
+        }
+    }
 }
 
 /// How one cell is classified: its configuration, the decisions on its ambiguous faces and, under
@@ -387,137 +541,6 @@ fn choose_tunnel(
         }
     }
     found
-}
-
-/// Triangulates one loop of a binary cell by the options' strategy, from the actual positions of
-/// its crossings. Diagonals follow the table's rule (never one a neighbour could draw too); if the
-/// strategy finds nothing, the table's triangulation of the loop is used.
-#[allow(clippy::too_many_arguments)]
-fn emit_polygon(
-    polygon: &[Corner],
-    [i, j, k]: [usize; 3],
-    values: &[f32; 8],
-    bounds: ([f64; 3], [f64; 3]),
-    options: &ExtractOptions,
-    cache: &mut EdgeCache,
-    placer: &Placer,
-    mesh: &mut Mesh,
-    stats: &mut ExtractStats,
-) -> Result<(), ExtractError> {
-    let n = polygon.len();
-    if n > MAX_CORNERS {
-        // Never for cell loops (at most 12 corners); kept total all the same.
-        return emit_polygon_fallback(polygon, [i, j, k], cache, placer, mesh, stats, options);
-    }
-    let mut ids = [0u32; MAX_CORNERS];
-    let mut positions = [[0.0f64; 3]; MAX_CORNERS];
-    for (slot, c) in polygon.iter().enumerate() {
-        let e = c.as_edge().expect("binary polygons have edge corners");
-        ids[slot] = cache.vertex(i, j, e, || {
-            placer.edge_vertex_of([i, j, k], values, e, mesh)
-        })?;
-        positions[slot] = mesh.positions[ids[slot] as usize].map(f64::from);
-    }
-    let ids = &ids[..n];
-    if n == 3 {
-        let mut t = [ids[0], ids[1], ids[2]];
-        if options.flip {
-            t.swap(1, 2);
-        }
-        mesh.triangles.push(t);
-        return Ok(());
-    }
-    let chords = Chords::new(n, |a, b| may_join(polygon[a], polygon[b]));
-    let push = |t: [u32; 3], mesh: &mut Mesh| {
-        let mut t = t;
-        if options.flip {
-            t.swap(1, 2);
-        }
-        mesh.triangles.push(t);
-    };
-    match triangulate_polygon(&positions[..n], &chords, options.triangulation, bounds) {
-        Some((triangles, interior)) => {
-            let interior = match interior {
-                Some(x) => {
-                    stats.interior_vertices += 1;
-                    placer.interior_vertex(x, ids, mesh)?
-                }
-                None => u32::MAX,
-            };
-            for t in triangles.as_slice() {
-                let id = |c: u8| ids.get(usize::from(c)).copied().unwrap_or(interior);
-                push(t.map(id), mesh);
-            }
-        }
-        None => table_triangles(polygon, ids, placer, mesh, stats, options)?,
-    }
-    Ok(())
-}
-
-/// The table's triangulation of a loop (or a star around its centroid if it has none).
-fn table_triangles(
-    polygon: &[Corner],
-    ids: &[u32],
-    placer: &Placer,
-    mesh: &mut Mesh,
-    stats: &mut ExtractStats,
-    options: &ExtractOptions,
-) -> Result<(), ExtractError> {
-    let push = |t: [u32; 3], mesh: &mut Mesh| {
-        let mut t = t;
-        if options.flip {
-            t.swap(1, 2);
-        }
-        mesh.triangles.push(t);
-    };
-    match safe_triangulation(polygon) {
-        Some(tris) => {
-            for t in tris {
-                let id = |c: Corner| ids[polygon.iter().position(|&x| x == c).expect("a corner")];
-                push(t.map(id), mesh);
-            }
-        }
-        None => {
-            stats.interior_vertices += 1;
-            let centre = placer.centroid_vertex(ids, mesh)?;
-            for a in 0..ids.len() {
-                push([ids[a], ids[(a + 1) % ids.len()], centre], mesh);
-            }
-        }
-    }
-    Ok(())
-}
-
-fn emit_polygon_fallback(
-    polygon: &[Corner],
-    [i, j, k]: [usize; 3],
-    cache: &mut EdgeCache,
-    placer: &Placer,
-    mesh: &mut Mesh,
-    stats: &mut ExtractStats,
-    options: &ExtractOptions,
-) -> Result<(), ExtractError> {
-    let mut ids = Vec::with_capacity(polygon.len());
-    for c in polygon {
-        let e = c.as_edge().expect("binary polygons have edge corners");
-        ids.push(cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?);
-    }
-    table_triangles(polygon, &ids, placer, mesh, stats, options)
-}
-
-fn place_interior(
-    polygon: &[Corner],
-    cache: &mut EdgeCache,
-    placer: &Placer,
-    mesh: &mut Mesh,
-    [i, j, k]: [usize; 3],
-) -> Result<u32, ExtractError> {
-    let mut ids = Vec::with_capacity(polygon.len());
-    for c in polygon {
-        let e = c.as_edge().expect("binary polygons have edge corners");
-        ids.push(cache.vertex(i, j, e, || placer.edge_vertex([i, j, k], e, mesh))?);
-    }
-    placer.centroid_vertex(&ids, mesh)
 }
 
 #[cfg(test)]

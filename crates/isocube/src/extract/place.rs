@@ -24,24 +24,8 @@ impl<'a> Placer<'a> {
         }
     }
 
-    /// Creates the vertex where the surface crosses edge `e` of cell `cell`.
-    pub(super) fn edge_vertex(
-        &self,
-        cell: [usize; 3],
-        e: u8,
-        mesh: &mut Mesh,
-    ) -> Result<u32, ExtractError> {
-        let v = VERTICES.map(|o| {
-            self.grid.value(
-                cell[0] + usize::from(o[0]),
-                cell[1] + usize::from(o[1]),
-                cell[2] + usize::from(o[2]),
-            )
-        });
-        self.edge_vertex_of(cell, &v, e, mesh)
-    }
-
-    /// [`Placer::edge_vertex`] with the cell's eight values at hand (cube vertex order).
+    /// Creates the vertex where the surface crosses edge `e` of cell `cell`, from the cell's eight
+    /// values (cube vertex order).
     #[inline]
     pub(super) fn edge_vertex_of(
         &self,

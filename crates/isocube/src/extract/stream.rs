@@ -9,7 +9,8 @@ use std::convert::Infallible;
 use rayon::prelude::*;
 use thiserror::Error;
 
-use super::binary::{mesh_slab, slab_height, Slab};
+use super::binary::{slabs, BinaryCells};
+use super::chunk::{ChunkMesh, LayerJoiner};
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{ExtractError, ExtractOptions, ExtractStats, Method};
@@ -90,115 +91,45 @@ pub fn extract_streamed<S: MeshSink>(
     Grid::point_count(dims).map_err(ExtractError::Grid)?;
     let (spacing, origin) = (source.spacing(), source.origin());
     let [nx, ny, nz] = dims;
-    let height = slab_height(nx, ny, nz - 1);
-    let slabs = (nz - 1).div_ceil(height);
+    let boxes = slabs(dims);
     // Slabs in flight: enough to keep every core busy; memory is this many windows and meshes.
     let batch = (2 * rayon::current_num_threads()).max(2);
-    let mut states: Vec<(EdgeCache, Vec<f32>)> = (0..batch.min(slabs))
-        .map(|_| (EdgeCache::new(nx, ny), Vec::new()))
+    let mut states: Vec<(EdgeCache, Vec<f32>)> = (0..batch.min(boxes.len()))
+        .map(|_| (EdgeCache::new(0, 0), Vec::new()))
         .collect();
-    let mut joiner = Joiner::default();
-    let mut stats = ExtractStats {
-        cells: dims.iter().map(|d| d - 1).product(),
-        ..ExtractStats::default()
-    };
-    for first in (0..slabs).step_by(batch) {
-        let last = (first + batch).min(slabs);
-        let parts: Vec<Result<Slab, ExtractError>> = states[..last - first]
+    let mut joiner = LayerJoiner::new(dims);
+    let mut stats = ExtractStats::default();
+    for group in boxes.chunks(batch) {
+        let parts: Vec<Result<ChunkMesh, ExtractError>> = states[..group.len()]
             .par_iter_mut()
-            .zip(first..last)
-            .map(|((cache, buffer), s)| {
-                let k0 = s * height;
-                let k1 = ((s + 1) * height).min(nz - 1);
+            .zip(group)
+            .map(|((cache, buffer), &cells)| {
                 // One plane beyond the cells on each side, for the normals' differences.
-                let p0 = k0.saturating_sub(1);
-                let p1 = (k1 + 1).min(nz - 1);
+                let p0 = cells.min[2].saturating_sub(1);
+                let p1 = (cells.max[2] + 1).min(nz - 1);
                 buffer.resize((p1 + 1 - p0) * nx * ny, 0.0);
                 source.read_planes(p0, buffer);
                 let window = Window::new(dims, spacing, origin, p0, buffer);
-                cache.reset();
-                mesh_slab(window, options, cache, k0, k1)
+                BinaryCells::new(window, options).mesh_box(cache, cells)
             })
             .collect();
-        for (s, part) in (first..).zip(parts) {
-            joiner.push(part?, sink, &mut stats)?;
-            progress(((s + 1) * height).min(nz - 1), nz - 1);
+        for part in parts {
+            let part = part?;
+            // As extraction in memory does; the vertices concerned are inside one cell, so the
+            // part holds all their triangles.
+            let filled = part.mesh.filled_normals();
+            let joined = joiner.push(&part, filled.as_deref())?;
+            sink.vertices(&joined.positions, &joined.normals)
+                .map_err(StreamError::Sink)?;
+            sink.triangles(&joined.triangles)
+                .map_err(StreamError::Sink)?;
+            stats.add(&joined.chunk.stats);
+            progress(part.cells.max[2], nz - 1);
         }
-        source.release_before((last * height).saturating_sub(1));
+        let last = group.last().expect("a batch has boxes");
+        source.release_before(last.max[2].saturating_sub(1));
     }
     Ok(stats)
-}
-
-/// Numbers each slab's vertices after the earlier slabs', reusing the previous slab's
-/// top-plane vertices for its bottom plane (as [`super::binary`]'s join does for slabs in
-/// memory).
-#[derive(Default)]
-struct Joiner {
-    next: u64,
-    /// The previous slab's top-plane vertices: (edge slot, global index), by slot.
-    top: Vec<(u64, u32)>,
-    remap: Vec<u32>,
-    positions: Vec<[f32; 3]>,
-    normals: Vec<[f32; 3]>,
-    triangles: Vec<[u32; 3]>,
-}
-
-impl Joiner {
-    fn push<S: MeshSink>(
-        &mut self,
-        part: Slab,
-        sink: &mut S,
-        stats: &mut ExtractStats,
-    ) -> Result<(), StreamError<S::Error>> {
-        let mesh = &part.mesh;
-        // As extraction in memory does; the vertices concerned are inside one cell, so the
-        // part holds all their triangles.
-        let filled = mesh.filled_normals();
-        let normals = filled.as_ref().unwrap_or(&mesh.normals);
-        self.remap.clear();
-        self.remap.resize(mesh.positions.len(), u32::MAX);
-        for &(slot, local) in &part.bottom {
-            if let Ok(k) = self.top.binary_search_by_key(&slot, |e| e.0) {
-                self.remap[local as usize] = self.top[k].1;
-            }
-        }
-        self.positions.clear();
-        self.normals.clear();
-        for (local, r) in self.remap.iter_mut().enumerate() {
-            if *r == u32::MAX {
-                if self.next >= u64::from(u32::MAX) {
-                    return Err(ExtractError::TooManyVertices.into());
-                }
-                *r = self.next as u32;
-                self.next += 1;
-                self.positions.push(mesh.positions[local]);
-                if let Some(n) = normals.get(local) {
-                    self.normals.push(*n);
-                }
-            }
-        }
-        sink.vertices(&self.positions, &self.normals)
-            .map_err(StreamError::Sink)?;
-        self.triangles.clear();
-        self.triangles.extend(
-            mesh.triangles
-                .iter()
-                .map(|t| t.map(|v| self.remap[v as usize])),
-        );
-        sink.triangles(&self.triangles).map_err(StreamError::Sink)?;
-        self.top.clear();
-        self.top.extend(
-            part.top
-                .iter()
-                .map(|&(slot, local)| (slot, self.remap[local as usize])),
-        );
-        self.top.sort_unstable();
-        stats.active_cells += part.stats.active_cells;
-        stats.skipped_cells += part.stats.skipped_cells;
-        stats.interior_vertices += part.stats.interior_vertices;
-        stats.tunnels += part.stats.tunnels;
-        Ok(())
-    }
 }
 
 #[cfg(test)]

@@ -51,13 +51,12 @@ use std::hash::{BuildHasherDefault, Hasher};
 use crate::cube::triangulate::{safe_triangulation, star};
 use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
 use crate::field::Grid;
-use crate::mesh::Mesh;
 use crate::quality::{triangulate, Strategy};
 
-use super::binary::Slab;
+use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::classify::{cell_config, face_decisions};
 use super::place::Placer;
-use super::{choose_tunnel, ExtractError, ExtractOptions, ExtractStats};
+use super::{choose_tunnel, ExtractError, ExtractOptions};
 
 /// The smallest distance, as a fraction of the edge, between a crossing that was not snapped and
 /// the ends of its edge.
@@ -385,15 +384,16 @@ impl<'a> Ternary<'a> {
 
     /// Appends the triangles of cell `cell` (its first grid point) to `patch`, with point `over`
     /// treated as zero, improved by flips if `flips`.
-    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch, flips: bool) {
+    /// Returns whether the cell's interior opened a tunnel.
+    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch, flips: bool) -> bool {
         let pts = self.offsets.map(|o| base + o);
         let v = pts.map(|p| self.value(p, over));
         if v.iter().any(|x| !x.is_finite()) {
-            return;
+            return false;
         }
         let config = cell_config(&v, self.level);
         if config == 0 || config == 255 {
-            return;
+            return false;
         }
         let table = CaseTable::binary();
         let decisions = face_decisions(&v, self.level, table.ambiguous_faces(config));
@@ -426,7 +426,7 @@ impl<'a> Ternary<'a> {
                 self.emit_polygon(base, l, polygon, &key, patch);
             }
             self.improve_cell(base, first, patch);
-            return;
+            return false;
         }
         let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
         let mut used = [false; Corner::MAX_INTERIOR];
@@ -453,6 +453,7 @@ impl<'a> Ternary<'a> {
         if flips {
             self.improve_cell(base, first, patch);
         }
+        tunnel.is_some()
     }
 
     /// One loop of a cell by the triangulation strategy, after collapse onto zero points. A loop
@@ -1003,106 +1004,61 @@ impl<'a> Ternary<'a> {
         }
     }
 
-    /// Meshes the whole grid with the chosen zero points.
-    /// Meshes the field with the chosen zeros: slabs of cell layers in parallel, joined in
-    /// order like the binary engine's (vertices on a slab's bottom plane are its predecessor's,
-    /// matched by key), so vertices are numbered by first use exactly as one pass would.
-    pub(super) fn mesh(
+    /// Meshes one box of cells with the chosen zero points.
+    pub(super) fn mesh_box(
         &self,
-        options: &ExtractOptions,
-        mesh: &mut Mesh,
-        stats: &mut ExtractStats,
-        progress: &mut dyn FnMut(usize, usize),
-    ) -> Result<(), ExtractError> {
-        let placer = Placer::new(super::window::Window::whole(self.grid), options);
-        let [nx, ny, nz] = self.grid.dims();
-        // Zero points hold the level, which counts as above (the masks say so): cells whose
-        // eight values are all above or all below make nothing, and are ruled out 64 at a time.
-        let masks = &self.masks;
-        let height = super::binary::slab_height(nx, ny, nz - 1);
-        let slabs = (nz - 1).div_ceil(height);
-        let parts: Vec<Result<Slab, ExtractError>> = (0..slabs)
-            .into_par_iter()
-            .map(|s| {
-                let k0 = s * height;
-                let k1 = ((s + 1) * height).min(nz - 1);
-                self.mesh_slab(options, &placer, masks, k0, k1)
-            })
-            .collect();
-        let parts: Vec<Slab> = parts.into_iter().collect::<Result<_, _>>()?;
-        let joined = super::binary::join(parts, self.grid, mesh, &mut |s| {
-            progress(((s + 1) * height).min(nz - 1), nz - 1)
-        })?;
-        stats.active_cells += joined.active_cells;
-        stats.skipped_cells += joined.skipped_cells;
-        stats.interior_vertices += joined.interior_vertices;
-        Ok(())
-    }
-
-    /// Cell layers `k0..k1`, with the vertices on planes `k0` and `k1` by key.
-    fn mesh_slab(
-        &self,
-        options: &ExtractOptions,
         placer: &Placer,
-        masks: &super::binary::Masks,
-        k0: usize,
-        k1: usize,
-    ) -> Result<Slab, ExtractError> {
+        flip: bool,
+        cells: CellBox,
+    ) -> Result<ChunkMesh, ExtractError> {
         let [nx, ny, _] = self.grid.dims();
         let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
         let mut patch = Patch::default();
-        let mut mesh = Mesh::new();
-        let mut stats = ExtractStats::default();
+        let mut out = ChunkMesh::new(cells);
+        // Zero points hold the level, which counts as above (the masks say so): cells whose
+        // eight values are all above or all below make nothing, and are ruled out 64 at a time.
+        let masks = &self.masks;
         let mut visit = vec![0u64; masks.words];
-        for k in k0..k1 {
-            for j in 0..ny - 1 {
+        let [x0, y0, z0] = cells.min;
+        let [x1, y1, z1] = cells.max;
+        for k in z0..z1 {
+            for j in y0..y1 {
                 masks.visit(j, k, ny, nx - 1, &mut visit);
                 for i in super::binary::set_bits(&visit) {
+                    if i < x0 {
+                        continue;
+                    }
+                    if i >= x1 {
+                        break;
+                    }
                     let base = self.grid.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
                     if pts.iter().any(|&p| !self.values[p].is_finite()) {
-                        stats.skipped_cells += 1;
+                        out.stats.skipped_cells += 1;
                         continue;
                     }
                     patch.clear();
-                    self.emit(base, None, &mut patch, true);
+                    let tunnel = self.emit(base, None, &mut patch, true);
                     if patch.triangles.is_empty() {
                         continue;
                     }
-                    stats.active_cells += 1;
+                    out.stats.active_cells += 1;
+                    out.stats.tunnels += usize::from(tunnel);
                     for t in &patch.triangles {
                         let mut tri = [0u32; 3];
                         for (slot, &key) in tri.iter_mut().zip(t) {
-                            *slot =
-                                self.vertex(key, &patch, placer, &mut ids, &mut mesh, &mut stats)?;
+                            *slot = self.vertex(key, &patch, placer, &mut ids, &mut out)?;
                         }
-                        if options.flip {
+                        if flip {
                             tri.swap(1, 2);
                         }
-                        mesh.triangles.push(tri);
+                        out.mesh.triangles.push(tri);
                     }
                 }
+                out.end_row()?;
             }
         }
-        // Interior points are never on a plane; points and crossings on planes k0 and k1 may be
-        // the neighbouring slabs' too.
-        let (mut bottom, mut top) = (Vec::new(), Vec::new());
-        for (&key, &id) in &ids {
-            let z = self.key_coords(key)[2];
-            if z == 2 * k0 {
-                bottom.push((key, id));
-            } else if z == 2 * k1 {
-                top.push((key, id));
-            }
-        }
-        bottom.sort_unstable();
-        top.sort_unstable();
-        Ok(Slab {
-            mesh,
-            stats,
-            bottom,
-            top,
-        })
+        Ok(out)
     }
 
     fn vertex(
@@ -1111,8 +1067,7 @@ impl<'a> Ternary<'a> {
         patch: &Patch,
         placer: &Placer,
         ids: &mut HashMap<Key, u32, BuildHasherDefault<KeyHasher>>,
-        mesh: &mut Mesh,
-        stats: &mut ExtractStats,
+        out: &mut ChunkMesh,
     ) -> Result<u32, ExtractError> {
         if let Some(&id) = ids.get(&key) {
             return Ok(id);
@@ -1120,12 +1075,12 @@ impl<'a> Ternary<'a> {
         let payload = (key & PAYLOAD) as usize;
         let id = match tag(key) {
             POINT => match self.snapped_place(payload) {
-                (p, _, 0.0) => placer.point_vertex(self.coords(p), mesh)?,
-                (p0, axis, t) => placer.vertex_on_edge(self.coords(p0), axis, t, mesh)?,
+                (p, _, 0.0) => placer.point_vertex(self.coords(p), &mut out.mesh)?,
+                (p0, axis, t) => placer.vertex_on_edge(self.coords(p0), axis, t, &mut out.mesh)?,
             },
             EDGE => {
                 let (a, axis) = (payload / 3, payload % 3);
-                placer.vertex_on_edge(self.coords(a), axis, self.edge_t(a, axis), mesh)?
+                placer.vertex_on_edge(self.coords(a), axis, self.edge_t(a, axis), &mut out.mesh)?
             }
             _ => {
                 let interior = patch
@@ -1135,15 +1090,16 @@ impl<'a> Ternary<'a> {
                     .expect("interior points come with their support");
                 let mut corner_ids = Vec::with_capacity(interior.support.len());
                 for &s in &interior.support {
-                    corner_ids.push(self.vertex(s, patch, placer, ids, mesh, stats)?);
+                    corner_ids.push(self.vertex(s, patch, placer, ids, out)?);
                 }
-                stats.interior_vertices += 1;
+                out.stats.interior_vertices += 1;
                 match interior.at {
-                    Some(x) => placer.interior_vertex(x, &corner_ids, mesh)?,
-                    None => placer.centroid_vertex(&corner_ids, mesh)?,
+                    Some(x) => placer.interior_vertex(x, &corner_ids, &mut out.mesh)?,
+                    None => placer.centroid_vertex(&corner_ids, &mut out.mesh)?,
                 }
             }
         };
+        out.keys.push(VertexKey::from_bits(key));
         ids.insert(key, id);
         Ok(id)
     }

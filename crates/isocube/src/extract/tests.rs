@@ -739,9 +739,15 @@ mod ternary {
                 let zeros = |grouped: bool| {
                     let mut t = super::super::ternary::Ternary::new(grid, &options, snapping);
                     t.choose_zeros_in_groups(grouped);
+                    let placer = super::super::place::Placer::new(
+                        super::super::window::Window::whole(grid),
+                        &options,
+                    );
+                    let chunk = t
+                        .mesh_box(&placer, options.flip, CellBox::whole(grid.dims()))
+                        .unwrap();
                     let mut mesh = Mesh::new();
-                    let mut s = ExtractStats::default();
-                    t.mesh(&options, &mut mesh, &mut s, &mut |_, _| {}).unwrap();
+                    join(grid.dims(), vec![chunk], &mut mesh, &mut |_| {}).unwrap();
                     mesh
                 };
                 assert_eq!(zeros(false), one);
@@ -879,4 +885,163 @@ mod strategies {
             }
         }
     }
+}
+
+/// Random partitions of a grid's cells into boxes: cuts at random places along random axes,
+/// down to single cells, in a random order.
+fn random_partition(dims: [usize; 3], rng: &mut crate::TestRng) -> Vec<CellBox> {
+    let mut done = Vec::new();
+    let mut todo = vec![CellBox::whole(dims)];
+    while let Some(b) = todo.pop() {
+        let e = b.extent();
+        let splittable: Vec<usize> = (0..3).filter(|&a| e[a] > 1).collect();
+        // Stop with probability 1/4 (or when the box is a single cell).
+        if splittable.is_empty() || rng.next_u64() % 4 == 0 {
+            done.push(b);
+            continue;
+        }
+        let a = splittable[(rng.next_u64() % splittable.len() as u64) as usize];
+        let cut = b.min[a] + 1 + (rng.next_u64() % (e[a] as u64 - 1)) as usize;
+        let (mut lo, mut hi) = (b, b);
+        lo.max[a] = cut;
+        hi.min[a] = cut;
+        todo.push(lo);
+        todo.push(hi);
+    }
+    // Fisher–Yates: the joiner must not depend on the order of the chunks.
+    for i in (1..done.len()).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        done.swap(i, j);
+    }
+    done
+}
+
+/// Every method, topology, triangulation and option that changes the mesh.
+fn any_options() -> impl Strategy<Value = ExtractOptions> {
+    (
+        0u8..3,
+        any::<bool>(),
+        any::<bool>(),
+        any::<bool>(),
+        0u8..4,
+        0u8..3,
+        0u8..6,
+        any::<bool>(),
+        0u8..4,
+    )
+        .prop_map(
+            |(strategy, classic, flip, normals, method, threshold, snap, on_grid, level)| {
+                let mut o = ExtractOptions::default()
+                    .with_level(f32::from(level) * 0.25 - 0.25)
+                    .with_flip(flip)
+                    .with_normals(normals)
+                    .with_triangulation(match strategy {
+                        0 => crate::quality::Strategy::Fan,
+                        1 => crate::quality::Strategy::Local,
+                        _ => crate::quality::Strategy::Optimal,
+                    });
+                if classic {
+                    o = o.with_topology(Topology::Classic);
+                }
+                if method > 0 {
+                    o = o.with_method(Method::Ternary(Snapping {
+                        zero_threshold: f32::from(threshold) * 0.1,
+                        snap: f32::from(snap) * 0.1,
+                        position: if on_grid {
+                            SnapPosition::GridPoint
+                        } else {
+                            SnapPosition::NearestCrossing
+                        },
+                    }));
+                }
+                o
+            },
+        )
+}
+
+/// Closed, open and holed fields: ties with the level, surfaces through the grid's boundary,
+/// NaN and infinite values.
+fn any_grid() -> impl Strategy<Value = Grid> {
+    prop_oneof![
+        closed_grid(),
+        (2usize..9, 2usize..9, 2usize..9, any::<u64>(), 0u8..3).prop_map(
+            |(nx, ny, nz, seed, holes)| {
+                let dims = [nx, ny, nz];
+                let mut values = quantised_values(dims, seed);
+                // Smooth values too, not only quarters.
+                if seed % 3 == 0 {
+                    let mut rng = crate::TestRng::new(seed ^ 0x5eed);
+                    for v in &mut values {
+                        *v += (rng.unit() as f32 - 0.5) * 0.3;
+                    }
+                }
+                for (i, v) in values.iter_mut().enumerate() {
+                    match holes {
+                        1 if i % 11 == 3 => *v = f32::NAN,
+                        2 if i % 13 == 5 => *v = f32::INFINITY,
+                        _ => {}
+                    }
+                }
+                Grid::new(dims, values).unwrap()
+            }
+        ),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 768, ..ProptestConfig::default() })]
+
+    /// The mesh does not depend on how the grid is cut: any partition into boxes, meshed in any
+    /// order and joined, gives one pass's mesh and counts, for every method and option.
+    #[test]
+    fn any_partition_joins_into_the_one_pass_mesh(
+        grid in any_grid(), options in any_options(), seed in any::<u64>(), relax in 0usize..2,
+    ) {
+        let options = options.with_relax(relax);
+        let one = extract(&grid, &options).unwrap();
+        let mut rng = crate::TestRng::new(seed);
+        let boxes = random_partition(grid.dims(), &mut rng);
+        let joined = extract_boxes(&grid, &options, &boxes).unwrap();
+        prop_assert_eq!(&joined.0, &one.0, "boxes {:?}", boxes);
+        prop_assert_eq!(joined.1, one.1);
+        // Regular tilings too, single cells included.
+        let size = [0, 1, 2].map(|_| 1 + (rng.next_u64() % 4) as usize);
+        let tiles = CellBox::tile(grid.dims(), size).unwrap();
+        prop_assert_eq!(&extract_boxes(&grid, &options, &tiles).unwrap().0, &one.0, "size {:?}", size);
+    }
+}
+
+#[test]
+fn overlapping_and_outside_boxes_are_refused() {
+    let grid = Sample::Sphere.grid(8);
+    let options = ExtractOptions::default();
+    let overlap = [
+        CellBox::new([0, 0, 0], [4, 7, 7]),
+        CellBox::new([3, 0, 0], [7, 7, 7]),
+    ];
+    assert!(matches!(
+        extract_boxes(&grid, &options, &overlap),
+        Err(ExtractError::OverlappingBoxes { .. })
+    ));
+    for bad in [
+        CellBox::new([0, 0, 0], [8, 7, 7]),
+        CellBox::new([2, 0, 0], [2, 7, 7]),
+    ] {
+        assert!(matches!(
+            extract_boxes(&grid, &options, &[bad]),
+            Err(ExtractError::CellBox { .. })
+        ));
+    }
+    assert!(matches!(
+        CellBox::tile(grid.dims(), [3, 0, 1]),
+        Err(ExtractError::ChunkSize { .. })
+    ));
+    // A chunk whose keys were lost is refused by the joiner, not trusted.
+    let extractor = Extractor::new(&grid, &options).unwrap();
+    let mut chunk = extractor.mesh_box(CellBox::whole(grid.dims())).unwrap();
+    chunk.keys.pop();
+    assert!(matches!(
+        join(grid.dims(), vec![chunk], &mut Mesh::new(), &mut |_| {}),
+        Err(ExtractError::MalformedChunk { .. })
+    ));
 }

@@ -1,8 +1,9 @@
 //! Welding: each grid edge gets one vertex, shared by the up to four cells around it.
 //!
-//! Cells are visited layer by layer along z. A layer touches the x- and y-edges of two point
-//! slices (its bottom and top) and the z-edges between them, so five `nx × ny` index arrays
-//! suffice: when the layer is done the top slice becomes the next bottom.
+//! Cells of a box are visited layer by layer along z. A layer touches the x- and y-edges of two
+//! point slices (its bottom and top) and the z-edges between them, so five `nx × ny` index arrays
+//! (the box's points per plane) suffice: when the layer is done the top slice becomes the next
+//! bottom. Cells are named here by their place in the box.
 
 use crate::cube::{EDGES, EDGE_AXIS, VERTICES};
 
@@ -39,8 +40,8 @@ impl EdgeCache {
         }
     }
 
-    /// The vertex on edge `e` of cell `(i, j, ·)` of the current layer, created by `make` on
-    /// first use.
+    /// The vertex on edge `e` of the box's cell `(i, j, ·)` of the current layer, created by
+    /// `make` on first use.
     #[inline]
     pub(super) fn vertex(
         &mut self,
@@ -71,21 +72,14 @@ impl EdgeCache {
         Ok(*slot)
     }
 
-    /// The vertices made on the bottom (or top) slice of the current layer, as (slot, vertex)
-    /// with slot `axis · nx · ny + index`, in the order they were made.
-    pub(super) fn plane_entries(&self, top: bool) -> Vec<(u32, u32)> {
-        let plane = self.nx * self.ny;
-        let (slices, set) = if top {
-            (&self.top, &self.top_set)
+    /// Ready for a box of `nx × ny` points per plane, every vertex forgotten (the slices are
+    /// made again only when the size changes).
+    pub(super) fn prepare(&mut self, nx: usize, ny: usize) {
+        if (nx, ny) == (self.nx, self.ny) {
+            self.reset();
         } else {
-            (&self.bottom, &self.bottom_set)
-        };
-        set.iter()
-            .map(|&key| {
-                let k = key as usize;
-                (key, slices[k / plane][k % plane])
-            })
-            .collect()
+            *self = EdgeCache::new(nx, ny);
+        }
     }
 
     /// Forgets every vertex (as new, without touching the whole slices).

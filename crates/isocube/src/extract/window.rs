@@ -60,6 +60,19 @@ impl<'a> Window<'a> {
         self.values[self.index(i, j, k)]
     }
 
+    /// The grid's number for point `p` (`x + nx·(y + ny·z)`), wherever the window starts.
+    #[inline]
+    pub(super) fn point_index(&self, p: [usize; 3]) -> usize {
+        p[0] + self.dims[0] * (p[1] + self.dims[1] * p[2])
+    }
+
+    /// Points `x0..=x1` of row `(j, k)`.
+    #[inline]
+    pub(super) fn row(&self, j: usize, k: usize, x0: usize, x1: usize) -> &'a [f32] {
+        let start = self.index(0, j, k);
+        &self.values[start + x0..=start + x1]
+    }
+
     /// The window's values, from plane `first`.
     #[inline]
     pub(super) fn values(&self) -> &'a [f32] {
