@@ -6,8 +6,9 @@ use std::time::Instant;
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{
-    extract_boxes_into, extract_into, extract_labels, extract_streamed, CellBox, ExtractOptions,
-    ExtractStats, LabelOptions, LabelSelection, Method, SnapPosition, Snapping, StreamError,
+    extract_boxes_into, extract_into, extract_labels, extract_labels_boxes, extract_streamed,
+    label_cells, CellBox, ExtractOptions, ExtractStats, LabelOptions, LabelSelection, Method,
+    SnapPosition, Snapping, StreamError,
 };
 use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
@@ -100,8 +101,9 @@ pub(crate) struct Args {
     stream: bool,
     /// Mesh boxes of this many cells per axis (`NX,NY,NZ`), in parallel and in any order, and
     /// join them by their vertices' grid keys: the file is the same, byte for byte, as without
-    /// it (a check of the chunk engine, and the unit of work for volumes cut into chunks).
-    #[arg(long, value_name = "NX,NY,NZ", value_parser = parse_chunk, conflicts_with_all = ["stream", "labels"])]
+    /// it (a check of the chunk engine, and the unit of work for volumes cut into chunks). With
+    /// --labels, the boxes cut the grid's cells and the layer of outside cells around them.
+    #[arg(long, value_name = "NX,NY,NZ", value_parser = parse_chunk, conflicts_with = "stream")]
     chunk: Option<[usize; 3]>,
     /// Fail (exit code 2, nothing written) when any cell touches a NaN or infinite value. By
     /// default such cells are skipped, leaving a hole, and counted in the summary.
@@ -290,7 +292,15 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         labels: selection.clone(),
         smoothing: args.smooth,
     };
-    let surfaces = extract_labels(&grid, &options).map_err(Failure::input)?;
+    let surfaces = match args.chunk {
+        Some(size) => {
+            let points = label_cells(grid.dims()).max.map(|c| c + 1);
+            CellBox::tile(points, size)
+                .and_then(|boxes| extract_labels_boxes(&grid, &options, &boxes))
+        }
+        None => extract_labels(&grid, &options),
+    }
+    .map_err(Failure::input)?;
     if surfaces.is_empty() {
         return Err(Failure::input(anyhow::anyhow!(
             "{}: no label to mesh (background {}{})",

@@ -13,6 +13,16 @@
 //! all chunks out in the one pass's order (rows by `z`, `y`, then boxes by `x`), gives a vertex
 //! shared by several chunks to the one whose row comes first, and numbers vertices in that order:
 //! the joined mesh is the one pass's mesh, to the bit, however the cells were cut into boxes.
+//!
+//! # The halo a box needs
+//! What a box's mesh depends on beyond its own cells' corner points (`min..=max` per axis):
+//! - binary Marching Cubes (MC33 or classic, any triangulation): one more point on each side
+//!   for the normals' central differences; none without normals;
+//! - ternary: which points are zero is decided point by point in 88 ordered groups (11 rounds
+//!   of crossing distance × 8 parity classes), each decision reading the zero state of points
+//!   one step away decided in earlier groups, so a box's zero points depend on the field up to
+//!   89 points beyond it. [`super::Extractor`] decides them once on the whole grid, and every box
+//!   then needs one point beyond it, as for binary.
 
 use rayon::prelude::*;
 
@@ -131,12 +141,22 @@ pub enum KeyKind {
         /// Which of the cell's interior points.
         index: usize,
     },
+    /// The centroid of a simplex of the cells' Kuhn triangulation (labelled meshing): its lowest
+    /// grid point and, as bits `1 << (o − 1)`, the corner offsets `o` (1 = +x, 2 = +y, 4 = +z,
+    /// summed) of its other points.
+    Simplex {
+        /// The simplex's lowest grid point.
+        point: usize,
+        /// Its other points' offsets.
+        corners: u8,
+    },
 }
 
 const TAG_SHIFT: u32 = 62;
 const CROSSING: u64 = 0;
 const POINT: u64 = 1;
 const INTERIOR: u64 = 2;
+const SIMPLEX: u64 = 3;
 const PAYLOAD: u64 = (1 << TAG_SHIFT) - 1;
 /// Interior points per cell that keys can tell apart.
 pub(super) const INTERIOR_SLOTS: usize = 8;
@@ -161,6 +181,14 @@ impl VertexKey {
         VertexKey(INTERIOR << TAG_SHIFT | (cell * INTERIOR_SLOTS + index) as u64)
     }
 
+    /// The simplex of the Kuhn triangulation with lowest point `point` and other points at the
+    /// offsets whose bits `corners` holds (see [`KeyKind::Simplex`]).
+    #[inline]
+    pub fn simplex(point: usize, corners: u8) -> VertexKey {
+        debug_assert!(corners < 128);
+        VertexKey(SIMPLEX << TAG_SHIFT | (point as u64) << 7 | u64::from(corners))
+    }
+
     /// The key as one number (its kind in the top two bits).
     pub fn to_bits(self) -> u64 {
         self.0
@@ -180,6 +208,10 @@ impl VertexKey {
                 axis: payload % 3,
             },
             POINT => KeyKind::Point(payload),
+            SIMPLEX => KeyKind::Simplex {
+                point: payload >> 7,
+                corners: (payload & 127) as u8,
+            },
             _ => KeyKind::Interior {
                 cell: payload / INTERIOR_SLOTS,
                 index: payload % INTERIOR_SLOTS,
@@ -196,6 +228,11 @@ impl VertexKey {
                 along != axis && coord(point)[axis] == value
             }
             KeyKind::Point(point) => coord(point)[axis] == value,
+            KeyKind::Simplex { point, corners } => {
+                // Every offset present must leave the axis alone.
+                let moves = (1..8u8).any(|o| corners >> (o - 1) & 1 == 1 && o >> axis & 1 == 1);
+                !moves && coord(point)[axis] == value
+            }
             KeyKind::Interior { .. } => false,
         }
     }
@@ -213,6 +250,8 @@ pub struct ChunkMesh {
     pub keys: Vec<VertexKey>,
     /// Counts for the box's cells.
     pub stats: ExtractStats,
+    /// One tag per triangle (the label, for labelled meshing), or none.
+    pub tags: Vec<u32>,
     /// After each row of cells (`y` fastest, then `z`): triangles and vertices made so far.
     pub(super) rows: Vec<[u32; 2]>,
 }
@@ -274,6 +313,7 @@ impl ChunkMesh {
         }
         rows_ok
             && triangles_ok
+            && (self.tags.is_empty() || self.tags.len() == m.triangles.len())
             && self.keys.len() == v
             && (m.normals.is_empty() || m.normals.len() == v)
     }
@@ -344,7 +384,20 @@ pub fn join(
     mesh: &mut Mesh,
     progress: &mut dyn FnMut(usize),
 ) -> Result<ExtractStats, ExtractError> {
+    join_tagged(dims, chunks, mesh, &mut Vec::new(), progress)
+}
+
+/// [`join`], with the chunks' triangle tags into `tags` (in the joined triangles' order; left
+/// empty when no chunk has tags).
+pub(super) fn join_tagged(
+    dims: [usize; 3],
+    chunks: Vec<ChunkMesh>,
+    mesh: &mut Mesh,
+    tags: &mut Vec<u32>,
+    progress: &mut dyn FnMut(usize),
+) -> Result<ExtractStats, ExtractError> {
     mesh.clear();
+    tags.clear();
     for c in &chunks {
         c.cells.check(dims)?;
         if !c.well_formed() {
@@ -465,14 +518,30 @@ pub fn join(
         mesh.normals.resize(nv, [0.0; 3]);
     }
     mesh.triangles.resize(nt, [0; 3]);
+    let tagged = chunks.iter().any(|c| !c.tags.is_empty());
+    if let Some(bad) = chunks
+        .iter()
+        .find(|c| tagged && c.tags.len() != c.mesh.triangles.len())
+    {
+        return Err(ExtractError::MalformedChunk { cells: bad.cells });
+    }
+    if tagged {
+        tags.resize(nt, 0);
+    }
     // Each segment's output ranges, handed to the chunk that fills them.
-    type Out<'a> = (&'a mut [[f32; 3]], &'a mut [[f32; 3]], &'a mut [[u32; 3]]);
+    type Out<'a> = (
+        &'a mut [[f32; 3]],
+        &'a mut [[f32; 3]],
+        &'a mut [[u32; 3]],
+        &'a mut [u32],
+    );
     let mut outputs: Vec<Vec<(u32, Out)>> = chunks.iter().map(|_| Vec::new()).collect();
     {
-        let (mut p_rest, mut n_rest, mut t_rest) = (
+        let (mut p_rest, mut n_rest, mut t_rest, mut g_rest) = (
             &mut mesh.positions[..],
             &mut mesh.normals[..],
             &mut mesh.triangles[..],
+            &mut tags[..],
         );
         for (s, &(_, c, r)) in segments.iter().enumerate() {
             let v = vertex_base[s + 1] - vertex_base[s];
@@ -480,10 +549,12 @@ pub fn join(
             p_rest = rest;
             let (n, rest) = std::mem::take(&mut n_rest).split_at_mut(if normals { v } else { 0 });
             n_rest = rest;
-            let (t, rest) =
-                std::mem::take(&mut t_rest).split_at_mut(triangle_base[s + 1] - triangle_base[s]);
+            let nt = triangle_base[s + 1] - triangle_base[s];
+            let (t, rest) = std::mem::take(&mut t_rest).split_at_mut(nt);
             t_rest = rest;
-            outputs[c as usize].push((r, (p, n, t)));
+            let (g, rest) = std::mem::take(&mut g_rest).split_at_mut(if tagged { nt } else { 0 });
+            g_rest = rest;
+            outputs[c as usize].push((r, (p, n, t, g)));
         }
     }
     chunks
@@ -492,7 +563,7 @@ pub fn join(
         .zip(outputs)
         .for_each(|((c, chunk), outs)| {
             let ids = &global[c];
-            for (r, (p, n, t)) in outs {
+            for (r, (p, n, t, g)) in outs {
                 let r = r as usize;
                 let [t0, v0] = if r == 0 { [0, 0] } else { chunk.rows[r - 1] };
                 let [t1, v1] = chunk.rows[r];
@@ -509,6 +580,9 @@ pub fn join(
                     .zip(&chunk.mesh.triangles[t0 as usize..t1 as usize])
                 {
                     *out = tri.map(|x| ids[x as usize]);
+                }
+                if !g.is_empty() {
+                    g.copy_from_slice(&chunk.tags[t0 as usize..t1 as usize]);
                 }
             }
         });

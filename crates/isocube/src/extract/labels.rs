@@ -22,11 +22,13 @@
 //! Vertices sit at edge midpoints, triangle centroids and tetrahedron centroids: the surfaces
 //! follow the voxels' boundaries (like a smoothed cuberille), not an interpolated level set.
 
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use crate::field::Grid;
 use crate::mesh::Mesh;
 
+use super::chunk::{join_tagged, CellBox, ChunkMesh, VertexKey};
 use super::ExtractError;
 
 /// Which labels to mesh.
@@ -110,143 +112,84 @@ pub fn extract_labels(
     grid: &Grid,
     options: &LabelOptions,
 ) -> Result<Vec<LabelSurface>, ExtractError> {
-    let [nx, ny, nz] = grid.dims();
-    // Dense label numbers, 0 for the outside layer.
-    let mut names: Vec<i64> = Vec::new();
-    let mut dense: FxHashMap<i64, u32> = FxHashMap::default();
-    let (px, py, pz) = (nx + 2, ny + 2, nz + 2);
-    let mut padded = vec![0u32; px * py * pz];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let v = grid.values()[grid.index(i, j, k)];
-                if !v.is_finite() || v.fract() != 0.0 || v.abs() > 9.0e15 {
-                    return Err(ExtractError::Label {
-                        point: [i, j, k],
-                        value: v,
-                    });
-                }
-                let label = v as i64;
-                let next = names.len() as u32 + 1;
-                let id = *dense.entry(label).or_insert_with(|| {
-                    names.push(label);
-                    next
-                });
-                padded[(i + 1) + px * ((j + 1) + py * (k + 1))] = id;
-            }
-        }
+    let cells = label_cells(grid.dims());
+    let height = super::binary::slab_height(cells.max[0], cells.max[1], cells.max[2]);
+    let boxes = CellBox::tile(
+        cells.max.map(|c| c + 1),
+        [cells.max[0], cells.max[1], height],
+    )?;
+    extract_labels_boxes(grid, options, &boxes)
+}
+
+/// The cells labelled meshing visits: the grid's cells and one more layer all round (the grid
+/// is surrounded by a layer of outside points), numbered from 0 at the outside layer. Boxes of
+/// these cells are what [`extract_labels_boxes`] takes.
+///
+/// ```
+/// use isocube::extract::{label_cells, CellBox};
+/// assert_eq!(label_cells([4, 5, 6]), CellBox::new([0, 0, 0], [5, 6, 7]));
+/// ```
+pub fn label_cells(dims: [usize; 3]) -> CellBox {
+    CellBox::whole(dims.map(|d| d + 2))
+}
+
+/// [`extract_labels`] with the cells of [`label_cells`] cut into `boxes` (disjoint), each
+/// meshed on its own in parallel and then joined: with boxes that cover every cell, the result
+/// is [`extract_labels`]'s, to the bit.
+///
+/// ```
+/// use isocube::extract::{extract_labels, extract_labels_boxes, label_cells, CellBox, LabelOptions};
+/// use isocube::field::Grid;
+/// let dims = [6, 5, 4];
+/// let values = (0..120).map(|p| ((p * 7 % 11) % 3) as f32).collect();
+/// let grid = Grid::new(dims, values).unwrap();
+/// let options = LabelOptions::default();
+/// let cells = label_cells(dims);
+/// let boxes = CellBox::tile(cells.max.map(|c| c + 1), [2, 3, 4]).unwrap();
+/// let chunked = extract_labels_boxes(&grid, &options, &boxes).unwrap();
+/// let whole = extract_labels(&grid, &options).unwrap();
+/// assert_eq!(chunked.len(), whole.len());
+/// for (a, b) in chunked.iter().zip(&whole) {
+///     assert_eq!((a.label, &a.mesh), (b.label, &b.mesh));
+/// }
+/// ```
+pub fn extract_labels_boxes(
+    grid: &Grid,
+    options: &LabelOptions,
+    boxes: &[CellBox],
+) -> Result<Vec<LabelSurface>, ExtractError> {
+    Grid::point_count(grid.dims())?;
+    let labelled = Labelled::new(grid, options)?;
+    let chunks: Vec<ChunkMesh> = boxes
+        .par_iter()
+        .map(|&cells| labelled.mesh_box(cells))
+        .collect::<Result<_, _>>()?;
+    let mut all = Mesh::new();
+    let mut tags = Vec::new();
+    join_tagged(labelled.dims, chunks, &mut all, &mut tags, &mut |_| {})?;
+    let mut triangles: Vec<Vec<[u32; 3]>> = vec![Vec::new(); labelled.names.len() + 1];
+    for (t, &tag) in all.triangles.iter().zip(&tags) {
+        triangles[tag as usize].push(*t);
     }
-    // The outside counts as background: the background's name, if it occurs, shares id 0's role.
-    let background = dense.get(&options.background).copied();
-    let meshed = |id: u32| -> bool {
-        id != 0
-            && Some(id) != background
-            && match &options.labels {
-                LabelSelection::All => true,
-                LabelSelection::Only(list) => list.contains(&names[id as usize - 1]),
-            }
-    };
-    let strides = [1usize, px, px * py];
-    let corner = |base: usize, bits: u8| -> usize {
-        base + (0..3)
-            .filter(|a| bits >> a & 1 == 1)
-            .map(|a| strides[a])
-            .sum::<usize>()
-    };
-    let (h, o) = (grid.spacing(), grid.origin());
-    let position = |p: usize| -> [f64; 3] {
-        let c = [p % px, p / px % py, p / (px * py)];
-        // Padded index 0 is one step before the grid.
-        std::array::from_fn(|a| o[a] + h[a] * (c[a] as f64 - 1.0))
-    };
-    let centroid = |simplex: &[usize]| -> [f64; 3] {
-        let n = simplex.len() as f64;
-        let mut x = [0.0f64; 3];
-        for &p in simplex {
-            let q = position(p);
-            for d in 0..3 {
-                x[d] += q[d] / n;
-            }
-        }
-        x
-    };
-    // Vertices by the sorted padded indices of the simplex whose centroid they are.
-    let mut ids: FxHashMap<[usize; 4], u32> = FxHashMap::default();
-    let mut positions: Vec<[f32; 3]> = Vec::new();
-    let mut vertex = |simplex: &[usize]| -> u32 {
-        let mut key = [usize::MAX; 4];
-        key[..simplex.len()].copy_from_slice(simplex);
-        key[..simplex.len()].sort_unstable();
-        *ids.entry(key).or_insert_with(|| {
-            positions.push(centroid(simplex).map(|c| c as f32));
-            (positions.len() - 1) as u32
-        })
-    };
-    let mut triangles: Vec<Vec<[u32; 3]>> = vec![Vec::new(); names.len() + 1];
-    for k in 0..pz - 1 {
-        for j in 0..py - 1 {
-            for i in 0..px - 1 {
-                let base = i + px * (j + py * k);
-                let first = padded[base];
-                if (1..8u8).all(|b| padded[corner(base, b)] == first) {
-                    continue;
-                }
-                for tet in TETS {
-                    let pts = tet.map(|b| corner(base, b));
-                    let lab = pts.map(|p| padded[p]);
-                    if lab.iter().all(|&l| l == lab[0]) {
-                        continue;
-                    }
-                    let centre = vertex(&pts);
-                    for a in 0..4 {
-                        for b in a + 1..4 {
-                            if lab[a] == lab[b] || !(meshed(lab[a]) || meshed(lab[b])) {
-                                continue;
-                            }
-                            let mid = vertex(&[pts[a], pts[b]]);
-                            // The two faces of the tetrahedron through edge (a, b).
-                            for c in (0..4).filter(|&c| c != a && c != b) {
-                                let face = vertex(&[pts[a], pts[b], pts[c]]);
-                                let mut t = [mid, face, centre];
-                                // Orient out of a: the triangle's normal along b − a.
-                                let p = [
-                                    centroid(&[pts[a], pts[b]]),
-                                    centroid(&[pts[a], pts[b], pts[c]]),
-                                    centroid(&pts),
-                                ];
-                                let n = crate::mesh::cross(
-                                    crate::mesh::sub(p[1], p[0]),
-                                    crate::mesh::sub(p[2], p[0]),
-                                );
-                                let ab = crate::mesh::sub(position(pts[b]), position(pts[a]));
-                                if crate::mesh::dot(n, ab) < 0.0 {
-                                    t.swap(1, 2);
-                                }
-                                if meshed(lab[a]) {
-                                    triangles[lab[a] as usize].push(t);
-                                }
-                                if meshed(lab[b]) {
-                                    triangles[lab[b] as usize].push([t[0], t[2], t[1]]);
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-    smooth(&mut positions, &triangles, options.smoothing, h);
+    smooth(
+        &mut all.positions,
+        &triangles,
+        options.smoothing,
+        grid.spacing(),
+    );
     // Each label's mesh keeps only its own vertices, numbered by first use.
     let mut out: Vec<LabelSurface> = Vec::new();
-    let mut order: Vec<u32> = (1..=names.len() as u32).filter(|&id| meshed(id)).collect();
-    order.sort_by_key(|&id| names[id as usize - 1]);
+    let mut order: Vec<u32> = (1..=labelled.names.len() as u32)
+        .filter(|&id| labelled.meshed(id))
+        .collect();
+    order.sort_by_key(|&id| labelled.names[id as usize - 1]);
     for id in order {
         let mut map: FxHashMap<u32, u32> = FxHashMap::default();
         let mut mesh = Mesh::new();
         for t in &triangles[id as usize] {
             let t = t.map(|v| {
                 *map.entry(v).or_insert_with(|| {
-                    mesh.positions.push(positions[v as usize]);
+                    mesh.positions.push(all.positions[v as usize]);
                     (mesh.positions.len() - 1) as u32
                 })
             });
@@ -254,11 +197,209 @@ pub fn extract_labels(
         }
         mesh.compute_normals();
         out.push(LabelSurface {
-            label: names[id as usize - 1],
+            label: labelled.names[id as usize - 1],
             mesh,
         });
     }
     Ok(out)
+}
+
+/// A labelled grid ready for meshing boxes: dense label numbers on a grid padded by one layer
+/// of outside points.
+struct Labelled<'a> {
+    options: &'a LabelOptions,
+    /// The labels met, by dense number − 1 (dense 0 is the outside layer).
+    names: Vec<i64>,
+    /// Dense numbers of the padded grid's points.
+    padded: Vec<u32>,
+    /// The padded grid's points per axis.
+    dims: [usize; 3],
+    background: Option<u32>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+}
+
+impl<'a> Labelled<'a> {
+    fn new(grid: &Grid, options: &'a LabelOptions) -> Result<Labelled<'a>, ExtractError> {
+        let [nx, ny, nz] = grid.dims();
+        let mut names: Vec<i64> = Vec::new();
+        let mut dense: FxHashMap<i64, u32> = FxHashMap::default();
+        let (px, py, pz) = (nx + 2, ny + 2, nz + 2);
+        let mut padded = vec![0u32; px * py * pz];
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let v = grid.values()[grid.index(i, j, k)];
+                    if !v.is_finite() || v.fract() != 0.0 || v.abs() > 9.0e15 {
+                        return Err(ExtractError::Label {
+                            point: [i, j, k],
+                            value: v,
+                        });
+                    }
+                    let label = v as i64;
+                    let next = names.len() as u32 + 1;
+                    let id = *dense.entry(label).or_insert_with(|| {
+                        names.push(label);
+                        next
+                    });
+                    padded[(i + 1) + px * ((j + 1) + py * (k + 1))] = id;
+                }
+            }
+        }
+        // The outside counts as background: the background's name, if it occurs, shares id 0's
+        // role.
+        let background = dense.get(&options.background).copied();
+        Ok(Labelled {
+            options,
+            names,
+            padded,
+            dims: [px, py, pz],
+            background,
+            spacing: grid.spacing(),
+            origin: grid.origin(),
+        })
+    }
+
+    fn meshed(&self, id: u32) -> bool {
+        id != 0
+            && Some(id) != self.background
+            && match &self.options.labels {
+                LabelSelection::All => true,
+                LabelSelection::Only(list) => list.contains(&self.names[id as usize - 1]),
+            }
+    }
+
+    /// The padded point at `base` + the corner offset `bits` (1 = +x, 2 = +y, 4 = +z).
+    fn corner(&self, base: usize, bits: u8) -> usize {
+        let [px, py, _] = self.dims;
+        let strides = [1usize, px, px * py];
+        base + (0..3)
+            .filter(|a| bits >> a & 1 == 1)
+            .map(|a| strides[a])
+            .sum::<usize>()
+    }
+
+    fn position(&self, p: usize) -> [f64; 3] {
+        let [px, py, _] = self.dims;
+        let c = [p % px, p / px % py, p / (px * py)];
+        // Padded index 0 is one step before the grid.
+        std::array::from_fn(|a| self.origin[a] + self.spacing[a] * (c[a] as f64 - 1.0))
+    }
+
+    /// The centroid of padded points, summed in the order given.
+    fn centroid(&self, simplex: &[usize]) -> [f64; 3] {
+        let n = simplex.len() as f64;
+        let mut x = [0.0f64; 3];
+        for &p in simplex {
+            let q = self.position(p);
+            for d in 0..3 {
+                x[d] += q[d] / n;
+            }
+        }
+        x
+    }
+
+    /// The key of a simplex of a cell's Kuhn triangulation: its lowest point and the offsets
+    /// of the others from it.
+    fn key(&self, simplex: &[usize]) -> VertexKey {
+        let [px, py, _] = self.dims;
+        let low = *simplex.iter().min().expect("a simplex has points");
+        let mut corners = 0u8;
+        for &p in simplex.iter().filter(|&&p| p != low) {
+            let d = p - low;
+            let bits = u8::from(d % px != 0)
+                | u8::from(d / px % py != 0) << 1
+                | u8::from(d >= px * py) << 2;
+            corners |= 1 << (bits - 1);
+        }
+        VertexKey::simplex(low, corners)
+    }
+
+    /// Meshes one box of the padded grid's cells: every label's triangles, tagged with its
+    /// dense number.
+    fn mesh_box(&self, cells: CellBox) -> Result<ChunkMesh, ExtractError> {
+        cells.check(self.dims)?;
+        let [px, py, _] = self.dims;
+        let mut out = ChunkMesh::new(cells);
+        let mut ids: FxHashMap<VertexKey, u32> = FxHashMap::default();
+        let mut vertex = |out: &mut ChunkMesh, simplex: &[usize]| -> Result<u32, ExtractError> {
+            let key = self.key(simplex);
+            if let Some(&id) = ids.get(&key) {
+                return Ok(id);
+            }
+            let id = u32::try_from(out.mesh.positions.len())
+                .ok()
+                .filter(|&id| id != u32::MAX)
+                .ok_or(ExtractError::TooManyVertices)?;
+            out.mesh
+                .positions
+                .push(self.centroid(simplex).map(|c| c as f32));
+            out.keys.push(key);
+            ids.insert(key, id);
+            Ok(id)
+        };
+        for k in cells.min[2]..cells.max[2] {
+            for j in cells.min[1]..cells.max[1] {
+                for i in cells.min[0]..cells.max[0] {
+                    let base = i + px * (j + py * k);
+                    let first = self.padded[base];
+                    if (1..8u8).all(|b| self.padded[self.corner(base, b)] == first) {
+                        continue;
+                    }
+                    out.stats.active_cells += 1;
+                    for tet in TETS {
+                        let pts = tet.map(|b| self.corner(base, b));
+                        let lab = pts.map(|p| self.padded[p]);
+                        if lab.iter().all(|&l| l == lab[0]) {
+                            continue;
+                        }
+                        let centre = vertex(&mut out, &pts)?;
+                        for a in 0..4 {
+                            for b in a + 1..4 {
+                                if lab[a] == lab[b] || !(self.meshed(lab[a]) || self.meshed(lab[b]))
+                                {
+                                    continue;
+                                }
+                                let mid = vertex(&mut out, &[pts[a], pts[b]])?;
+                                // The two faces of the tetrahedron through edge (a, b).
+                                for c in (0..4).filter(|&c| c != a && c != b) {
+                                    let face = vertex(&mut out, &[pts[a], pts[b], pts[c]])?;
+                                    let mut t = [mid, face, centre];
+                                    // Orient out of a: the triangle's normal along b − a.
+                                    let p = [
+                                        self.centroid(&[pts[a], pts[b]]),
+                                        self.centroid(&[pts[a], pts[b], pts[c]]),
+                                        self.centroid(&pts),
+                                    ];
+                                    let n = crate::mesh::cross(
+                                        crate::mesh::sub(p[1], p[0]),
+                                        crate::mesh::sub(p[2], p[0]),
+                                    );
+                                    let ab = crate::mesh::sub(
+                                        self.position(pts[b]),
+                                        self.position(pts[a]),
+                                    );
+                                    if crate::mesh::dot(n, ab) < 0.0 {
+                                        t.swap(1, 2);
+                                    }
+                                    if self.meshed(lab[a]) {
+                                        out.mesh.triangles.push(t);
+                                        out.tags.push(lab[a]);
+                                    }
+                                    if self.meshed(lab[b]) {
+                                        out.mesh.triangles.push([t[0], t[2], t[1]]);
+                                        out.tags.push(lab[b]);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                out.end_row()?;
+            }
+        }
+        Ok(out)
+    }
 }
 
 /// How far a vertex may move from where it started, along each axis, in cells: the staircase's
@@ -450,5 +591,43 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("[1, 0, 0]") && e.contains("0.5"), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod partition_tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+        /// Labelled meshing gives the same surfaces, to the bit, however its cells are cut into
+        /// boxes (cuts along every axis, single cells, any order) and with any smoothing.
+        #[test]
+        fn any_partition_gives_the_same_surfaces(
+            nx in 2usize..7, ny in 2usize..7, nz in 2usize..7, labels in 1u64..5,
+            seed in any::<u64>(), sx in 1usize..5, sy in 1usize..5, sz in 1usize..5,
+            smoothing in 0usize..4, background in 0i64..3,
+        ) {
+            let mut rng = crate::TestRng::new(seed);
+            let dims = [nx, ny, nz];
+            let values = (0..nx * ny * nz).map(|_| (rng.next_u64() % (labels + 1)) as f32).collect();
+            let grid = Grid::new(dims, values).unwrap();
+            let options = LabelOptions { background, smoothing, ..LabelOptions::default() };
+            let whole = extract_labels_boxes(&grid, &options, &[label_cells(dims)]).unwrap();
+            let points = label_cells(dims).max.map(|c| c + 1);
+            let mut boxes = CellBox::tile(points, [sx, sy, sz]).unwrap();
+            boxes.reverse();
+            let tiled = extract_labels_boxes(&grid, &options, &boxes).unwrap();
+            prop_assert_eq!(tiled.len(), whole.len());
+            for (a, b) in tiled.iter().zip(&whole) {
+                prop_assert_eq!(a.label, b.label);
+                prop_assert_eq!(&a.mesh, &b.mesh);
+            }
+            let default = extract_labels(&grid, &options).unwrap();
+            for (a, b) in default.iter().zip(&whole) {
+                prop_assert_eq!(&a.mesh, &b.mesh);
+            }
+        }
     }
 }

@@ -88,7 +88,9 @@ mod weld;
 mod window;
 
 pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
-pub use labels::{extract_labels, LabelOptions, LabelSelection, LabelSurface};
+pub use labels::{
+    extract_labels, extract_labels_boxes, label_cells, LabelOptions, LabelSelection, LabelSurface,
+};
 pub use stream::{extract_streamed, MeshSink, StreamError};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
