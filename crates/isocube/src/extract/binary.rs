@@ -257,6 +257,8 @@ impl<'a> BinaryCells<'a> {
         let [bx, by, _] = cells.extent();
         let [x0, y0, z0] = cells.min;
         let mut out = ChunkMesh::new(cells);
+        out.on_faces = Some(Vec::new());
+        out.faces = cells.shared_faces(grid.dims());
         cache.prepare(bx + 1, by + 1);
         let values = grid.values();
         let [nx, ny, _] = grid.dims();
@@ -266,16 +268,15 @@ impl<'a> BinaryCells<'a> {
         // The box's own masks: its planes are read once, just before their cells are visited.
         let masks = Masks::new(grid, level, cells.min, cells.max);
         let rows = by + 1;
-        let mut visit = vec![0u64; masks.words];
-        // Room for what the box will make (about one vertex and two triangles per cell
-        // visited), so the arrays are not copied as they grow.
-        let mut candidates = 0usize;
-        for k in 0..cells.extent()[2] {
-            for j in 0..by {
-                masks.visit(j, k, rows, bx, &mut visit);
-                candidates += visit.iter().map(|w| w.count_ones() as usize).sum::<usize>();
-            }
+        // The cells to visit, row by row, found once: counted first to size the arrays (about
+        // one vertex and two triangles per cell visited, so they are not copied as they grow),
+        // then walked.
+        let words = masks.words;
+        let mut visits = vec![0u64; by * cells.extent()[2] * words];
+        for (r, out) in visits.chunks_exact_mut(words).enumerate() {
+            masks.visit(r % by, r / by, rows, bx, out);
         }
+        let candidates: usize = visits.iter().map(|w| w.count_ones() as usize).sum();
         let mesh = &mut out.mesh;
         mesh.positions.reserve(candidates + candidates / 8);
         out.keys.reserve(candidates + candidates / 8);
@@ -283,10 +284,11 @@ impl<'a> BinaryCells<'a> {
         if self.options.normals {
             mesh.normals.reserve(candidates + candidates / 8);
         }
+        let mut visit_rows = visits.chunks_exact(words);
         for k in 0..cells.extent()[2] {
             for j in 0..by {
-                masks.visit(j, k, rows, bx, &mut visit);
-                for i in set_bits(&visit) {
+                let visit = visit_rows.next().expect("a row of visits per row of cells");
+                for i in set_bits(visit) {
                     let cell = [x0 + i, y0 + j, z0 + k];
                     let base = grid.index(cell[0], cell[1], cell[2]);
                     let v = corner_offsets.map(|o| values[base + o]);
@@ -308,7 +310,7 @@ impl<'a> BinaryCells<'a> {
     }
 
     /// The crossing on edge `e` of `cell`, made on first use (`local`: the cell in the box).
-    #[inline]
+    #[inline(always)]
     fn edge(
         &self,
         cache: &mut EdgeCache,
@@ -318,16 +320,33 @@ impl<'a> BinaryCells<'a> {
         v: &[f32; 8],
         e: u8,
     ) -> Result<u32, ExtractError> {
-        cache.vertex(li, lj, e, || {
-            let id = self.placer.edge_vertex_of(cell, v, e, &mut out.mesh)?;
-            let start = VERTICES[usize::from(EDGES[usize::from(e)][0])];
-            let p = [0, 1, 2].map(|a| cell[a] + usize::from(start[a]));
-            out.keys.push(VertexKey::crossing(
-                self.grid.point_index(p),
-                usize::from(EDGE_AXIS[usize::from(e)]),
-            ));
-            Ok(id)
-        })
+        cache.vertex(li, lj, e, || self.new_edge_vertex(out, cell, v, e))
+    }
+
+    /// Makes the crossing on edge `e` of `cell`, with its key. Kept out of line: it runs once
+    /// per vertex, while the look-up around it runs for every corner of every cell.
+    #[inline(never)]
+    fn new_edge_vertex(
+        &self,
+        out: &mut ChunkMesh,
+        cell: [usize; 3],
+        v: &[f32; 8],
+        e: u8,
+    ) -> Result<u32, ExtractError> {
+        let id = self.placer.edge_vertex_of(cell, v, e, &mut out.mesh)?;
+        let start = VERTICES[usize::from(EDGES[usize::from(e)][0])];
+        let p = [0, 1, 2].map(|a| cell[a] + usize::from(start[a]));
+        let axis = usize::from(EDGE_AXIS[usize::from(e)]);
+        out.keys
+            .push(VertexKey::crossing(self.grid.point_index(p), axis));
+        // On a face another box may share: noted now, so the joiner need not decode keys.
+        let faces = &out.faces;
+        let on_face = (0..3).any(|a| a != axis && (p[a] == faces[a][0] || p[a] == faces[a][1]));
+        if on_face {
+            let row = out.rows.len() as u32;
+            out.on_faces.get_or_insert_with(Vec::new).push([id, row]);
+        }
+        Ok(id)
     }
 
     /// Interior point `index` of `cell`, made by `make`.

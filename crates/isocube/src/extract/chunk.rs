@@ -25,6 +25,7 @@
 //!   then needs one point beyond it, as for binary.
 
 use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 
 use crate::mesh::Mesh;
 
@@ -95,6 +96,25 @@ impl CellBox {
     pub(super) fn rows(&self) -> usize {
         let e = self.extent();
         e[1] * e[2]
+    }
+
+    /// Per axis, the planes of the box's low and high faces where another box of a grid of
+    /// `dims` points may share them, else `usize::MAX`.
+    pub(super) fn shared_faces(&self, dims: [usize; 3]) -> [[usize; 2]; 3] {
+        std::array::from_fn(|a| {
+            [
+                if self.min[a] > 0 {
+                    self.min[a]
+                } else {
+                    usize::MAX
+                },
+                if self.max[a] + 1 < dims[a] {
+                    self.max[a]
+                } else {
+                    usize::MAX
+                },
+            ]
+        })
     }
 
     /// An error unless the box is non-empty and inside a grid of `dims` points.
@@ -254,6 +274,12 @@ pub struct ChunkMesh {
     pub tags: Vec<u32>,
     /// After each row of cells (`y` fastest, then `z`): triangles and vertices made so far.
     pub(super) rows: Vec<[u32; 2]>,
+    /// The vertices on faces the box shares with others and the rows that made them, when the
+    /// mesher noted them as it went (else they are found from the keys).
+    pub(super) on_faces: Option<Vec<[u32; 2]>>,
+    /// For the mesher: per axis, the planes of the box's two faces if another box may share
+    /// them, else `usize::MAX`.
+    pub(super) faces: [[usize; 2]; 3],
 }
 
 impl Default for CellBox {
@@ -301,18 +327,8 @@ impl ChunkMesh {
                 .rows
                 .last()
                 .is_none_or(|r| r[0] as usize == m.triangles.len() && r[1] as usize == v);
-        // A triangle uses only vertices made by the end of its row.
-        let mut triangles_ok = true;
-        let mut start = 0usize;
-        for r in &self.rows {
-            let end = r[0] as usize;
-            triangles_ok &= m.triangles[start..end.min(m.triangles.len())]
-                .iter()
-                .all(|t| t.iter().all(|&x| x < r[1]));
-            start = end;
-        }
+        // Triangles' vertex numbers are checked as the joiner maps them.
         rows_ok
-            && triangles_ok
             && (self.tags.is_empty() || self.tags.len() == m.triangles.len())
             && self.keys.len() == v
             && (m.normals.is_empty() || m.normals.len() == v)
@@ -320,32 +336,52 @@ impl ChunkMesh {
 
     /// The box's faces that another box may share, as (axis, plane).
     fn shared_planes(&self, dims: [usize; 3]) -> Vec<(usize, usize)> {
-        let mut planes = Vec::with_capacity(6);
-        for (a, &n) in dims.iter().enumerate() {
-            if self.cells.min[a] > 0 {
-                planes.push((a, self.cells.min[a]));
-            }
-            if self.cells.max[a] + 1 < n {
-                planes.push((a, self.cells.max[a]));
-            }
-        }
-        planes
+        let faces = self.cells.shared_faces(dims);
+        (0..3)
+            .flat_map(|a| faces[a].map(|p| (a, p)))
+            .filter(|&(_, p)| p != usize::MAX)
+            .collect()
     }
 
-    /// The row in which each vertex was made.
-    fn vertex_rows(&self) -> Vec<u32> {
-        let mut out = Vec::with_capacity(self.keys.len());
-        let mut start = 0usize;
-        for (r, row) in self.rows.iter().enumerate() {
-            let end = row[1] as usize;
-            out.extend(std::iter::repeat_n(r as u32, end - start));
-            start = end;
+    /// The triangles and vertices made by local rows `rows`: ([first, end), [first, end)).
+    fn span(&self, rows: std::ops::Range<usize>) -> ([usize; 2], [usize; 2]) {
+        let [t0, v0] = if rows.start == 0 {
+            [0, 0]
+        } else {
+            self.rows[rows.start - 1]
+        };
+        let [t1, v1] = self.rows[rows.end - 1];
+        ([t0 as usize, t1 as usize], [v0 as usize, v1 as usize])
+    }
+
+    /// The vertices that another box may make too, with the rank of the row that made each.
+    fn shared(&self, dims: [usize; 3], c: u32) -> Vec<Shared> {
+        let planes = self.shared_planes(dims);
+        if planes.is_empty() {
+            return Vec::new();
         }
-        out
+        let entry = |v: usize, row: usize| (self.keys[v], self.rank(row), c, v as u32);
+        match &self.on_faces {
+            Some(list) => list
+                .iter()
+                .map(|&[v, row]| entry(v as usize, row as usize))
+                .collect(),
+            None => (0..self.keys.len())
+                .filter(|&v| {
+                    planes
+                        .iter()
+                        .any(|&(a, p)| self.keys[v].on_plane(dims, a, p))
+                })
+                .map(|v| {
+                    // The row that made vertex v: the first whose count passes it.
+                    entry(v, self.rows.partition_point(|r| r[1] as usize <= v))
+                })
+                .collect(),
+        }
     }
 
     /// The global row of local row `r`: (z, y), then the box's first x orders boxes in a row.
-    fn rank(&self, r: usize) -> (usize, usize, usize) {
+    fn rank(&self, r: usize) -> Rank {
         let ny = self.cells.extent()[1];
         (
             self.cells.min[2] + r / ny,
@@ -355,8 +391,11 @@ impl ChunkMesh {
     }
 }
 
+/// Where a row of cells comes in the canonical order: (z, y, the box's first x).
+type Rank = (usize, usize, usize);
+
 /// A vertex another chunk may make too: (key, rank of the row that made it, chunk, local).
-type Shared = (VertexKey, (usize, usize, usize), u32, u32);
+type Shared = (VertexKey, Rank, u32, u32);
 
 /// Joins chunk meshes of disjoint boxes of a grid of `dims` points into `mesh` (cleared first):
 /// vertices with one key become one, and vertices and triangles come in the canonical order
@@ -400,142 +439,121 @@ pub(super) fn join_tagged(
     tags.clear();
     for c in &chunks {
         c.cells.check(dims)?;
-        if !c.well_formed() {
-            return Err(ExtractError::MalformedChunk { cells: c.cells });
-        }
     }
-    // Rows of every chunk in the one pass's order; boxes that meet in a row must not overlap.
-    let mut segments: Vec<((usize, usize, usize), u32, u32)> = chunks
-        .iter()
-        .enumerate()
-        .flat_map(|(c, chunk)| {
-            (0..chunk.rows.len()).map(move |r| (chunk.rank(r), c as u32, r as u32))
-        })
-        .collect();
-    segments.par_sort_unstable();
-    for w in segments.windows(2) {
-        let (a, b) = (&chunks[w[0].1 as usize], &chunks[w[1].1 as usize]);
-        if (w[0].0 .0, w[0].0 .1) == (w[1].0 .0, w[1].0 .1) && a.cells.max[0] > b.cells.min[0] {
-            return Err(ExtractError::OverlappingBoxes {
-                first: a.cells,
-                second: b.cells,
-            });
-        }
+    if let Some(bad) = chunks.par_iter().find_first(|c| !c.well_formed()) {
+        return Err(ExtractError::MalformedChunk { cells: bad.cells });
     }
-    let mut segment_of: Vec<Vec<u32>> = chunks.iter().map(|c| vec![0; c.rows.len()]).collect();
-    for (s, &(_, c, r)) in segments.iter().enumerate() {
-        segment_of[c as usize][r as usize] = s as u32;
+    let tagged = chunks.iter().any(|c| !c.tags.is_empty());
+    let normals = chunks.iter().any(|c| !c.mesh.normals.is_empty());
+    if let Some(bad) = chunks.iter().find(|c| {
+        (tagged && c.tags.len() != c.mesh.triangles.len())
+            || (normals && c.mesh.normals.len() != c.keys.len())
+    }) {
+        return Err(ExtractError::MalformedChunk { cells: bad.cells });
     }
-    // Vertices on faces two boxes share: the first row to make one owns it.
-    let vertex_rows: Vec<Vec<u32>> = chunks.par_iter().map(ChunkMesh::vertex_rows).collect();
-    let mut shared: Vec<Shared> = chunks
+    let runs = ordered_runs(dims, &chunks)?;
+    // Vertices on faces two boxes share: the first row to make one owns it; the others alias it.
+    let shared: Vec<Shared> = chunks
         .par_iter()
-        .zip(&vertex_rows)
         .enumerate()
-        .flat_map_iter(|(c, (chunk, rows))| {
-            let planes = chunk.shared_planes(dims);
-            chunk
-                .keys
-                .iter()
-                .enumerate()
-                .filter(move |(_, k)| planes.iter().any(|&(a, p)| k.on_plane(dims, a, p)))
-                .map(move |(v, &k)| (k, chunk.rank(rows[v] as usize), c as u32, v as u32))
-                .collect::<Vec<_>>()
-        })
+        .flat_map_iter(|(c, chunk)| chunk.shared(dims, c as u32))
         .collect();
-    shared.par_sort_unstable();
-    // owned[c][v]: false for a vertex another chunk owns; aliases: (chunk, local, owner, local).
-    let mut owned: Vec<Vec<bool>> = chunks.iter().map(|c| vec![true; c.keys.len()]).collect();
-    let mut aliases: Vec<(u32, u32, u32, u32)> = Vec::new();
-    for group in shared.chunk_by(|a, b| a.0 == b.0) {
-        let owner = group[0];
-        for other in &group[1..] {
-            owned[other.2 as usize][other.3 as usize] = false;
-            aliases.push((other.2, other.3, owner.2, owner.3));
+    let mut owners: FxHashMap<VertexKey, (Rank, u32, u32)> =
+        FxHashMap::with_capacity_and_hasher(shared.len(), Default::default());
+    for &(key, rank, c, v) in &shared {
+        owners
+            .entry(key)
+            .and_modify(|o| {
+                if rank < o.0 {
+                    *o = (rank, c, v);
+                }
+            })
+            .or_insert((rank, c, v));
+    }
+    // Per chunk, by local vertex (entries come in that order): (local, owner chunk, owner local).
+    let mut aliases: Vec<Vec<(u32, u32, u32)>> = chunks.iter().map(|_| Vec::new()).collect();
+    for &(key, _, c, v) in &shared {
+        let (_, oc, ov) = owners[&key];
+        if (oc, ov) != (c, v) {
+            aliases[c as usize].push((v, oc, ov));
         }
     }
-    // Where each segment's new vertices and triangles go.
-    let mut vertex_base = Vec::with_capacity(segments.len() + 1);
-    let mut triangle_base = Vec::with_capacity(segments.len() + 1);
+    // Where each run's own vertices and its triangles go.
+    let spans: Vec<([usize; 2], [usize; 2])> = runs
+        .iter()
+        .map(|run| chunks[run.chunk as usize].span(run.rows.clone()))
+        .collect();
+    let mut vertex_base = Vec::with_capacity(runs.len() + 1);
+    let mut triangle_base = Vec::with_capacity(runs.len() + 1);
     let (mut nv, mut nt) = (0usize, 0usize);
-    for &(_, c, r) in &segments {
+    for (run, &(t, v)) in runs.iter().zip(&spans) {
         vertex_base.push(nv);
         triangle_base.push(nt);
-        let chunk = &chunks[c as usize];
-        let (r, c) = (r as usize, c as usize);
-        let ([t0, v0], [t1, v1]) = (
-            if r == 0 { [0, 0] } else { chunk.rows[r - 1] },
-            chunk.rows[r],
-        );
-        nv += owned[c][v0 as usize..v1 as usize]
-            .iter()
-            .filter(|&&o| o)
-            .count();
-        nt += (t1 - t0) as usize;
+        let a = &aliases[run.chunk as usize];
+        let aliased = a.partition_point(|e| (e.0 as usize) < v[1])
+            - a.partition_point(|e| (e.0 as usize) < v[0]);
+        nv += v[1] - v[0] - aliased;
+        nt += t[1] - t[0];
     }
     vertex_base.push(nv);
     triangle_base.push(nt);
     if nv > u32::MAX as usize {
         return Err(ExtractError::TooManyVertices);
     }
-    // Local → global: owned vertices by their segment, the others through their owner.
+    // Each chunk's runs, in its own row order.
+    let mut runs_of: Vec<Vec<usize>> = chunks.iter().map(|_| Vec::new()).collect();
+    for (s, run) in runs.iter().enumerate() {
+        runs_of[run.chunk as usize].push(s);
+    }
+    // Local → global: own vertices by their run, the others through their owner.
     let mut global: Vec<Vec<u32>> = chunks
         .par_iter()
         .enumerate()
         .map(|(c, chunk)| {
-            let mut ids = vec![u32::MAX; chunk.keys.len()];
-            let mut start = 0usize;
-            for (r, row) in chunk.rows.iter().enumerate() {
-                let mut next = vertex_base[segment_of[c][r] as usize] as u32;
-                for v in start..row[1] as usize {
-                    if owned[c][v] {
-                        ids[v] = next;
-                        next += 1;
+            // The chunk's runs cover its vertices in order, so ids are pushed, not filled.
+            let mut ids = Vec::with_capacity(chunk.keys.len());
+            let mut alias = aliases[c].iter().map(|e| e.0 as usize).peekable();
+            for &s in &runs_of[c] {
+                let mut next = vertex_base[s] as u32;
+                let [mut v, end] = spans[s].1;
+                while v < end {
+                    // Own vertices up to the next aliased one are numbered in one stretch.
+                    let stop = alias.peek().map_or(end, |&a| a.min(end));
+                    ids.extend(next..next + (stop - v) as u32);
+                    next += (stop - v) as u32;
+                    v = stop;
+                    if v < end {
+                        alias.next();
+                        ids.push(u32::MAX);
+                        v += 1;
                     }
                 }
-                start = row[1] as usize;
             }
             ids
         })
         .collect();
-    for &(c, v, oc, ov) in &aliases {
-        global[c as usize][v as usize] = global[oc as usize][ov as usize];
-    }
-    let normals = chunks.iter().any(|c| !c.mesh.normals.is_empty());
-    if normals
-        && chunks
-            .iter()
-            .any(|c| c.mesh.normals.is_empty() && !c.keys.is_empty())
-    {
-        let bad = chunks
-            .iter()
-            .find(|c| c.mesh.normals.is_empty() && !c.keys.is_empty())
-            .expect("found above");
-        return Err(ExtractError::MalformedChunk { cells: bad.cells });
+    for (c, list) in aliases.iter().enumerate() {
+        for &(v, oc, ov) in list {
+            global[c][v as usize] = global[oc as usize][ov as usize];
+        }
     }
     mesh.positions.resize(nv, [0.0; 3]);
     if normals {
         mesh.normals.resize(nv, [0.0; 3]);
     }
     mesh.triangles.resize(nt, [0; 3]);
-    let tagged = chunks.iter().any(|c| !c.tags.is_empty());
-    if let Some(bad) = chunks
-        .iter()
-        .find(|c| tagged && c.tags.len() != c.mesh.triangles.len())
-    {
-        return Err(ExtractError::MalformedChunk { cells: bad.cells });
-    }
     if tagged {
         tags.resize(nt, 0);
     }
-    // Each segment's output ranges, handed to the chunk that fills them.
+    // Each run's output ranges, handed to the chunk that fills them.
     type Out<'a> = (
+        usize,
         &'a mut [[f32; 3]],
         &'a mut [[f32; 3]],
         &'a mut [[u32; 3]],
         &'a mut [u32],
     );
-    let mut outputs: Vec<Vec<(u32, Out)>> = chunks.iter().map(|_| Vec::new()).collect();
+    let mut outputs: Vec<Vec<Out>> = chunks.iter().map(|_| Vec::new()).collect();
     {
         let (mut p_rest, mut n_rest, mut t_rest, mut g_rest) = (
             &mut mesh.positions[..],
@@ -543,55 +561,144 @@ pub(super) fn join_tagged(
             &mut mesh.triangles[..],
             &mut tags[..],
         );
-        for (s, &(_, c, r)) in segments.iter().enumerate() {
+        for (s, run) in runs.iter().enumerate() {
             let v = vertex_base[s + 1] - vertex_base[s];
+            let t = triangle_base[s + 1] - triangle_base[s];
             let (p, rest) = std::mem::take(&mut p_rest).split_at_mut(v);
             p_rest = rest;
             let (n, rest) = std::mem::take(&mut n_rest).split_at_mut(if normals { v } else { 0 });
             n_rest = rest;
-            let nt = triangle_base[s + 1] - triangle_base[s];
-            let (t, rest) = std::mem::take(&mut t_rest).split_at_mut(nt);
+            let (tri, rest) = std::mem::take(&mut t_rest).split_at_mut(t);
             t_rest = rest;
-            let (g, rest) = std::mem::take(&mut g_rest).split_at_mut(if tagged { nt } else { 0 });
+            let (g, rest) = std::mem::take(&mut g_rest).split_at_mut(if tagged { t } else { 0 });
             g_rest = rest;
-            outputs[c as usize].push((r, (p, n, t, g)));
+            outputs[run.chunk as usize].push((s, p, n, tri, g));
         }
     }
-    chunks
+    let fits = chunks
         .par_iter()
-        .enumerate()
         .zip(outputs)
-        .for_each(|((c, chunk), outs)| {
-            let ids = &global[c];
-            for (r, (p, n, t, g)) in outs {
-                let r = r as usize;
-                let [t0, v0] = if r == 0 { [0, 0] } else { chunk.rows[r - 1] };
-                let [t1, v1] = chunk.rows[r];
-                let (v0, v1) = (v0 as usize, v1 as usize);
-                let mine = owned[c][v0..v1].iter().enumerate().filter(|(_, &o)| o);
-                for (slot, (v, _)) in mine.enumerate() {
-                    p[slot] = chunk.mesh.positions[v0 + v];
-                    if let Some(x) = n.get_mut(slot) {
-                        *x = chunk.mesh.normals[v0 + v];
+        .zip(&aliases)
+        .zip(&global)
+        .map(|(((chunk, outs), aliases), ids)| {
+            let mut fits = true;
+            for (s, p, n, tri, g) in outs {
+                let ([t0, t1], [v0, v1]) = spans[s];
+                // Own vertices: runs between aliased ones, copied whole.
+                let first = aliases.partition_point(|e| (e.0 as usize) < v0);
+                let skip = aliases[first..]
+                    .iter()
+                    .map(|e| e.0 as usize)
+                    .take_while(|&v| v < v1);
+                let mut at = 0;
+                let mut from = v0;
+                for stop in skip.chain(std::iter::once(v1)) {
+                    let len = stop - from;
+                    p[at..at + len].copy_from_slice(&chunk.mesh.positions[from..stop]);
+                    if !n.is_empty() {
+                        n[at..at + len].copy_from_slice(&chunk.mesh.normals[from..stop]);
                     }
+                    at += len;
+                    from = stop + 1;
                 }
-                for (out, tri) in t
-                    .iter_mut()
-                    .zip(&chunk.mesh.triangles[t0 as usize..t1 as usize])
-                {
-                    *out = tri.map(|x| ids[x as usize]);
+                for (out, t) in tri.iter_mut().zip(&chunk.mesh.triangles[t0..t1]) {
+                    *out = t.map(|x| match ids.get(x as usize) {
+                        Some(&id) => id,
+                        None => {
+                            fits = false;
+                            0
+                        }
+                    });
                 }
                 if !g.is_empty() {
-                    g.copy_from_slice(&chunk.tags[t0 as usize..t1 as usize]);
+                    g.copy_from_slice(&chunk.tags[t0..t1]);
                 }
             }
+            fits
+        })
+        .collect::<Vec<bool>>();
+    if let Some(c) = fits.iter().position(|&f| !f) {
+        mesh.clear();
+        tags.clear();
+        return Err(ExtractError::MalformedChunk {
+            cells: chunks[c].cells,
         });
+    }
     let mut stats = ExtractStats::default();
     for (done, c) in chunks.iter().enumerate() {
         stats.add(&c.stats);
         progress(done + 1);
     }
     Ok(stats)
+}
+
+/// Rows of one chunk that follow one another in the canonical order.
+struct Run {
+    /// The first row's place.
+    rank: Rank,
+    chunk: u32,
+    /// Local rows.
+    rows: std::ops::Range<usize>,
+}
+
+/// The chunks' rows in the canonical order, as runs: a box spanning every cell in `x` is one run
+/// per layer, one spanning `x` and `y` a single run, any other box a run per row. Fails if two
+/// boxes share a cell.
+fn ordered_runs(dims: [usize; 3], chunks: &[ChunkMesh]) -> Result<Vec<Run>, ExtractError> {
+    let whole = CellBox::whole(dims);
+    let mut runs = Vec::new();
+    for (c, chunk) in chunks.iter().enumerate() {
+        let b = chunk.cells;
+        let [_, by, bz] = b.extent();
+        let full_x = b.min[0] == 0 && b.max[0] == whole.max[0];
+        let full_y = b.min[1] == 0 && b.max[1] == whole.max[1];
+        let per_run = match (full_x, full_y) {
+            (true, true) => by * bz,
+            (true, false) => by,
+            _ => 1,
+        };
+        for first in (0..by * bz).step_by(per_run) {
+            runs.push(Run {
+                rank: chunk.rank(first),
+                chunk: c as u32,
+                rows: first..first + per_run,
+            });
+        }
+    }
+    runs.par_sort_unstable_by_key(|r| (r.rank, r.chunk));
+    // Rows counted over the grid: a run covers [start, end) and cells [x0, x1) of each.
+    let ny = whole.max[1];
+    let place = |r: &Run| {
+        let b = chunks[r.chunk as usize].cells;
+        let start = r.rank.0 * ny + r.rank.1;
+        (start, start + r.rows.len(), b.min[0], b.max[0])
+    };
+    let mut covered = (0usize, 0usize);
+    let mut previous: Option<&Run> = None;
+    for run in &runs {
+        let (start, end, x0, x1) = place(run);
+        let clash = if start < covered.0 {
+            Some(covered.1)
+        } else {
+            previous
+                .filter(|p| {
+                    let (_, p_end, p_x0, p_x1) = place(p);
+                    p_end > start && p_x0 < x1 && x0 < p_x1
+                })
+                .map(|p| p.chunk as usize)
+        };
+        if let Some(other) = clash {
+            return Err(ExtractError::OverlappingBoxes {
+                first: chunks[other].cells,
+                second: chunks[run.chunk as usize].cells,
+            });
+        }
+        if end > start + 1 && end > covered.0 {
+            covered = (end, run.chunk as usize);
+        }
+        previous = Some(run);
+    }
+    Ok(runs)
 }
 
 /// Joins chunks one after the other as they come, for meshes written as they are made: each

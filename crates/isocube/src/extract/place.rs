@@ -151,27 +151,30 @@ impl<'a> Placer<'a> {
         let h = self.grid.spacing();
         let at = |q: [usize; 3]| f64::from(self.grid.value(q[0], q[1], q[2]));
         let centre = at(p);
-        [0, 1, 2].map(|d| {
-            let neighbour = |forward: bool| {
+        // A plain loop, not `array::map`: this runs for every vertex, and the closures of a map
+        // were not always inlined.
+        let mut g = [0.0f64; 3];
+        for d in 0..3 {
+            let mut before = None;
+            if p[d] > 0 {
                 let mut q = p;
-                if forward {
-                    if q[d] + 1 >= dims[d] {
-                        return None;
-                    }
-                    q[d] += 1;
-                } else {
-                    q[d] = q[d].checked_sub(1)?;
-                }
-                let v = at(q);
-                v.is_finite().then_some(v)
-            };
-            match (neighbour(false), neighbour(true)) {
+                q[d] -= 1;
+                before = Some(at(q)).filter(|v| v.is_finite());
+            }
+            let mut after = None;
+            if p[d] + 1 < dims[d] {
+                let mut q = p;
+                q[d] += 1;
+                after = Some(at(q)).filter(|v| v.is_finite());
+            }
+            g[d] = match (before, after) {
                 (Some(a), Some(b)) => (b - a) / (2.0 * h[d]),
                 (None, Some(b)) => (b - centre) / h[d],
                 (Some(a), None) => (centre - a) / h[d],
                 (None, None) => 0.0,
-            }
-        })
+            };
+        }
+        g
     }
 }
 

@@ -42,7 +42,7 @@ impl EdgeCache {
 
     /// The vertex on edge `e` of the box's cell `(i, j, ·)` of the current layer, created by
     /// `make` on first use.
-    #[inline]
+    #[inline(always)]
     pub(super) fn vertex(
         &mut self,
         i: usize,
