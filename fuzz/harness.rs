@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use isocube::io::{self, VolumeOptions};
+use isocube_io::{self as io, VolumeOptions};
 
 /// Every fuzz target: its name (the file under `fuzz_targets/` and the corpus folder) and the
 /// extension its input is given. `dicom` is a folder holding the input as its one slice.

@@ -4,7 +4,7 @@
 #
 # New inputs that reach new code are added to fuzz/corpus/TARGET; a crash is written to
 # fuzz/artifacts/TARGET and stops that target. A crash, once fixed, belongs in
-# fuzz/regressions/TARGET so the test suite replays it (crates/isocube/tests/fuzz_corpus.rs).
+# fuzz/regressions/TARGET so the test suite replays it (crates/isocube-io/tests/fuzz_corpus.rs).
 # Prints one line per target: executions, seconds, corpus size, crashes.
 set -euo pipefail
 cd "$(dirname "$0")"

@@ -11,6 +11,6 @@ if [ ! -x "$venv/bin/python" ]; then
   "$venv/bin/pip" install --quiet --upgrade pip
   "$venv/bin/pip" install --quiet numpy vtk scikit-image PyMCubes
 fi
-cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p isocube --features io --example peer_timing
+cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p isocube-io --example peer_timing
 mapfile -t specs < <("$venv/bin/python" "$here/volumes.py" "$here/data" "$@")
 "$venv/bin/python" "$here/peers.py" "$root/target/release/examples/peer_timing" "${specs[@]}"

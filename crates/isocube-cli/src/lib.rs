@@ -114,16 +114,16 @@ pub(crate) fn refuse_overwrite(
 
 /// Classifies a library I/O error: OS errors on output are failures, everything else is bad
 /// input.
-pub(crate) fn io_failure(e: isocube::io::IoError, reading: bool) -> Failure {
+pub(crate) fn io_failure(e: isocube_io::IoError, reading: bool) -> Failure {
     match e {
-        isocube::io::IoError::Os { .. } if !reading => Failure::other(e),
+        isocube_io::IoError::Os { .. } if !reading => Failure::other(e),
         _ => Failure::input(e),
     }
 }
 
 /// Rejects an output path whose extension names no mesh format (before any work is done).
 pub(crate) fn check_mesh_output(path: &std::path::Path) -> Result<(), Failure> {
-    if isocube::io::MeshFormat::from_path(path).is_none() {
+    if isocube_io::MeshFormat::from_path(path).is_none() {
         return Err(Failure::input(anyhow::anyhow!(
             "{}: unknown mesh extension (expected .ply, .obj, .stl, .off, .glb, .vtp, .vtk or .msh)",
             path.display()

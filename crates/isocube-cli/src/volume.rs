@@ -4,7 +4,7 @@ use std::path::Path;
 
 use clap::Args;
 use isocube::field::{Grid, Orientation, SampleSpec};
-use isocube::io::{
+use isocube_io::{
     read_volume_oriented, Endian, IoError, MappedVolume, NpyAxes, RawOptions, ScalarType,
     VolumeOptions,
 };

@@ -25,8 +25,9 @@
 //!   relaxation on the level set, Verdict triangle measures, angle histograms and the distance
 //!   from the field's level set.
 //! - [`render`]: headless pictures of meshes (software z-buffer, Lambert shading, edge overlay).
-//! - [`io`] (feature `io`): raw, NumPy and NRRD volumes; PLY, OBJ, STL, OFF, glTF, VTK and Gmsh
-//!   meshes.
+//!
+//! File formats (volumes, meshes, contour files) are in the `isocube-io` crate: this one does no
+//! file I/O and pulls in no format crate.
 //!
 //! # Quick start
 //! ```
@@ -37,18 +38,12 @@
 //! assert!(report.watertight && report.oriented);
 //! assert_eq!((report.components, report.euler, report.genus), (1, 0, Some(1)));
 //! ```
-//!
-//! # Feature flags
-//! - `io` (off by default): file readers and writers. Without it the library does no file I/O
-//!   and pulls in no format crates.
 #![warn(missing_docs)]
 
 pub mod contours;
 pub mod cube;
 pub mod extract;
 pub mod field;
-#[cfg(feature = "io")]
-pub mod io;
 pub mod mesh;
 pub mod quality;
 pub mod render;

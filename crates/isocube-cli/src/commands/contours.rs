@@ -7,8 +7,8 @@ use clap::Args as ClapArgs;
 use isocube::contours::{
     reconstruct_with, Cap, Fidelity, PlaneGrid, ReconstructOptions, SectionStack,
 };
-use isocube::io::{read_contours, write_mesh, MeshWriteOptions};
 use isocube::quality::Strategy;
+use isocube_io::{read_contours, write_mesh, MeshWriteOptions};
 
 use crate::volume::{parse_memory, MemoryLimit};
 use crate::Failure;

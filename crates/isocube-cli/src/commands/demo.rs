@@ -8,7 +8,7 @@ use anyhow::Context;
 use clap::Args as ClapArgs;
 use isocube::extract::{extract, ExtractOptions};
 use isocube::field::Sample;
-use isocube::io::{write_mesh, MeshWriteOptions};
+use isocube_io::{write_mesh, MeshWriteOptions};
 
 use crate::commands::render;
 use crate::Failure;

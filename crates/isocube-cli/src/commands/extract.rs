@@ -12,11 +12,11 @@ use isocube::extract::{
 };
 use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
-use isocube::io::{
-    write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
-};
 use isocube::mesh::Mesh;
 use isocube::quality::{relax, Field, Implicit, Strategy, Trilinear};
+use isocube_io::{
+    write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
+};
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
-use isocube::io::{read_mesh, read_poly_mesh};
 use isocube::mesh::MeshReport;
+use isocube_io::{read_mesh, read_poly_mesh};
 use serde_json::json;
 
 use crate::Failure;
@@ -21,7 +21,7 @@ pub(crate) struct Args {
 pub(crate) fn run(args: &Args) -> Result<(), Failure> {
     // OBJ may hold polygons with inner loops and hole tags: read it as a polygon mesh when it can
     // be one (a file with, say, a face repeating a vertex is still reported, as triangles).
-    let obj = isocube::io::MeshFormat::from_path(&args.mesh) == Some(isocube::io::MeshFormat::Obj);
+    let obj = isocube_io::MeshFormat::from_path(&args.mesh) == Some(isocube_io::MeshFormat::Obj);
     let mesh = match obj.then(|| read_poly_mesh(&args.mesh)) {
         Some(Ok(poly)) => match poly.triangulate() {
             Ok(mesh) => mesh,

@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
 use isocube::field::{Grid, SampleSpec};
-use isocube::io::{read_mesh, read_volume_oriented, VolumeOptions};
 use isocube::mesh::Mesh;
 use isocube::quality::{
     level_set_distance, quality_report, Distance, Field, QualityReport, Range, Trilinear,
 };
+use isocube_io::{read_mesh, read_volume_oriented, VolumeOptions};
 use serde_json::json;
 
 use crate::volume::{parse_memory, volume_failure, MemoryLimit};
@@ -194,7 +194,7 @@ fn picture_format(path: &Path) -> Option<Picture> {
 
 /// Writes through a temporary file in the target's directory, renamed into place once complete.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), Failure> {
-    isocube::io::write_file_atomic(path, bytes).map_err(|e| crate::io_failure(e, false))
+    isocube_io::write_file_atomic(path, bytes).map_err(|e| crate::io_failure(e, false))
 }
 
 const WIDTH: usize = 760;

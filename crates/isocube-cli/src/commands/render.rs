@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
-use isocube::io::read_mesh;
 use isocube::mesh::Mesh;
 use isocube::render::{render, Picture, RenderOptions, View};
+use isocube_io::read_mesh;
 
 use crate::Failure;
 
@@ -98,5 +98,5 @@ pub(crate) fn write_png(path: &Path, picture: &Picture) -> Result<(), Failure> {
             .write_image_data(&picture.rgb)
             .map_err(Failure::other)?;
     }
-    isocube::io::write_file_atomic(path, &bytes).map_err(|e| crate::io_failure(e, false))
+    isocube_io::write_file_atomic(path, &bytes).map_err(|e| crate::io_failure(e, false))
 }

@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::{Args as ClapArgs, ValueEnum};
-use isocube::io::{read_poly_mesh, write_poly_mesh, MeshWriteOptions};
 use isocube::subdiv::{
     limit_positions, samples, subdivide, BoundaryRule, HoleMethod, SubdivOptions,
 };
+use isocube_io::{read_poly_mesh, write_poly_mesh, MeshWriteOptions};
 
 use crate::Failure;
 

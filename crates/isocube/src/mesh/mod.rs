@@ -156,11 +156,19 @@ impl Mesh {
     }
 }
 
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// `a − b`.
+///
+/// ```
+/// use isocube::mesh::{cross, dot, sub};
+/// let n = cross(sub([1.0, 0.0, 0.0], [0.0; 3]), sub([0.0, 1.0, 0.0], [0.0; 3]));
+/// assert_eq!((n, dot(n, n)), ([0.0, 0.0, 1.0], 1.0));
+/// ```
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// The cross product `a × b` (see [`sub`] for an example).
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -168,6 +176,7 @@ pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+/// The dot product `a · b` (see [`sub`] for an example).
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }

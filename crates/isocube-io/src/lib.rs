@@ -1,4 +1,18 @@
-//! Volume readers and mesh readers/writers (feature `io`).
+//! File formats for isocube: volume readers and mesh readers and writers, from paths or bytes.
+//!
+//! The core library ([`isocube`]) does no file I/O and pulls in no format crates; this crate
+//! holds every format, the heavy ones behind features (`nifti`, `tiff`, `dicom`).
+//!
+//! ```
+//! use isocube::extract::{extract, ExtractOptions};
+//! use isocube::field::Sample;
+//! use isocube_io::{read_mesh, write_mesh, MeshWriteOptions};
+//! let (mesh, _) = extract(&Sample::Torus.grid(24), &ExtractOptions::default()).unwrap();
+//! let dir = tempfile::tempdir().unwrap();
+//! let path = dir.path().join("torus.ply");
+//! write_mesh(&path, &mesh, &MeshWriteOptions::default()).unwrap();
+//! assert_eq!(read_mesh(&path).unwrap().triangles, mesh.triangles);
+//! ```
 //!
 //! Volumes: raw binary ([`RawOptions`]), NumPy `.npy` ([`NpyAxes`]), NRRD (attached `.nrrd`
 //! or detached `.nhdr` headers; raw, gzip or ASCII encodings), MetaImage (`.mha`, `.mhd`; raw or
@@ -18,7 +32,7 @@
 //!
 //! Volumes larger than memory: [`MappedVolume`] maps a raw or `.npy` file and hands out planes;
 //! [`PlyWriter`] writes a binary PLY piece by piece; together with
-//! [`crate::extract::extract_streamed`] the volume is never held whole.
+//! [`isocube::extract::extract_streamed`] the volume is never held whole.
 //!
 //! Writes are atomic: the mesh goes to a temporary file in the target's directory, is flushed to
 //! disk, then renamed over the target. A failed write leaves the target as it was.
@@ -26,6 +40,8 @@
 //! Contour stacks: CSV (`section,z,contour,x,y`) and JSON ([`read_contours`]).
 //!
 //! Every error names the file, the position (line, byte or header field) and the reason.
+#![cfg_attr(docsrs, feature(doc_cfg))]
+#![warn(missing_docs)]
 
 mod contours;
 #[cfg(feature = "dicom")]
@@ -49,10 +65,11 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use crate::field::{Grid, GridError, Orientation};
+use isocube::field::{Grid, GridError, Orientation};
 
 pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
 #[cfg(feature = "dicom")]
+#[cfg_attr(docsrs, doc(cfg(feature = "dicom")))]
 pub use dicom::read_dicom_series;
 pub use export::VertexValues;
 pub use mapped::MappedVolume;
@@ -62,12 +79,14 @@ pub use mesh_io::{
 };
 pub use metaimage::read_metaimage;
 #[cfg(feature = "nifti")]
+#[cfg_attr(docsrs, doc(cfg(feature = "nifti")))]
 pub use nifti::read_nifti;
 pub use npy::{read_npy, NpyAxes};
 pub use nrrd::{read_nrrd, read_nrrd_oriented};
 pub use poly::{read_poly_mesh, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
 #[cfg(feature = "tiff")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tiff")))]
 pub use tiff_stack::read_tiff_stack;
 pub use vti::read_vti;
 

@@ -10,7 +10,7 @@ use std::path::Path;
 use nifti::{IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
 
 use super::{Budget, IoError, Position};
-use crate::field::{Grid, Orientation};
+use isocube::field::{Grid, Orientation};
 
 /// Reads a NIfTI-1 volume and its orientation. The grid's spacing and origin are the lengths of
 /// the index-to-world map's columns and its translation; the orientation is the rest.

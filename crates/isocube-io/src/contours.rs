@@ -19,7 +19,7 @@
 //! an error.
 //!
 //! ```
-//! use isocube::io::parse_contours_csv;
+//! use isocube_io::parse_contours_csv;
 //! let csv = "section,z,contour,x,y\n\
 //!            a,0,outer,0,0\na,0,outer,1,0\na,0,outer,1,1\na,0,outer,0,0\n";
 //! let stack = parse_contours_csv(csv, std::path::Path::new("in.csv")).unwrap();
@@ -28,7 +28,7 @@
 
 use std::path::Path;
 
-use crate::contours::{ContourError, Point2, SectionStack};
+use isocube::contours::{ContourError, Point2, SectionStack};
 
 use super::{IoError, Position};
 

@@ -2,14 +2,14 @@
 //! x fastest), the time of a plain read of its values (the memory-bandwidth floor) and of
 //! extraction alone, best of several runs, as one JSON object per line.
 //!
-//! `cargo run --release -p isocube --features io --example peer_timing -- LEVEL:FILE.npy …`
+//! `cargo run --release -p isocube-io --example peer_timing -- LEVEL:FILE.npy …`
 
 use std::path::Path;
 use std::time::Instant;
 
 use isocube::extract::{extract_into, ExtractOptions};
-use isocube::io::{read_npy, NpyAxes};
 use isocube::mesh::Mesh;
+use isocube_io::{read_npy, NpyAxes};
 use rayon::prelude::*;
 
 // The same allocator as the `isocube` command.

@@ -10,7 +10,7 @@
 use std::borrow::Cow;
 use std::io::{self, Write};
 
-use crate::mesh::Mesh;
+use isocube::mesh::Mesh;
 
 /// One scalar per vertex, written under `name` (for example the value of a second volume at
 /// each vertex).
@@ -389,8 +389,8 @@ pub(crate) fn write_msh(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::extract::{extract, ExtractOptions};
-    use crate::field::Sample;
+    use isocube::extract::{extract, ExtractOptions};
+    use isocube::field::Sample;
 
     fn mesh() -> (Mesh, Vec<f32>) {
         let m = extract(&Sample::Gyroid.grid(16), &ExtractOptions::default())

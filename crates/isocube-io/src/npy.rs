@@ -13,7 +13,7 @@ use std::str::FromStr;
 
 use super::raw::{decode_into, Endian, ScalarType};
 use super::{Budget, IoError, Position};
-use crate::field::Grid;
+use isocube::field::Grid;
 
 /// How the three axes of a `.npy` array map to x, y, z.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -12,8 +12,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{Budget, IoError, Position};
-use crate::field::{Grid, Orientation};
-use crate::mesh::{cross, dot, sub};
+use isocube::field::{Grid, Orientation};
+use isocube::mesh::{cross, dot, sub};
 
 struct Slice {
     path: PathBuf,

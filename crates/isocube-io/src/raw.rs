@@ -5,7 +5,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use super::{read_file, Budget, IoError, Position};
-use crate::field::Grid;
+use isocube::field::Grid;
 
 /// Scalar type of stored values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{Budget, IoError, Position};
-use crate::field::{Grid, Orientation};
+use isocube::field::{Grid, Orientation};
 
 /// Reads an NRRD file (attached or detached header) in its grid frame (see
 /// [`read_nrrd_oriented`]).

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use super::export::{self, VertexValues};
 use super::{read_file, IoError, Position};
-use crate::extract::MeshSink;
-use crate::mesh::Mesh;
+use isocube::extract::MeshSink;
+use isocube::mesh::Mesh;
 
 /// A mesh file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -281,7 +281,7 @@ fn ply_header(
 }
 
 /// A binary PLY file written piece by piece, as a [`MeshSink`] for
-/// [`crate::extract::extract_streamed`]: meshes larger than memory go straight to disk.
+/// [`isocube::extract::extract_streamed`]: meshes larger than memory go straight to disk.
 ///
 /// Vertices and triangles go to two temporary files beside the target; [`PlyWriter::finish`]
 /// writes the header (whose counts are known only then) and both parts into a third, syncs it
@@ -458,8 +458,11 @@ fn write_stl(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<()> {
     w.write_all(&count.to_le_bytes())?;
     for t in &mesh.triangles {
         let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
-        let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
-        let len = crate::mesh::dot(n, n).sqrt();
+        let n = isocube::mesh::cross(
+            isocube::mesh::sub(p[1], p[0]),
+            isocube::mesh::sub(p[2], p[0]),
+        );
+        let len = isocube::mesh::dot(n, n).sqrt();
         let n = if len > 0.0 {
             n.map(|c| (c / len) as f32)
         } else {
@@ -1177,8 +1180,8 @@ fn read_stl(path: &Path, bytes: &[u8]) -> Result<Mesh, IoError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::extract::{extract, ExtractOptions};
-    use crate::field::Sample;
+    use isocube::extract::{extract, ExtractOptions};
+    use isocube::field::Sample;
 
     fn torus() -> Mesh {
         extract(&Sample::Torus.grid(20), &ExtractOptions::default())

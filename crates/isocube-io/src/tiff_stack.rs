@@ -11,7 +11,7 @@ use tiff::tags::Tag;
 use tiff::ColorType;
 
 use super::{Budget, IoError, Position};
-use crate::field::Grid;
+use isocube::field::Grid;
 
 /// Reads a multi-page TIFF as a volume.
 pub fn read_tiff_stack(path: &Path) -> Result<Grid, IoError> {

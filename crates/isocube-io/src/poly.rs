@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::mesh_io::{read_mesh, write_atomic, write_mesh, MeshFormat, MeshWriteOptions};
 use super::{read_file, IoError, Position};
-use crate::subdiv::{Face, PolyMesh, SubdivError};
+use isocube::subdiv::{Face, PolyMesh, SubdivError};
 
 /// Errors found after parsing name the line of the face or tag they are about.
 fn subdiv_error(path: &Path, text: &str, e: SubdivError) -> IoError {
@@ -27,6 +27,7 @@ fn subdiv_error(path: &Path, text: &str, e: SubdivError) -> IoError {
         }
         SubdivError::Face { face, .. } | SubdivError::Holes { face, .. } => find("f", None, *face),
         SubdivError::Tag { tag, .. } => find("t", Some(tag), 0),
+        _ => None,
     };
     let position = line.map_or(Position::File, Position::Line);
     IoError::format(path, position, e.to_string())

@@ -1,5 +1,5 @@
 //! Memory-mapped volumes: raw and `.npy` files read plane by plane, for extraction slab by slab
-//! ([`crate::extract::extract_streamed`]) from volumes larger than memory.
+//! ([`isocube::extract::extract_streamed`]) from volumes larger than memory.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -9,7 +9,7 @@ use memmap2::Mmap;
 use super::npy::layout;
 use super::raw::{check_raw_size, decode_into, Endian, ScalarType};
 use super::{IoError, Position, VolumeOptions};
-use crate::field::{Grid, PlaneSource};
+use isocube::field::{Grid, PlaneSource};
 
 /// A raw or `.npy` volume mapped into memory, decoded to `f32` a few planes at a time.
 ///
@@ -24,7 +24,7 @@ use crate::field::{Grid, PlaneSource};
 ///
 /// ```no_run
 /// use isocube::extract::{extract_streamed, ExtractOptions};
-/// use isocube::io::{MappedVolume, PlyWriter, RawOptions, ScalarType, VolumeOptions};
+/// use isocube_io::{MappedVolume, PlyWriter, RawOptions, ScalarType, VolumeOptions};
 /// use std::path::Path;
 /// let options = VolumeOptions {
 ///     raw: Some(RawOptions::new([1024, 1024, 1024], ScalarType::U16)),
@@ -200,8 +200,8 @@ impl PlaneSource for MappedVolume {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::extract::{extract, extract_streamed, ExtractOptions};
-    use crate::io::{read_volume, write_mesh, MeshWriteOptions, NpyAxes, PlyWriter, RawOptions};
+    use crate::{read_volume, write_mesh, MeshWriteOptions, NpyAxes, PlyWriter, RawOptions};
+    use isocube::extract::{extract, extract_streamed, ExtractOptions};
 
     /// A u16 volume with blobs and integer ties at the level.
     fn values(dims: [usize; 3]) -> Vec<u16> {
@@ -369,7 +369,7 @@ mod tests {
         std::fs::write(&out, b"old").unwrap();
         {
             let mut ply = PlyWriter::create(&out, false).unwrap();
-            let grid = crate::field::Sample::Sphere.grid(12);
+            let grid = isocube::field::Sample::Sphere.grid(12);
             extract_streamed(&grid, &ExtractOptions::default(), &mut ply, &mut |_, _| {}).unwrap();
         }
         assert_eq!(std::fs::read(&out).unwrap(), b"old");

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{Budget, IoError, Position};
-use crate::field::{Grid, Orientation};
+use isocube::field::{Grid, Orientation};
 
 /// Reads a MetaImage volume and its orientation.
 pub fn read_metaimage(path: &Path) -> Result<(Grid, Orientation), IoError> {

@@ -12,7 +12,7 @@ use quick_xml::events::{BytesStart, Event};
 
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{Budget, IoError, Position};
-use crate::field::{Grid, Orientation};
+use isocube::field::{Grid, Orientation};
 
 /// Reads a VTK ImageData file and its orientation.
 pub fn read_vti(path: &Path) -> Result<(Grid, Orientation), IoError> {
