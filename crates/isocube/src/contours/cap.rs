@@ -3,6 +3,28 @@
 
 use crate::mesh::Mesh;
 
+/// Why a set of boundary edges could not be closed with a flat polygon (its loops chained,
+/// holes bridged, then triangulated).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LoopError {
+    /// Two edges leave one vertex.
+    #[error("branches")]
+    Branches,
+    /// A loop passes a vertex twice.
+    #[error("is not a set of simple loops")]
+    NotSimple,
+    /// An edge leads to a vertex no edge leaves.
+    #[error("is not closed")]
+    NotClosed,
+    /// A hole without vertices.
+    #[error("has an empty hole")]
+    EmptyHole,
+    /// A hole has no visible vertex to bridge to, or ear clipping found no ear.
+    #[error("cannot be triangulated")]
+    Untriangulable,
+}
+
 type P2 = [f64; 2];
 
 fn cross(o: P2, a: P2, b: P2) -> f64 {
@@ -40,7 +62,7 @@ fn inside(p: P2, poly: &[P2]) -> bool {
 /// each boundary edge the other way, so the result is watertight and consistently oriented.
 /// Returns the number of triangles added, or an error if the boundary in the plane is not a set
 /// of simple closed loops.
-pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, String> {
+pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, LoopError> {
     // Directed boundary edges in the plane: half-edges without a twin.
     let mut half: std::collections::HashMap<(u32, u32), usize> = std::collections::HashMap::new();
     for t in &mesh.triangles {
@@ -57,7 +79,7 @@ pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, String> {
         .map(|(a, b)| (b, a))
         .collect();
     open.sort_unstable();
-    let loops = chain_loops(&open).map_err(|e| format!("the boundary on the end plane {e}"))?;
+    let loops = chain_loops(&open)?;
     let xy = |v: u32| {
         let p = mesh.positions[v as usize];
         [f64::from(p[0]), f64::from(p[1])]
@@ -107,11 +129,11 @@ pub(super) fn close_plane(mesh: &mut Mesh, z: f32) -> Result<usize, String> {
 
 /// Chains directed edges (sorted, for a deterministic result) into closed loops, each edge
 /// followed by the one leaving its end. Errors say how the edges fail to form simple loops.
-pub(crate) fn chain_loops(edges: &[(u32, u32)]) -> Result<Vec<Vec<u32>>, String> {
+pub(crate) fn chain_loops(edges: &[(u32, u32)]) -> Result<Vec<Vec<u32>>, LoopError> {
     let mut next: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
     for &(a, b) in edges {
         if next.insert(a, b).is_some() {
-            return Err("branches".into());
+            return Err(LoopError::Branches);
         }
     }
     let mut loops: Vec<Vec<u32>> = Vec::new();
@@ -125,10 +147,10 @@ pub(crate) fn chain_loops(edges: &[(u32, u32)]) -> Result<Vec<Vec<u32>>, String>
         let mut v = next[&start];
         while v != start {
             if !seen.insert(v) {
-                return Err("is not a set of simple loops".into());
+                return Err(LoopError::NotSimple);
             }
             l.push(v);
-            v = *next.get(&v).ok_or("is not closed")?;
+            v = *next.get(&v).ok_or(LoopError::NotClosed)?;
         }
         loops.push(l);
     }
@@ -141,12 +163,12 @@ pub(crate) fn bridge(
     ring: &[u32],
     hole: &[u32],
     xy: &dyn Fn(u32) -> P2,
-) -> Result<Vec<u32>, String> {
+) -> Result<Vec<u32>, LoopError> {
     let (hi, &h) = hole
         .iter()
         .enumerate()
         .max_by(|a, b| xy(*a.1)[0].total_cmp(&xy(*b.1)[0]))
-        .ok_or("an empty hole")?;
+        .ok_or(LoopError::EmptyHole)?;
     let hp = xy(h);
     let n = ring.len();
     // Visible ring vertices: the segment to them crosses no ring or hole edge.
@@ -179,7 +201,7 @@ pub(crate) fn bridge(
             let p = xy(ring[k]);
             !segments_cross(hp, p, ring, ring[k]) && !segments_cross(hp, p, hole, h)
         })
-        .ok_or("no ring vertex sees the hole")?;
+        .ok_or(LoopError::Untriangulable)?;
     let mut out = Vec::with_capacity(n + hole.len() + 2);
     out.extend_from_slice(&ring[..=k]);
     for t in 0..=hole.len() {
@@ -198,7 +220,7 @@ pub(crate) fn ear_clip(
     ring: &[u32],
     xy: &dyn Fn(u32) -> P2,
     orientation: f64,
-) -> Result<Vec<[u32; 3]>, String> {
+) -> Result<Vec<[u32; 3]>, LoopError> {
     let mut v: Vec<u32> = ring.to_vec();
     let mut out = Vec::with_capacity(v.len());
     let mut guard = 0usize;
@@ -256,13 +278,13 @@ pub(crate) fn ear_clip(
             }
         }
         let Some((_, i)) = best else {
-            return Err("the polygon could not be triangulated".into());
+            return Err(LoopError::Untriangulable);
         };
         out.push([v[(i + n - 1) % n], v[i], v[(i + 1) % n]]);
         v.remove(i);
         guard += 1;
         if guard > 4 * ring.len() + 16 {
-            return Err("the polygon could not be triangulated".into());
+            return Err(LoopError::Untriangulable);
         }
     }
     if v.len() == 3 && cross(xy(v[0]), xy(v[1]), xy(v[2])) * orientation > 0.0 {

@@ -21,6 +21,7 @@
 //! ```
 
 pub(crate) mod cap;
+pub use cap::LoopError;
 mod field;
 mod reconstruct;
 mod sectional;

@@ -175,7 +175,7 @@ pub fn reconstruct_with(
         let sections = stack.sections();
         for z in [sections[0].z(), sections[sections.len() - 1].z()] {
             super::cap::close_plane(&mut r.mesh, z as f32)
-                .map_err(|reason| ExtractError::Cap(format!("section at z = {z}: {reason}")))?;
+                .map_err(|reason| ExtractError::Cap { z, reason })?;
         }
         r.mesh.compute_normals();
         return Ok(r);
@@ -192,9 +192,7 @@ pub fn reconstruct_with(
         }
     };
     if stack.sections().len() < 2 && extend.is_none() {
-        return Err(ExtractError::Cap(
-            "a single section makes a closed surface only with an extension cap".into(),
-        ));
+        return Err(ExtractError::SingleSection);
     }
     let plane = match fidelity {
         Fidelity::Exact => resolving_plane(stack, plane),

@@ -48,18 +48,7 @@ impl Masks {
         for (row, out) in row_values().zip(above.chunks_exact_mut(words)) {
             invalid |= pack_row(row, level, out);
         }
-        let invalid = invalid.then(|| {
-            let mut bad = vec![0u64; above.len()];
-            for (row, out) in row_values().zip(bad.chunks_exact_mut(words)) {
-                invalid_row(row, out);
-            }
-            bad
-        });
-        Masks {
-            words,
-            above,
-            invalid,
-        }
+        Masks::finish(words, above, invalid, row_values())
     }
 
     /// [`Masks::new`] for all of `window`'s points, a plane per task.
@@ -78,9 +67,20 @@ impl Masks {
                     .fold(false, |bad, (row, out)| bad | pack_row(row, level, out))
             })
             .reduce(|| false, |a, b| a | b);
+        Masks::finish(words, above, invalid, values.chunks_exact(nx))
+    }
+
+    /// The masks, with the non-finite bits of `rows` (the rows `above` was packed from) when
+    /// some value is not finite.
+    fn finish<'v>(
+        words: usize,
+        above: Vec<u64>,
+        invalid: bool,
+        rows: impl Iterator<Item = &'v [f32]>,
+    ) -> Masks {
         let invalid = invalid.then(|| {
             let mut bad = vec![0u64; above.len()];
-            for (row, out) in values.chunks_exact(nx).zip(bad.chunks_exact_mut(words)) {
+            for (row, out) in rows.zip(bad.chunks_exact_mut(words)) {
                 invalid_row(row, out);
             }
             bad

@@ -260,8 +260,18 @@ pub enum ExtractError {
         value: f32,
     },
     /// The ends of a contour reconstruction could not be closed flat.
-    #[error("cannot close the ends flat: {0}")]
-    Cap(String),
+    #[error(
+        "cannot close the ends flat: section at z = {z}: the boundary on the end plane {reason}"
+    )]
+    Cap {
+        /// The end section's height.
+        z: f64,
+        /// What is wrong with the boundary there.
+        reason: crate::contours::LoopError,
+    },
+    /// A single section closes only with an extension cap.
+    #[error("a single section makes a closed surface only with an extension cap")]
+    SingleSection,
     /// The grid has too few points or too many.
     #[error(transparent)]
     Grid(#[from] crate::field::GridError),

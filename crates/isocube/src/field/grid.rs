@@ -26,9 +26,18 @@ pub enum GridError {
         /// Values supplied.
         actual: usize,
     },
-    /// A spacing that is not finite and positive, or an origin that is not finite.
-    #[error("invalid geometry: {0}")]
-    Geometry(String),
+    /// A spacing that is not finite and positive.
+    #[error("invalid geometry: spacing {spacing:?} must be finite and positive")]
+    Spacing {
+        /// The spacing given.
+        spacing: [f64; 3],
+    },
+    /// An origin that is not finite.
+    #[error("invalid geometry: origin {origin:?} must be finite")]
+    Origin {
+        /// The origin given.
+        origin: [f64; 3],
+    },
 }
 
 /// Values on a regular lattice: `dims[0] × dims[1] × dims[2]` points, `x` fastest.
@@ -83,9 +92,7 @@ impl Grid {
     /// Sets the spacing (each finite and positive).
     pub fn with_spacing(mut self, spacing: [f64; 3]) -> Result<Grid, GridError> {
         if spacing.iter().any(|s| !s.is_finite() || *s <= 0.0) {
-            return Err(GridError::Geometry(format!(
-                "spacing {spacing:?} must be finite and positive"
-            )));
+            return Err(GridError::Spacing { spacing });
         }
         self.spacing = spacing;
         Ok(self)
@@ -94,9 +101,7 @@ impl Grid {
     /// Sets the origin (finite).
     pub fn with_origin(mut self, origin: [f64; 3]) -> Result<Grid, GridError> {
         if origin.iter().any(|o| !o.is_finite()) {
-            return Err(GridError::Geometry(format!(
-                "origin {origin:?} must be finite"
-            )));
+            return Err(GridError::Origin { origin });
         }
         self.origin = origin;
         Ok(self)

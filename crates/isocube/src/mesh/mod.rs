@@ -9,6 +9,30 @@ mod report;
 
 pub use report::MeshReport;
 
+/// Why a mesh's parts do not fit together ([`Mesh::validate`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MeshError {
+    /// Normals are given, but not one per vertex.
+    #[error("{normals} normals for {vertices} vertices")]
+    NormalCount {
+        /// Normals given.
+        normals: usize,
+        /// Vertices.
+        vertices: usize,
+    },
+    /// A triangle names a vertex that does not exist.
+    #[error("triangle {triangle} {indices:?} indexes past {vertices} vertices")]
+    VertexIndex {
+        /// The triangle's place.
+        triangle: usize,
+        /// Its vertex numbers.
+        indices: [u32; 3],
+        /// Vertices.
+        vertices: usize,
+    },
+}
+
 /// An indexed triangle mesh.
 ///
 /// Invariant: every index in `triangles` is below `positions.len()`, and `normals` is either
@@ -62,18 +86,32 @@ impl Mesh {
     }
 
     /// Checks the index invariant; `Err` names the first offending triangle.
-    pub fn validate(&self) -> Result<(), String> {
+    ///
+    /// ```
+    /// use isocube::mesh::{Mesh, MeshError};
+    /// let mut mesh = Mesh::new();
+    /// mesh.positions = vec![[0.0; 3]; 3];
+    /// mesh.triangles = vec![[0, 1, 3]];
+    /// assert_eq!(
+    ///     mesh.validate(),
+    ///     Err(MeshError::VertexIndex { triangle: 0, indices: [0, 1, 3], vertices: 3 })
+    /// );
+    /// ```
+    pub fn validate(&self) -> Result<(), MeshError> {
         if !self.normals.is_empty() && self.normals.len() != self.positions.len() {
-            return Err(format!(
-                "{} normals for {} vertices",
-                self.normals.len(),
-                self.positions.len()
-            ));
+            return Err(MeshError::NormalCount {
+                normals: self.normals.len(),
+                vertices: self.positions.len(),
+            });
         }
         let n = self.positions.len();
         for (i, t) in self.triangles.iter().enumerate() {
             if t.iter().any(|&v| v as usize >= n) {
-                return Err(format!("triangle {i} {t:?} indexes past {n} vertices"));
+                return Err(MeshError::VertexIndex {
+                    triangle: i,
+                    indices: *t,
+                    vertices: n,
+                });
             }
         }
         Ok(())

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::{Face, PolyMesh, SubdivError, INFINITELY_SHARP};
-use crate::contours::cap::{area, bridge, chain_loops, ear_clip};
+use crate::contours::cap::{area, bridge, chain_loops, ear_clip, LoopError};
 
 /// How faces with inner loops are subdivided.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -72,6 +72,10 @@ fn projector(p: &[[f64; 3]], outer: &[u32]) -> impl Fn([f64; 3]) -> [f64; 2] {
 /// Triangles covering a face with inner loops (projected on its plane, holes bridged, ears
 /// clipped), with the face's orientation.
 pub(super) fn triangulate_face(p: &[[f64; 3]], face: &Face) -> Result<Vec<[u32; 3]>, String> {
+    flat_face(p, face).map_err(|e| format!("the face {e}"))
+}
+
+fn flat_face(p: &[[f64; 3]], face: &Face) -> Result<Vec<[u32; 3]>, LoopError> {
     let project = projector(p, &face.outer);
     let xy = |v: u32| project(p[v as usize]);
     let mut ring = face.outer.clone();
