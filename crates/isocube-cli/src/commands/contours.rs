@@ -7,6 +7,7 @@ use clap::Args as ClapArgs;
 use isocube::contours::{
     reconstruct_with, Cap, Fidelity, PlaneGrid, ReconstructOptions, SectionStack,
 };
+use isocube::extract::ExtractError;
 use isocube::quality::Strategy;
 use isocube_io::{read_contours, write_mesh, MeshWriteOptions};
 
@@ -50,42 +51,6 @@ pub(crate) struct Args {
     /// machine's physical memory]
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     max_memory: Option<MemoryLimit>,
-}
-
-/// Triangles per square cell of surface, and peak bytes per triangle, measured on the orebody
-/// at cells from 0.1 down to 0.005 (0.80 triangles and 60–74 bytes), rounded up.
-const TRIANGLES_PER_CELL_AREA: f64 = 0.9;
-const BYTES_PER_TRIANGLE: f64 = 80.0;
-
-/// The surface's area, roughly: the walls between sections (mean perimeter times the gap), and
-/// the ends (their contours' area, plus the extension's walls).
-fn estimated_area(stack: &SectionStack, cap: Cap) -> f64 {
-    let sections = stack.sections();
-    let perimeter = |k: usize| -> f64 {
-        sections[k]
-            .contours()
-            .iter()
-            .flat_map(|c| c.segments())
-            .map(|(a, b)| ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt())
-            .sum()
-    };
-    let area = |k: usize| -> f64 {
-        sections[k]
-            .contours()
-            .iter()
-            .map(|c| c.signed_area().abs())
-            .sum()
-    };
-    let walls: f64 = (1..sections.len())
-        .map(|k| 0.5 * (perimeter(k - 1) + perimeter(k)) * (sections[k].z() - sections[k - 1].z()))
-        .sum();
-    let last = sections.len() - 1;
-    let ends = match cap {
-        Cap::Open => 0.0,
-        Cap::Flat => area(0) + area(last),
-        Cap::Extend(d) => area(0) + area(last) + d * (perimeter(0) + perimeter(last)),
-    };
-    walls + ends
 }
 
 fn parse_grid(s: &str) -> Result<[usize; 2], String> {
@@ -167,33 +132,24 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         )));
     }
     let cap = cap(args, &stack)?;
-    // A tiny --cell on a large body can ask for more triangles than memory holds: refuse it
-    // before starting rather than be killed half-way.
-    let triangles = TRIANGLES_PER_CELL_AREA * estimated_area(&stack, cap) / plane.spacing.powi(2);
-    let needed = triangles * BYTES_PER_TRIANGLE;
-    if let Some(limit) = MemoryLimit::or_default(args.max_memory) {
-        if needed > limit as f64 {
-            return Err(Failure::input(anyhow::anyhow!(
-                "cells of {} would make about {:.2e} triangles and need about {:.1} GiB, more \
-                 than the limit of {:.1} GiB; use a coarser --grid or a larger --cell (or raise \
-                 --max-memory)",
-                plane.spacing,
-                triangles,
-                needed / f64::from(1u32 << 30),
-                limit as f64 / f64::from(1u32 << 30)
-            )));
-        }
-    }
     let started = Instant::now();
     let fidelity = if args.plain {
         Fidelity::Plain
     } else {
         Fidelity::Exact
     };
-    let options = ReconstructOptions::new(cap)
+    let mut options = ReconstructOptions::new(cap)
         .with_fidelity(fidelity)
         .with_triangulation(args.triangulate);
-    let r = reconstruct_with(&stack, &plane, &options).map_err(Failure::input)?;
+    if let Some(limit) = MemoryLimit::or_default(args.max_memory) {
+        options = options.with_max_memory(limit);
+    }
+    let r = reconstruct_with(&stack, &plane, &options).map_err(|e| match e {
+        ExtractError::MemoryLimit { .. } => Failure::input(anyhow::anyhow!(
+            "{e}; use a coarser --grid or a larger --cell (or raise --max-memory)"
+        )),
+        e => Failure::input(e),
+    })?;
     let elapsed = started.elapsed();
     write_mesh(
         &args.output,

@@ -7,8 +7,8 @@ use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{
     extract_boxes_into, extract_into, extract_labels, extract_labels_boxes, extract_streamed,
-    label_cells, CellBox, ExtractOptions, ExtractStats, LabelOptions, LabelSelection, Method,
-    SnapPosition, Snapping, StreamError,
+    label_cells, streams_by_default, CellBox, ExtractOptions, ExtractStats, LabelOptions,
+    LabelSelection, Method, SnapPosition, Snapping, StreamError,
 };
 use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
@@ -110,9 +110,6 @@ pub(crate) struct Args {
     #[arg(long)]
     strict: bool,
 }
-
-/// Volumes whose values take more than this as `f32` are extracted slab by slab when they can.
-const STREAM_ABOVE: u64 = 1 << 30;
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
@@ -425,11 +422,9 @@ fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
         (false, Some(_)) => Ok(None),
         (stream, None) => {
             let volume = args.volume.map()?;
-            let points: u64 = PlaneSource::dims(&volume)
-                .iter()
-                .map(|&d| d as u64)
-                .product();
-            Ok((stream || points.saturating_mul(4) > STREAM_ABOVE).then_some(volume))
+            let dims = PlaneSource::dims(&volume);
+            let by_default = streams_by_default(dims, &options(args, false));
+            Ok((stream || by_default).then_some(volume))
         }
     }
 }

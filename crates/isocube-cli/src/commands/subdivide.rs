@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use clap::{Args as ClapArgs, ValueEnum};
 use isocube::subdiv::{
-    limit_positions, samples, subdivide, BoundaryRule, HoleMethod, SubdivOptions,
+    limit_positions, samples, subdivide, BoundaryRule, HoleMethod, SubdivError, SubdivOptions,
+    MAX_FACES,
 };
 use isocube_io::{read_poly_mesh, write_poly_mesh, MeshWriteOptions};
 
@@ -53,10 +54,6 @@ pub(crate) struct Args {
     ascii: bool,
 }
 
-/// Refinement multiplies faces by about 4 per level; beyond this many the output would not fit
-/// in memory anyway.
-const MAX_FACES: usize = 1 << 28;
-
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
     if !args.mesh.starts_with("sample:") {
@@ -71,15 +68,6 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         })?,
         None => read_poly_mesh(Path::new(&args.mesh)).map_err(|e| crate::io_failure(e, true))?,
     };
-    let sides: usize = cage.faces.iter().map(|f| f.outer.len()).sum();
-    let expected =
-        sides.saturating_mul(4usize.saturating_pow(args.levels.saturating_sub(1) as u32));
-    if args.levels > 0 && expected > MAX_FACES {
-        return Err(Failure::input(anyhow::anyhow!(
-            "--levels {}: about {expected} faces; at most {MAX_FACES} are supported",
-            args.levels
-        )));
-    }
     let options = SubdivOptions {
         boundary: args.boundary.map(|b| match b {
             Boundary::EdgeOnly => BoundaryRule::EdgeOnly,
@@ -92,8 +80,13 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         },
     };
     let started = Instant::now();
-    let mut fine = subdivide(&cage, args.levels, &options)
-        .map_err(|e| Failure::input(anyhow::anyhow!("{}: {e}", args.mesh)))?;
+    let mut fine = subdivide(&cage, args.levels, &options).map_err(|e| match e {
+        SubdivError::TooManyFaces { faces, .. } => Failure::input(anyhow::anyhow!(
+            "--levels {}: about {faces} faces; at most {MAX_FACES} are supported",
+            args.levels
+        )),
+        e => Failure::input(anyhow::anyhow!("{}: {e}", args.mesh)),
+    })?;
     if args.limit {
         if let Some(b) = options.boundary {
             fine.boundary = Some(b);

@@ -29,8 +29,8 @@ mod sparse;
 
 pub use field::{inside_flags, section_field, stacked_field, PlaneGrid, SectionField};
 pub use reconstruct::{
-    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, Fidelity, ReconstructOptions,
-    Reconstruction,
+    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, Fidelity, MeshEstimate,
+    ReconstructOptions, Reconstruction,
 };
 
 use thiserror::Error;

@@ -91,7 +91,7 @@ pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
 pub use labels::{
     extract_labels, extract_labels_boxes, label_cells, LabelOptions, LabelSelection, LabelSurface,
 };
-pub use stream::{extract_streamed, MeshSink, StreamError};
+pub use stream::{extract_streamed, streams_by_default, MeshSink, StreamError, STREAM_ABOVE_BYTES};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
 
@@ -268,6 +268,23 @@ pub enum ExtractError {
         z: f64,
         /// What is wrong with the boundary there.
         reason: crate::contours::LoopError,
+    },
+    /// A contour reconstruction whose estimated mesh needs more memory than allowed.
+    #[error(
+        "cells of {cell} would make about {triangles:.2e} triangles and need about {:.1} GiB, \
+         more than the limit of {:.1} GiB",
+        bytes / f64::from(1u32 << 30),
+        *limit as f64 / f64::from(1u32 << 30)
+    )]
+    MemoryLimit {
+        /// The plane grid's cell size.
+        cell: f64,
+        /// The estimated triangles.
+        triangles: f64,
+        /// The estimated bytes.
+        bytes: f64,
+        /// The limit in bytes.
+        limit: u64,
     },
     /// A single section closes only with an extension cap.
     #[error("a single section makes a closed surface only with an extension cap")]

@@ -17,6 +17,27 @@ use super::{ExtractError, ExtractOptions, ExtractStats, Method};
 use crate::field::{Grid, PlaneSource};
 use crate::mesh::Mesh;
 
+/// Volumes whose values take more than this many bytes as `f32` are better meshed slab by slab
+/// ([`extract_streamed`]) than loaded whole, when the options allow it ([`streams_by_default`]).
+pub const STREAM_ABOVE_BYTES: u64 = 1 << 30;
+
+/// Whether a volume of `dims` points is best meshed slab by slab with `options`: its values take
+/// more than [`STREAM_ABOVE_BYTES`] as `f32`, and the options need neither the whole volume
+/// (ternary snapping) nor the whole mesh (relaxation).
+///
+/// ```
+/// use isocube::extract::{streams_by_default, ExtractOptions};
+/// assert!(streams_by_default([1024, 1024, 512], &ExtractOptions::default()));
+/// assert!(!streams_by_default([512, 512, 512], &ExtractOptions::default()));
+/// assert!(!streams_by_default([1024, 1024, 512], &ExtractOptions::default().with_relax(2)));
+/// ```
+pub fn streams_by_default(dims: [usize; 3], options: &ExtractOptions) -> bool {
+    let points: u64 = dims.iter().map(|&d| d as u64).product();
+    options.method == Method::MarchingCubes
+        && options.relax == 0
+        && points.saturating_mul(4) > STREAM_ABOVE_BYTES
+}
+
 /// Where [`extract_streamed`] puts the mesh: vertices and triangles in order, a slab at a time.
 ///
 /// Vertices are numbered in the order they are given, from 0; triangles only use vertices

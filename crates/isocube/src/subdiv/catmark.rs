@@ -532,6 +532,12 @@ pub fn subdivide(
     options: &SubdivOptions,
 ) -> Result<PolyMesh, SubdivError> {
     mesh.validate()?;
+    // The first level makes a quad per face corner, every later one four per quad.
+    let sides: usize = mesh.faces.iter().map(|f| f.outer.len()).sum();
+    let faces = sides.saturating_mul(4usize.saturating_pow(levels.saturating_sub(1) as u32));
+    if levels > 0 && faces > super::MAX_FACES {
+        return Err(SubdivError::TooManyFaces { levels, faces });
+    }
     let (cage, mut origin) = remove_inner_loops(mesh, options.holes)?;
     let rule = options.boundary.or(mesh.boundary).unwrap_or_default();
     let mut level = Level::from_mesh(&cage);

@@ -138,7 +138,22 @@ pub enum SubdivError {
         /// What is wrong.
         reason: String,
     },
+    /// The refined mesh would have more faces than [`MAX_FACES`].
+    #[error(
+        "{levels} levels make about {faces} faces; at most {} are supported",
+        MAX_FACES
+    )]
+    TooManyFaces {
+        /// The levels asked for.
+        levels: usize,
+        /// The faces they would make (saturating).
+        faces: usize,
+    },
 }
+
+/// The most faces [`subdivide`] makes: refinement multiplies faces by about 4 per level, and
+/// beyond this many the output would not fit in memory anyway.
+pub const MAX_FACES: usize = 1 << 28;
 
 /// What [`subdivide`] is asked to do beyond the mesh's own tags.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
