@@ -291,7 +291,18 @@ impl<'a> BinaryCells<'a> {
                 for i in set_bits(visit) {
                     let cell = [x0 + i, y0 + j, z0 + k];
                     let base = grid.index(cell[0], cell[1], cell[2]);
-                    let v = corner_offsets.map(|o| values[base + o]);
+                    // Written out: `array::map` here was not always inlined.
+                    let o = &corner_offsets;
+                    let v = [
+                        values[base + o[0]],
+                        values[base + o[1]],
+                        values[base + o[2]],
+                        values[base + o[3]],
+                        values[base + o[4]],
+                        values[base + o[5]],
+                        values[base + o[6]],
+                        values[base + o[7]],
+                    ];
                     if v.iter().any(|x| !x.is_finite()) {
                         out.stats.skipped_cells += 1;
                         continue;
