@@ -752,9 +752,23 @@ impl LayerJoiner {
         let normals = normals.unwrap_or(&mesh.normals);
         self.remap.clear();
         self.remap.resize(mesh.positions.len(), u32::MAX);
+        // Only vertices on the chunk's shared faces can be the previous chunk's, or the next's.
+        let on_faces: Vec<usize> = match &chunk.on_faces {
+            Some(list) => list.iter().map(|&[v, _]| v as usize).collect(),
+            None => {
+                let planes = chunk.shared_planes(self.dims);
+                (0..chunk.keys.len())
+                    .filter(|&v| {
+                        planes
+                            .iter()
+                            .any(|&(a, p)| chunk.keys[v].on_plane(self.dims, a, p))
+                    })
+                    .collect()
+            }
+        };
         if cells.min[2] > 0 {
-            for (v, k) in chunk.keys.iter().enumerate() {
-                if let Ok(at) = self.top.binary_search_by_key(k, |e| e.0) {
+            for &v in &on_faces {
+                if let Ok(at) = self.top.binary_search_by_key(&chunk.keys[v], |e| e.0) {
                     self.remap[v] = self.top[at].1;
                 }
             }
@@ -786,12 +800,11 @@ impl LayerJoiner {
         self.top.clear();
         let plane = cells.max[2];
         self.top.extend(
-            chunk
-                .keys
+            on_faces
                 .iter()
-                .enumerate()
-                .filter(|(_, k)| k.on_plane(self.dims, 2, plane))
-                .map(|(v, &k)| (k, self.remap[v])),
+                .map(|&v| (chunk.keys[v], v))
+                .filter(|(k, _)| k.on_plane(self.dims, 2, plane))
+                .map(|(k, v)| (k, self.remap[v])),
         );
         self.top.sort_unstable();
         Ok(out)
