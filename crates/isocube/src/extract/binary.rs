@@ -311,7 +311,12 @@ impl<'a> BinaryCells<'a> {
                     if config == 0 || config == 255 {
                         continue;
                     }
-                    self.mesh_cell(cache, &mut out, [i, j], cell, &v, config)?;
+                    let at = At {
+                        local: [i, j],
+                        cell,
+                        v: &v,
+                    };
+                    self.mesh_cell(cache, &mut out, at, config)?;
                 }
                 out.end_row()?;
             }
@@ -326,12 +331,11 @@ impl<'a> BinaryCells<'a> {
         &self,
         cache: &mut EdgeCache,
         out: &mut ChunkMesh,
-        [li, lj]: [usize; 2],
-        cell: [usize; 3],
-        v: &[f32; 8],
+        at: At,
         e: u8,
     ) -> Result<u32, ExtractError> {
-        cache.vertex(li, lj, e, || self.new_edge_vertex(out, cell, v, e))
+        let [li, lj] = at.local;
+        cache.vertex(li, lj, e, || self.new_edge_vertex(out, at.cell, at.v, e))
     }
 
     /// Makes the crossing on edge `e` of `cell`, with its key. Kept out of line: it runs once
@@ -386,31 +390,29 @@ impl<'a> BinaryCells<'a> {
         &self,
         cache: &mut EdgeCache,
         out: &mut ChunkMesh,
-        local: [usize; 2],
-        cell: [usize; 3],
-        v: &[f32; 8],
+        at: At,
         config: u8,
     ) -> Result<(), ExtractError> {
         let (table, options) = (self.table, self.options);
         let level = options.level;
         out.stats.active_cells += 1;
-        let decisions = face_decisions(v, level, table.ambiguous_faces(config));
+        let decisions = face_decisions(at.v, level, table.ambiguous_faces(config));
         let tunnel = if options.topology == Topology::Mc33
             && table.has_tunnel_candidates(config, decisions)
         {
-            choose_tunnel(table, config, decisions, v, level)
+            choose_tunnel(table, config, decisions, at.v, level)
         } else {
             None
         };
         out.stats.tunnels += usize::from(tunnel.is_some());
         if options.triangulation != Strategy::Fan && tunnel.is_none() {
-            let [i, j, k] = cell;
+            let [i, j, k] = at.cell;
             let bounds = (
                 self.grid.point(i, j, k),
                 self.grid.point(i + 1, j + 1, k + 1),
             );
             for (l, polygon) in table.polygons(config, decisions).enumerate() {
-                self.emit_polygon(cache, out, local, cell, v, l, polygon, bounds)?;
+                self.emit_polygon(cache, out, at, l, polygon, bounds)?;
             }
             return Ok(());
         }
@@ -420,7 +422,7 @@ impl<'a> BinaryCells<'a> {
             let mut ids = [0u32; 3];
             for (slot, &corner) in ids.iter_mut().zip(tri) {
                 *slot = if let Some(e) = corner.as_edge() {
-                    self.edge(cache, out, local, cell, v, e)?
+                    self.edge(cache, out, at, e)?
                 } else {
                     let p = usize::from(
                         corner
@@ -429,8 +431,8 @@ impl<'a> BinaryCells<'a> {
                     );
                     if interior[p] == u32::MAX {
                         let support = triangles.interior_support(p);
-                        let ids = self.corner_ids(cache, out, local, cell, v, support)?;
-                        interior[p] = self.interior(out, cell, p, |placer, mesh| {
+                        let ids = self.corner_ids(cache, out, at, support)?;
+                        interior[p] = self.interior(out, at.cell, p, |placer, mesh| {
                             placer.centroid_vertex(&ids, mesh)
                         })?;
                     }
@@ -446,16 +448,14 @@ impl<'a> BinaryCells<'a> {
         &self,
         cache: &mut EdgeCache,
         out: &mut ChunkMesh,
-        local: [usize; 2],
-        cell: [usize; 3],
-        v: &[f32; 8],
+        at: At,
         polygon: &[Corner],
     ) -> Result<Vec<u32>, ExtractError> {
         polygon
             .iter()
             .map(|c| {
                 let e = c.as_edge().expect("binary polygons have edge corners");
-                self.edge(cache, out, local, cell, v, e)
+                self.edge(cache, out, at, e)
             })
             .collect()
     }
@@ -463,14 +463,11 @@ impl<'a> BinaryCells<'a> {
     /// Triangulates loop `l` of a cell by the options' strategy, from the actual positions of
     /// its crossings. Diagonals follow the table's rule (never one a neighbour could draw too);
     /// if the strategy finds nothing, the table's triangulation of the loop is used.
-    #[allow(clippy::too_many_arguments)]
     fn emit_polygon(
         &self,
         cache: &mut EdgeCache,
         out: &mut ChunkMesh,
-        local: [usize; 2],
-        cell: [usize; 3],
-        v: &[f32; 8],
+        at: At,
         l: usize,
         polygon: &[Corner],
         bounds: ([f64; 3], [f64; 3]),
@@ -478,14 +475,14 @@ impl<'a> BinaryCells<'a> {
         let n = polygon.len();
         if n > MAX_CORNERS {
             // Never for cell loops (at most 12 corners); kept total all the same.
-            let ids = self.corner_ids(cache, out, local, cell, v, polygon)?;
-            return self.table_triangles(out, cell, l, polygon, &ids);
+            let ids = self.corner_ids(cache, out, at, polygon)?;
+            return self.table_triangles(out, at.cell, l, polygon, &ids);
         }
         let mut ids = [0u32; MAX_CORNERS];
         let mut positions = [[0.0f64; 3]; MAX_CORNERS];
         for (slot, c) in polygon.iter().enumerate() {
             let e = c.as_edge().expect("binary polygons have edge corners");
-            ids[slot] = self.edge(cache, out, local, cell, v, e)?;
+            ids[slot] = self.edge(cache, out, at, e)?;
             positions[slot] = out.mesh.positions[ids[slot] as usize].map(f64::from);
         }
         let ids = &ids[..n];
@@ -497,9 +494,11 @@ impl<'a> BinaryCells<'a> {
         match triangulate_polygon(&positions[..n], &chords, self.options.triangulation, bounds) {
             Some((triangles, interior)) => {
                 let interior = match interior {
-                    Some(x) => self.interior(out, cell, INTERIOR_LOOPS + l, |placer, mesh| {
-                        placer.interior_vertex(x, ids, mesh)
-                    })?,
+                    Some(x) => {
+                        self.interior(out, at.cell, INTERIOR_LOOPS + l, |placer, mesh| {
+                            placer.interior_vertex(x, ids, mesh)
+                        })?
+                    }
                     None => u32::MAX,
                 };
                 for t in triangles.as_slice() {
@@ -508,7 +507,7 @@ impl<'a> BinaryCells<'a> {
                 }
                 Ok(())
             }
-            None => self.table_triangles(out, cell, l, polygon, ids),
+            None => self.table_triangles(out, at.cell, l, polygon, ids),
         }
     }
 
@@ -540,6 +539,15 @@ impl<'a> BinaryCells<'a> {
         }
         Ok(())
     }
+}
+
+/// The cell being meshed: its place in the box (for the edge cache), in the grid, and its eight
+/// values in cube vertex order.
+#[derive(Clone, Copy)]
+struct At<'v> {
+    local: [usize; 2],
+    cell: [usize; 3],
+    v: &'v [f32; 8],
 }
 
 /// Interior keys of a cell: the table's points first, then one per loop.
