@@ -1,6 +1,7 @@
 //! A progress bar on stderr, shown only on a terminal and when not quiet.
 
 use std::io::IsTerminal;
+use std::ops::ControlFlow;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -23,11 +24,14 @@ impl Progress {
         Progress { bar }
     }
 
-    pub(crate) fn update(&mut self, done: usize, total: usize) {
+    /// Shows `done` of `total`; the command never stops the library's work part way (Ctrl-C
+    /// ends the process, and outputs are only renamed into place when complete).
+    pub(crate) fn update(&mut self, done: usize, total: usize) -> ControlFlow<()> {
         if let Some(bar) = &self.bar {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         }
+        ControlFlow::Continue(())
     }
 
     pub(crate) fn finish(self) {

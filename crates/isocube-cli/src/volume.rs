@@ -100,10 +100,7 @@ impl VolumeArgs {
     /// direction).
     pub(crate) fn load_oriented(&self) -> Result<(Grid, Orientation), Failure> {
         if SampleSpec::is_sample(&self.volume) {
-            let spec: SampleSpec = self
-                .volume
-                .parse()
-                .map_err(|e: String| Failure::input(anyhow::anyhow!(e)))?;
+            let spec: SampleSpec = self.volume.parse().map_err(Failure::input)?;
             // Samples are computed, not read, but take the same memory.
             let limit = MemoryLimit::or_default(self.max_memory);
             let needed = (spec.n as u64).pow(3) * 4;

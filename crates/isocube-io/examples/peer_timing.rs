@@ -46,7 +46,7 @@ fn main() {
             .with_normals(false);
         let mut mesh = Mesh::new();
         let extract_ms = best(7, || {
-            extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).expect("extracts");
+            extract_into(&grid, &options, &mut mesh, &mut isocube::no_progress).expect("extracts");
         });
         println!(
             "{{\"path\": \"{path}\", \"read_ms\": {read_ms:.3}, \"extract_ms\": {extract_ms:.3}, \"triangles\": {}, \"vertices\": {}, \"threads\": {}, \"checksum\": {sum:e}}}",

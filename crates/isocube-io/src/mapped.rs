@@ -33,7 +33,7 @@ use isocube::field::{Grid, PlaneSource};
 /// let volume = MappedVolume::open(Path::new("ct.raw"), &options)?;
 /// let mut ply = PlyWriter::create(Path::new("ct.ply"), true)?;
 /// let extract = ExtractOptions::default().with_level(1200.0);
-/// extract_streamed(&volume, &extract, &mut ply, &mut |_, _| {})?;
+/// extract_streamed(&volume, &extract, &mut ply, &mut isocube::no_progress)?;
 /// ply.finish()?;
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
@@ -311,7 +311,13 @@ mod tests {
             assert_eq!(PlaneSource::dims(&volume), grid.dims());
             let out = dir.path().join("streamed.ply");
             let mut ply = PlyWriter::create(&out, true).unwrap();
-            extract_streamed(&volume, &extract_options, &mut ply, &mut |_, _| {}).unwrap();
+            extract_streamed(
+                &volume,
+                &extract_options,
+                &mut ply,
+                &mut isocube::no_progress,
+            )
+            .unwrap();
             ply.finish().unwrap();
             let streamed = std::fs::read(&out).unwrap();
             assert_eq!(streamed, std::fs::read(&memory).unwrap(), "{name}");
@@ -370,7 +376,13 @@ mod tests {
         {
             let mut ply = PlyWriter::create(&out, false).unwrap();
             let grid = isocube::field::Sample::Sphere.grid(12);
-            extract_streamed(&grid, &ExtractOptions::default(), &mut ply, &mut |_, _| {}).unwrap();
+            extract_streamed(
+                &grid,
+                &ExtractOptions::default(),
+                &mut ply,
+                &mut isocube::no_progress,
+            )
+            .unwrap();
         }
         assert_eq!(std::fs::read(&out).unwrap(), b"old");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -31,12 +31,14 @@ fn topologies(c: &mut Criterion) {
             let options = ExtractOptions::default().with_topology(topology);
             let mut mesh = Mesh::new();
             // Warm the output buffers and the case table.
-            extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).unwrap();
+            extract_into(&grid, &options, &mut mesh, &mut isocube::no_progress).unwrap();
             group.bench_with_input(
                 BenchmarkId::new(topology.name(), format!("{sample}/{n}")),
                 &grid,
                 |b, grid| {
-                    b.iter(|| extract_into(grid, &options, &mut mesh, &mut |_, _| {}).unwrap())
+                    b.iter(|| {
+                        extract_into(grid, &options, &mut mesh, &mut isocube::no_progress).unwrap()
+                    })
                 },
             );
         }
@@ -62,11 +64,15 @@ fn methods(c: &mut Criterion) {
         ),
     ] {
         let mut mesh = Mesh::new();
-        extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).unwrap();
+        extract_into(&grid, &options, &mut mesh, &mut isocube::no_progress).unwrap();
         group.bench_with_input(
             BenchmarkId::new(name, format!("{sample}/{n}")),
             &grid,
-            |b, grid| b.iter(|| extract_into(grid, &options, &mut mesh, &mut |_, _| {}).unwrap()),
+            |b, grid| {
+                b.iter(|| {
+                    extract_into(grid, &options, &mut mesh, &mut isocube::no_progress).unwrap()
+                })
+            },
         );
     }
     group.bench_with_input(
@@ -75,7 +81,7 @@ fn methods(c: &mut Criterion) {
         |b, grid| {
             b.iter(|| {
                 let mut mesh = Mesh::new();
-                extract_streamed(grid, &default, &mut mesh, &mut |_, _| {}).unwrap();
+                extract_streamed(grid, &default, &mut mesh, &mut isocube::no_progress).unwrap();
                 mesh
             })
         },

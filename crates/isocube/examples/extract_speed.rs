@@ -51,7 +51,7 @@ fn main() {
         };
         for _ in 0..runs {
             let t = Instant::now();
-            extract_into(&grid, &options, &mut mesh, &mut |_, _| {}).expect("extracts");
+            extract_into(&grid, &options, &mut mesh, &mut isocube::no_progress).expect("extracts");
             best = best.min(t.elapsed().as_secs_f64());
         }
         println!(

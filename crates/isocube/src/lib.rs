@@ -42,12 +42,15 @@
 
 pub mod contours;
 pub mod cube;
+mod error;
 pub mod extract;
 pub mod field;
 pub mod mesh;
 pub mod quality;
 pub mod render;
 pub mod subdiv;
+
+pub use error::{no_progress, Error, ParseError};
 
 /// A small reproducible generator for tests that need many arbitrary cases without proptest.
 #[cfg(test)]

@@ -51,10 +51,10 @@ impl View {
 }
 
 impl std::str::FromStr for View {
-    type Err = String;
+    type Err = crate::ParseError;
 
     /// `iso`, `x`, `y`, `z` or `AZIMUTH,ELEVATION` in degrees.
-    fn from_str(s: &str) -> Result<View, String> {
+    fn from_str(s: &str) -> Result<View, crate::ParseError> {
         match s {
             "iso" => Ok(View::ISO),
             "x" => Ok(View::X),
@@ -74,9 +74,9 @@ impl std::str::FromStr for View {
                             elevation,
                         })
                     }
-                    _ => Err(format!(
+                    _ => Err(crate::ParseError::new("view", s, format!(
                         "unknown view '{s}': expected iso, x, y, z or AZIMUTH,ELEVATION in degrees (elevation within ±90)"
-                    )),
+                    ))),
                 }
             }
         }

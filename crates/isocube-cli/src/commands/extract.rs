@@ -13,7 +13,7 @@ use isocube::extract::{
 use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
 use isocube::mesh::Mesh;
-use isocube::quality::{relax, Field, Implicit, Strategy, Trilinear};
+use isocube::quality::{Field, Strategy, Trilinear};
 use isocube_io::{
     write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
 };
@@ -140,23 +140,20 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         return run_streamed(args, &volume, quiet);
     }
     let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
-    let exact = SampleSpec::is_sample(&args.volume.volume)
-        .then(|| args.volume.volume.parse::<SampleSpec>().ok())
-        .flatten()
-        .map(|s| s.sample);
-    let options = options(args, exact.is_some());
+    // The view carries the file's direction, and a built-in sample its exact function: the
+    // library orients the mesh and relaxes on the right field.
+    let view = grid.view().with_orientation(orientation);
+    let options = options(args);
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
     let stats = match args.chunk {
         Some(size) => CellBox::tile(grid.dims(), size).and_then(|boxes| {
-            extract_boxes_into(&grid, &options, &boxes, &mut mesh, &mut |d, t| {
+            extract_boxes_into(view, &options, &boxes, &mut mesh, &mut |d, t| {
                 progress.update(d, t)
             })
         }),
-        None => extract_into(&grid, &options, &mut mesh, &mut |d, t| {
-            progress.update(d, t)
-        }),
+        None => extract_into(view, &options, &mut mesh, &mut |d, t| progress.update(d, t)),
     }
     .map_err(Failure::input)?;
     progress.finish();
@@ -173,18 +170,6 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         });
         return Err(non_finite_failure(args, &stats, &at));
     }
-    if let (Some(sample), true) = (exact, args.relax > 0) {
-        let h = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
-        relax(
-            &mut mesh,
-            &Implicit(|p| sample.eval(p), 1e-4 * h),
-            f64::from(args.level),
-            args.relax,
-            h,
-        );
-    }
-    // Extraction ran in the grid's own frame; the file's direction turns it into the world.
-    orientation.orient_mesh(&mut mesh, grid.origin());
     let elapsed = started.elapsed();
     let values = match &args.values {
         Some(spec) => Some(sample_at_vertices(args, spec, &mesh)?),
@@ -283,6 +268,7 @@ fn label_path(output: &std::path::Path, label: i64) -> PathBuf {
 /// `--labels`: one closed surface per label, in world coordinates unless `--index-space`.
 fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<(), Failure> {
     let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
+    let view = grid.view().with_orientation(orientation);
     let started = Instant::now();
     let options = LabelOptions {
         background: args.background,
@@ -293,9 +279,9 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         Some(size) => {
             let points = label_cells(grid.dims()).max.map(|c| c + 1);
             CellBox::tile(points, size)
-                .and_then(|boxes| extract_labels_boxes(&grid, &options, &boxes))
+                .and_then(|boxes| extract_labels_boxes(view, &options, &boxes))
         }
-        None => extract_labels(&grid, &options),
+        None => extract_labels(view, &options),
     }
     .map_err(Failure::input)?;
     if surfaces.is_empty() {
@@ -320,7 +306,6 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         }
     }
     for mut surface in surfaces {
-        orientation.orient_mesh(&mut surface.mesh, grid.origin());
         if args.no_normals {
             surface.mesh.normals.clear();
         }
@@ -363,7 +348,7 @@ fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, V
         ..args.volume.clone()
     };
     let (grid, orientation) = in_frame(args, volume.load_oriented()?)?;
-    let field = Trilinear(&grid);
+    let field = Trilinear(grid.view());
     let dims = grid.dims();
     let (h, o) = (grid.spacing(), grid.origin());
     let values = mesh
@@ -423,14 +408,14 @@ fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
         (stream, None) => {
             let volume = args.volume.map()?;
             let dims = PlaneSource::dims(&volume);
-            let by_default = streams_by_default(dims, &options(args, false));
+            let by_default = streams_by_default(dims, &options(args));
             Ok((stream || by_default).then_some(volume))
         }
     }
 }
 
 fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), Failure> {
-    let options = options(args, false);
+    let options = options(args);
     let started = Instant::now();
     let mut ply = PlyWriter::create(&args.output, !args.no_normals)
         .map_err(|e| crate::io_failure(e, false))?;
@@ -482,16 +467,15 @@ fn cell_summary(stats: &ExtractStats) -> String {
     text
 }
 
-/// The library's options from the arguments; `exact`: the volume is a built-in sample (which
-/// relaxes on its exact function after extraction, not in it).
-fn options(args: &Args, exact: bool) -> ExtractOptions {
+/// The library's options from the arguments.
+fn options(args: &Args) -> ExtractOptions {
     ExtractOptions::default()
         .with_level(args.level)
         .with_flip(args.flip)
         .with_normals(!args.no_normals)
         .with_topology(args.topology)
         .with_triangulation(args.triangulate)
-        .with_relax(if exact { 0 } else { args.relax })
+        .with_relax(args.relax)
         .with_method(match args.method.as_str() {
             "ternary" => Method::Ternary(Snapping {
                 zero_threshold: args.zero_threshold,

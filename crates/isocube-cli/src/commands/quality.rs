@@ -83,9 +83,7 @@ fn distance(
     max_memory: Option<MemoryLimit>,
 ) -> Result<Distance, Failure> {
     if SampleSpec::is_sample(spec) {
-        let s: SampleSpec = spec
-            .parse()
-            .map_err(|e: String| Failure::input(anyhow::anyhow!(e)))?;
+        let s: SampleSpec = spec.parse().map_err(Failure::input)?;
         let grid = s.grid();
         let sample = s.sample;
         return Ok(level_set_distance(
@@ -101,7 +99,7 @@ fn distance(
     };
     let (grid, orientation) =
         read_volume_oriented(Path::new(spec), &options).map_err(volume_failure)?;
-    let field = Trilinear(&grid);
+    let field = Trilinear(grid.view());
     // The mesh is in the file's world coordinates: evaluate in the grid's own frame (a
     // rotation or reflection keeps distances).
     let f = |p: [f64; 3]| {

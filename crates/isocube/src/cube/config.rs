@@ -119,14 +119,16 @@ impl fmt::Display for Group {
 }
 
 impl FromStr for Group {
-    type Err = String;
+    type Err = crate::ParseError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "rotations" => Ok(Group::Rotations),
             "rotations+flip" => Ok(Group::RotationsFlip),
             "all" => Ok(Group::All),
-            _ => Err(format!(
-                "unknown group '{s}': expected rotations, rotations+flip or all"
+            _ => Err(crate::ParseError::new(
+                "configuration kind",
+                s,
+                format!("unknown group '{s}': expected rotations, rotations+flip or all"),
             )),
         }
     }

@@ -63,12 +63,16 @@ impl fmt::Display for Topology {
 }
 
 impl FromStr for Topology {
-    type Err = String;
+    type Err = crate::ParseError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "classic" => Ok(Topology::Classic),
             "mc33" => Ok(Topology::Mc33),
-            _ => Err(format!("unknown topology '{s}': expected mc33 or classic")),
+            _ => Err(crate::ParseError::new(
+                "topology",
+                s,
+                format!("unknown topology '{s}': expected mc33 or classic"),
+            )),
         }
     }
 }

@@ -39,23 +39,31 @@ impl Masks {
         let width = max[0] + 1 - min[0];
         let words = width.div_ceil(64);
         let rows = (max[1] + 1 - min[1]) * (max[2] + 1 - min[2]);
-        let row_values = || {
-            (min[2]..=max[2])
-                .flat_map(move |k| (min[1]..=max[1]).map(move |j| window.row(j, k, min[0], max[0])))
-        };
         let mut above = vec![0u64; rows * words];
         let mut invalid = false;
-        for (row, out) in row_values().zip(above.chunks_exact_mut(words)) {
-            invalid |= pack_row(row, level, out);
+        let mut out = above.chunks_exact_mut(words);
+        window.for_each_row(min, max, |row| {
+            invalid |= pack_row(row, level, out.next().expect("a mask row per point row"));
+        });
+        let invalid = invalid.then(|| {
+            let mut bad = vec![0u64; above.len()];
+            let mut out = bad.chunks_exact_mut(words);
+            window.for_each_row(min, max, |row| {
+                invalid_row(row, out.next().expect("a mask row per point row"));
+            });
+            bad
+        });
+        Masks {
+            words,
+            above,
+            invalid,
         }
-        Masks::finish(words, above, invalid, row_values())
     }
 
-    /// [`Masks::new`] for all of `window`'s points, a plane per task.
-    pub(super) fn new_parallel(window: &Window, level: f32) -> Masks {
-        let [nx, ny, nz] = window.dims();
+    /// [`Masks::new`] for all points of a grid stored `x` fastest, a plane per task.
+    pub(super) fn new_parallel(values: &[f32], dims: [usize; 3], level: f32) -> Masks {
+        let [nx, ny, nz] = dims;
         let words = nx.div_ceil(64);
-        let values = window.planes(0, nz - 1);
         let mut above = vec![0u64; ny * nz * words];
         let invalid = values
             .par_chunks(nx * ny)
@@ -67,20 +75,9 @@ impl Masks {
                     .fold(false, |bad, (row, out)| bad | pack_row(row, level, out))
             })
             .reduce(|| false, |a, b| a | b);
-        Masks::finish(words, above, invalid, values.chunks_exact(nx))
-    }
-
-    /// The masks, with the non-finite bits of `rows` (the rows `above` was packed from) when
-    /// some value is not finite.
-    fn finish<'v>(
-        words: usize,
-        above: Vec<u64>,
-        invalid: bool,
-        rows: impl Iterator<Item = &'v [f32]>,
-    ) -> Masks {
         let invalid = invalid.then(|| {
             let mut bad = vec![0u64; above.len()];
-            for (row, out) in rows.zip(bad.chunks_exact_mut(words)) {
+            for (row, out) in values.chunks_exact(nx).zip(bad.chunks_exact_mut(words)) {
                 invalid_row(row, out);
             }
             bad
@@ -261,10 +258,9 @@ impl<'a> BinaryCells<'a> {
         out.faces = cells.shared_faces(grid.dims());
         cache.prepare(bx + 1, by + 1);
         let values = grid.values();
-        let [nx, ny, _] = grid.dims();
-        let (sy, sz) = (nx, nx * ny);
+        let [sx, sy, sz] = grid.strides();
         // Offsets of the cube vertices from the cell's first point, in the numbering of `cube`.
-        let corner_offsets = [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz];
+        let corner_offsets = [0, sx, sx + sy, sy, sz, sx + sz, sx + sy + sz, sy + sz];
         // The box's own masks: its planes are read once, just before their cells are visited.
         let masks = Masks::new(grid, level, cells.min, cells.max);
         let rows = by + 1;

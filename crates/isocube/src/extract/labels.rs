@@ -25,7 +25,7 @@
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
-use crate::field::Grid;
+use crate::field::GridView;
 use crate::mesh::Mesh;
 
 use super::chunk::{join_tagged, CellBox, ChunkMesh, VertexKey};
@@ -108,10 +108,11 @@ const TETS: [[u8; 4]; 6] = [
 ///     assert_eq!((r.components, r.euler), (1, 2));
 /// }
 /// ```
-pub fn extract_labels(
-    grid: &Grid,
+pub fn extract_labels<'a>(
+    grid: impl Into<GridView<'a>>,
     options: &LabelOptions,
 ) -> Result<Vec<LabelSurface>, ExtractError> {
+    let grid = grid.into();
     let cells = label_cells(grid.dims());
     let height = super::binary::slab_height(cells.max[0], cells.max[1], cells.max[2]);
     let boxes = CellBox::tile(
@@ -153,12 +154,12 @@ pub fn label_cells(dims: [usize; 3]) -> CellBox {
 ///     assert_eq!((a.label, &a.mesh), (b.label, &b.mesh));
 /// }
 /// ```
-pub fn extract_labels_boxes(
-    grid: &Grid,
+pub fn extract_labels_boxes<'a>(
+    grid: impl Into<GridView<'a>>,
     options: &LabelOptions,
     boxes: &[CellBox],
 ) -> Result<Vec<LabelSurface>, ExtractError> {
-    Grid::point_count(grid.dims())?;
+    let grid = grid.into();
     let labelled = Labelled::new(grid, options)?;
     let chunks: Vec<ChunkMesh> = boxes
         .par_iter()
@@ -190,12 +191,14 @@ pub fn extract_labels_boxes(
             let t = t.map(|v| {
                 *map.entry(v).or_insert_with(|| {
                     mesh.positions.push(all.positions[v as usize]);
+                    // At most as many as `all` has, which are numbered by u32.
                     (mesh.positions.len() - 1) as u32
                 })
             });
             mesh.triangles.push(t);
         }
         mesh.compute_normals();
+        grid.orientation().orient_mesh(&mut mesh, grid.origin());
         out.push(LabelSurface {
             label: labelled.names[id as usize - 1],
             mesh,
@@ -220,7 +223,7 @@ struct Labelled<'a> {
 }
 
 impl<'a> Labelled<'a> {
-    fn new(grid: &Grid, options: &'a LabelOptions) -> Result<Labelled<'a>, ExtractError> {
+    fn new(grid: GridView, options: &'a LabelOptions) -> Result<Labelled<'a>, ExtractError> {
         let [nx, ny, nz] = grid.dims();
         let mut names: Vec<i64> = Vec::new();
         let mut dense: FxHashMap<i64, u32> = FxHashMap::default();
@@ -229,7 +232,7 @@ impl<'a> Labelled<'a> {
         for k in 0..nz {
             for j in 0..ny {
                 for i in 0..nx {
-                    let v = grid.values()[grid.index(i, j, k)];
+                    let v = grid.value(i, j, k);
                     if !v.is_finite() || v.fract() != 0.0 || v.abs() > 9.0e15 {
                         return Err(ExtractError::Label {
                             point: [i, j, k],
@@ -453,6 +456,7 @@ fn smooth(positions: &mut [[f32; 3]], triangles: &[Vec<[u32; 3]>], sweeps: usize
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::Grid;
 
     fn labelled(dims: [usize; 3], mut f: impl FnMut(usize, usize, usize) -> f32) -> Grid {
         let mut v = Vec::new();
@@ -597,6 +601,7 @@ mod tests {
 #[cfg(test)]
 mod partition_tests {
     use super::*;
+    use crate::field::Grid;
     use proptest::prelude::*;
 
     proptest! {

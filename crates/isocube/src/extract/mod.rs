@@ -100,7 +100,9 @@ use thiserror::Error;
 use rayon::prelude::*;
 
 use crate::cube::{CaseTable, Topology};
-use crate::field::Grid;
+use std::ops::ControlFlow;
+
+use crate::field::{Grid, GridView};
 use crate::mesh::Mesh;
 use crate::quality::Strategy;
 
@@ -327,6 +329,9 @@ pub enum ExtractError {
         /// The chunk's box.
         cells: CellBox,
     },
+    /// The progress callback asked to stop.
+    #[error("stopped before the end (cancelled)")]
+    Cancelled,
     /// A labelled grid holds a value that is not an integer label.
     #[error("point {point:?} holds {value}, which is not an integer label")]
     Label {
@@ -338,24 +343,42 @@ pub enum ExtractError {
 }
 
 /// Extracts the isosurface into a new mesh.
-pub fn extract(
-    grid: &Grid,
+pub fn extract<'a>(
+    grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
 ) -> Result<(Mesh, ExtractStats), ExtractError> {
     let mut mesh = Mesh::new();
-    let stats = extract_into(grid, options, &mut mesh, &mut |_, _| {})?;
+    let stats = extract_into(grid, options, &mut mesh, &mut crate::no_progress)?;
     Ok((mesh, stats))
 }
 
 /// Extracts into `mesh` (cleared first, allocations reused), calling `progress(done, total)`
-/// as cells are meshed (counts of cells).
-pub fn extract_into(
-    grid: &Grid,
+/// as cells are meshed (counts of cells); when it answers [`ControlFlow::Break`] the work stops
+/// and the call returns [`ExtractError::Cancelled`].
+///
+/// ```
+/// use std::ops::ControlFlow;
+/// use isocube::extract::{extract_into, ExtractError, ExtractOptions};
+/// use isocube::field::Sample;
+/// use isocube::mesh::Mesh;
+/// let grid = Sample::Gyroid.grid(64);
+/// let mut mesh = Mesh::new();
+/// let mut calls = 0;
+/// let stopped = extract_into(&grid, &ExtractOptions::default(), &mut mesh, &mut |done, total| {
+///     calls += 1;
+///     assert!(done <= total);
+///     if done * 4 > total { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+/// });
+/// assert!(matches!(stopped, Err(ExtractError::Cancelled)));
+/// assert!(calls >= 1);
+/// ```
+pub fn extract_into<'a>(
+    grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
     mesh: &mut Mesh,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExtractStats, ExtractError> {
-    Grid::point_count(grid.dims())?;
+    let grid = grid.into();
     let boxes = binary::slabs(grid.dims());
     extract_boxes_into(grid, options, &boxes, mesh, progress)
 }
@@ -372,38 +395,41 @@ pub fn extract_into(
 /// let boxes = CellBox::tile(grid.dims(), [1, 19, 13]).unwrap();
 /// assert_eq!(extract_boxes(&grid, &options, &boxes).unwrap(), extract(&grid, &options).unwrap());
 /// ```
-pub fn extract_boxes(
-    grid: &Grid,
+pub fn extract_boxes<'a>(
+    grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
     boxes: &[CellBox],
 ) -> Result<(Mesh, ExtractStats), ExtractError> {
     let mut mesh = Mesh::new();
-    let stats = extract_boxes_into(grid, options, boxes, &mut mesh, &mut |_, _| {})?;
+    let stats = extract_boxes_into(grid, options, boxes, &mut mesh, &mut crate::no_progress)?;
     Ok((mesh, stats))
 }
 
 /// [`extract_boxes`] into `mesh` (cleared first), calling `progress(done, total)` as cells
-/// are meshed.
-pub fn extract_boxes_into(
-    grid: &Grid,
+/// are meshed (a stop ends the work with [`ExtractError::Cancelled`], as in [`extract_into`]).
+pub fn extract_boxes_into<'a>(
+    grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
     boxes: &[CellBox],
     mesh: &mut Mesh,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExtractStats, ExtractError> {
+    let grid = grid.into();
     let extractor = Extractor::new(grid, options)?;
-    let chunks = extractor.mesh_boxes(boxes)?;
-    let total: usize = chunks.iter().map(|c| c.cells.cell_count()).sum();
-    let done: Vec<usize> = chunks
-        .iter()
-        .scan(0, |d, c| {
-            *d += c.cells.cell_count();
-            Some(*d)
-        })
-        .collect();
-    let mut stats = join(grid.dims(), chunks, mesh, &mut |c| {
-        progress(done[c - 1], total)
-    })?;
+    let total: usize = boxes.iter().map(|b| b.cell_count()).sum();
+    // Boxes are meshed a batch at a time so that progress is told, and a stop honoured, while
+    // the work runs: some 32 batches, each enough to keep every thread busy.
+    let batch = (boxes.len() / 32).max(4 * rayon::current_num_threads());
+    let mut chunks = Vec::with_capacity(boxes.len());
+    let mut done = 0;
+    for group in boxes.chunks(batch) {
+        chunks.extend(extractor.mesh_boxes(group)?);
+        done += group.iter().map(|b| b.cell_count()).sum::<usize>();
+        if progress(done, total).is_break() {
+            return Err(ExtractError::Cancelled);
+        }
+    }
+    let mut stats = join(grid.dims(), chunks, mesh, &mut |_| {})?;
     stats.snapped_points = extractor.snapping.0;
     stats.refused_points = extractor.snapping.1;
     if let Some(normals) = mesh.filled_normals() {
@@ -411,14 +437,27 @@ pub fn extract_boxes_into(
     }
     if options.relax > 0 {
         let spacing = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
-        crate::quality::relax(
-            mesh,
-            &crate::quality::Trilinear(grid),
-            f64::from(options.level),
-            options.relax,
-            spacing,
-        );
+        let level = f64::from(options.level);
+        // A built-in sample relaxes on its exact function: the level set the grid approximates.
+        match grid.exact() {
+            Some(sample) => crate::quality::relax(
+                mesh,
+                &crate::quality::Implicit(|p| sample.eval(p), 1e-4 * spacing),
+                level,
+                options.relax,
+                spacing,
+            ),
+            None => crate::quality::relax(
+                mesh,
+                &crate::quality::Trilinear(grid),
+                level,
+                options.relax,
+                spacing,
+            ),
+        };
     }
+    // Extraction ran in the grid's own frame; its direction turns the mesh into the world.
+    grid.orientation().orient_mesh(mesh, grid.origin());
     Ok(stats)
 }
 
@@ -437,7 +476,7 @@ pub fn extract_boxes_into(
 /// assert!(chunk.stats.active_cells > 0);
 /// ```
 pub struct Extractor<'a> {
-    grid: &'a Grid,
+    grid: GridView<'a>,
     options: ExtractOptions,
     ternary: Option<ternary::Ternary<'a>>,
     /// Ternary: (snapped, refused) points.
@@ -446,7 +485,11 @@ pub struct Extractor<'a> {
 
 impl<'a> Extractor<'a> {
     /// Checks the options and makes the choices that need the whole grid.
-    pub fn new(grid: &'a Grid, options: &ExtractOptions) -> Result<Extractor<'a>, ExtractError> {
+    pub fn new(
+        grid: impl Into<GridView<'a>>,
+        options: &ExtractOptions,
+    ) -> Result<Extractor<'a>, ExtractError> {
+        let grid = grid.into();
         if !options.level.is_finite() {
             return Err(ExtractError::Level(options.level));
         }
@@ -493,13 +536,14 @@ impl<'a> Extractor<'a> {
         cells: CellBox,
     ) -> Result<ChunkMesh, ExtractError> {
         cells.check(self.grid.dims())?;
-        let window = Window::whole(self.grid);
         match &self.ternary {
             Some(ternary) => {
-                let placer = Placer::new(window, &self.options);
+                let placer = Placer::new(ternary.window(), &self.options);
                 ternary.mesh_box(&placer, self.options.flip, cells)
             }
-            None => BinaryCells::new(window, &self.options).mesh_box(cache, cells),
+            None => {
+                BinaryCells::new(Window::whole(self.grid), &self.options).mesh_box(cache, cells)
+            }
         }
     }
 }

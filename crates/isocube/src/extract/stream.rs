@@ -14,6 +14,8 @@ use super::chunk::{ChunkMesh, LayerJoiner};
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{ExtractError, ExtractOptions, ExtractStats, Method};
+use std::ops::ControlFlow;
+
 use crate::field::{Grid, PlaneSource};
 use crate::mesh::Mesh;
 
@@ -93,14 +95,14 @@ pub enum StreamError<E> {
 /// let grid = Sample::Tangle.grid(30);
 /// let options = ExtractOptions::default();
 /// let mut streamed = Mesh::new();
-/// extract_streamed(&grid, &options, &mut streamed, &mut |_, _| {}).unwrap();
+/// extract_streamed(&grid, &options, &mut streamed, &mut isocube::no_progress).unwrap();
 /// assert_eq!(streamed, extract(&grid, &options).unwrap().0);
 /// ```
 pub fn extract_streamed<S: MeshSink>(
     source: &dyn PlaneSource,
     options: &ExtractOptions,
     sink: &mut S,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExtractStats, StreamError<S::Error>> {
     if !options.level.is_finite() {
         return Err(ExtractError::Level(options.level).into());
@@ -145,7 +147,9 @@ pub fn extract_streamed<S: MeshSink>(
             sink.triangles(&joined.triangles)
                 .map_err(StreamError::Sink)?;
             stats.add(&joined.chunk.stats);
-            progress(part.cells.max[2], nz - 1);
+            if progress(part.cells.max[2], nz - 1).is_break() {
+                return Err(ExtractError::Cancelled.into());
+            }
         }
         let last = group.last().expect("a batch has boxes");
         source.release_before(last.max[2].saturating_sub(1));
@@ -167,7 +171,7 @@ mod tests {
             .build()
             .unwrap();
         let mut mesh = Mesh::new();
-        pool.install(|| extract_streamed(grid, options, &mut mesh, &mut |_, _| {}))
+        pool.install(|| extract_streamed(grid, options, &mut mesh, &mut crate::no_progress))
             .unwrap();
         mesh
     }
@@ -208,7 +212,7 @@ mod tests {
             ExtractOptions::default().with_level(f32::NAN),
         ] {
             assert!(matches!(
-                extract_streamed(&grid, &options, &mut mesh, &mut |_, _| {}),
+                extract_streamed(&grid, &options, &mut mesh, &mut crate::no_progress),
                 Err(StreamError::Extract(_))
             ));
         }

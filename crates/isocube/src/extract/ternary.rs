@@ -50,7 +50,10 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::cube::triangulate::{safe_triangulation, star};
 use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
-use crate::field::Grid;
+use std::borrow::Cow;
+
+use super::window::Window;
+use crate::field::GridView;
 use crate::quality::{triangulate, Strategy};
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
@@ -97,14 +100,16 @@ impl SnapPosition {
 }
 
 impl std::str::FromStr for SnapPosition {
-    type Err = String;
+    type Err = crate::ParseError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "grid" => Ok(SnapPosition::GridPoint),
             "crossing" => Ok(SnapPosition::NearestCrossing),
-            _ => Err(format!(
-                "unknown snap position '{s}': expected grid or crossing"
+            _ => Err(crate::ParseError::new(
+                "snap position",
+                s,
+                format!("unknown snap position '{s}': expected grid or crossing"),
             )),
         }
     }
@@ -176,10 +181,12 @@ impl Patch {
 }
 
 pub(super) struct Ternary<'a> {
-    grid: &'a Grid,
+    /// The grid's geometry (its values may lie in any order).
+    grid: GridView<'a>,
     level: f32,
     topology: Topology,
-    values: &'a [f32],
+    /// The values, `x` fastest (borrowed when the grid is stored so): point `p` is `values[p]`.
+    values: Cow<'a, [f32]>,
     /// Zero points, one bit each: the field `g` is the level there and `values` elsewhere.
     zero: Vec<u64>,
     /// Sign masks of `g` (zero points are above).
@@ -191,24 +198,41 @@ pub(super) struct Ternary<'a> {
 }
 
 impl<'a> Ternary<'a> {
-    pub(super) fn new(grid: &'a Grid, options: &ExtractOptions, snapping: Snapping) -> Ternary<'a> {
+    pub(super) fn new(
+        grid: GridView<'a>,
+        options: &ExtractOptions,
+        snapping: Snapping,
+    ) -> Ternary<'a> {
         let [nx, ny, _] = grid.dims();
         let (sy, sz) = (nx, nx * ny);
+        // Snapping reads points by their number over and over: a grid stored in another order
+        // is gathered once.
+        let values = grid.x_fastest();
         Ternary {
             grid,
             level: options.level,
             topology: options.topology,
-            values: grid.values(),
-            zero: vec![0; grid.values().len().div_ceil(64)],
-            masks: super::binary::Masks::new_parallel(
-                &super::window::Window::whole(grid),
-                options.level,
-            ),
+            zero: vec![0; values.len().div_ceil(64)],
+            masks: super::binary::Masks::new_parallel(&values, grid.dims(), options.level),
+            values,
             snapping,
             strategy: options.triangulation,
             offsets: [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz],
             strides: [1, sy, sz],
         }
+    }
+
+    /// The values as the binary mesher's window reads them (`x` fastest).
+    pub(super) fn window(&self) -> Window<'_> {
+        let g = &self.grid;
+        Window::new(g.dims(), g.spacing(), g.origin(), 0, &self.values)
+    }
+
+    /// Number of point `(i, j, k)`: its place in [`Ternary::values`].
+    #[inline]
+    fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        let [nx, ny, _] = self.grid.dims();
+        i + nx * (j + ny * k)
     }
 
     fn coords(&self, p: usize) -> [usize; 3] {
@@ -225,7 +249,7 @@ impl<'a> Ternary<'a> {
     /// one after the other (the reference the grouping must reproduce).
     pub(super) fn choose_zeros_in_groups(&mut self, grouped: bool) -> (usize, usize) {
         let snapping = self.snapping;
-        let values = self.grid.values();
+        let values: &[f32] = &self.values;
         let level = f64::from(self.level);
         let dims = self.grid.dims();
         // (point, nearest crossing as a fraction of an edge), from one pass over the grid edges,
@@ -234,14 +258,13 @@ impl<'a> Ternary<'a> {
         let snap = f64::from(snapping.snap);
         let [nx, ny, nz] = dims;
         let strides = self.strides;
-        let grid = self.grid;
         let masks = &self.masks;
         let planes: Vec<Vec<(usize, f64)>> = (0..nz)
             .into_par_iter()
             .map(|k| {
                 let mut near = Vec::new();
                 for j in 0..ny {
-                    let row = grid.index(0, j, k);
+                    let row = nx * (j + ny * k);
                     if threshold > 0.0 || values[row..row + nx].contains(&self.level) {
                         for (i, &v) in values[row..row + nx].iter().enumerate() {
                             if (f64::from(v) - level).abs() <= threshold {
@@ -921,7 +944,7 @@ impl<'a> Ternary<'a> {
     /// Where the vertex of zero point `p` goes, as `(edge start, axis, fraction)`: `(p, 0, 0.0)`
     /// for the grid point itself.
     fn snapped_place(&self, p: usize) -> (usize, usize, f64) {
-        let values = self.grid.values();
+        let values: &[f32] = &self.values;
         let level = f64::from(self.level);
         let v = f64::from(values[p]);
         if self.snapping.position == SnapPosition::GridPoint
@@ -1031,7 +1054,7 @@ impl<'a> Ternary<'a> {
                     if i >= x1 {
                         break;
                     }
-                    let base = self.grid.index(i, j, k);
+                    let base = self.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
                     if pts.iter().any(|&p| !self.values[p].is_finite()) {
                         out.stats.skipped_cells += 1;

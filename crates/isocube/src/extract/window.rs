@@ -1,23 +1,22 @@
-//! A window of point planes: what one slab of the binary engine reads.
+//! A window of point planes: what one box of the binary engine reads.
 
-use crate::field::Grid;
+use crate::field::GridView;
 
-/// The values of point planes `first..` of a grid (as many as `values` holds), with the whole
-/// grid's dimensions and geometry: indices are the whole grid's, so positions and gradients come
-/// out exactly as on the whole grid as long as the planes asked for are in the window.
+/// The values a cell mesher reads: a whole [`GridView`] (in any memory order), or only planes
+/// `first..` of a grid (a streamed slab, `x` fastest). Indices are always the whole grid's, so
+/// positions and gradients come out exactly as on the whole grid as long as the planes asked for
+/// are in the window.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Window<'a> {
-    dims: [usize; 3],
-    spacing: [f64; 3],
-    origin: [f64; 3],
-    first: usize,
-    values: &'a [f32],
+    view: GridView<'a>,
+    /// Elements to subtract from a view index: the planes before the window's first.
+    skipped: usize,
 }
 
 impl<'a> Window<'a> {
-    /// All of a grid.
-    pub(super) fn whole(grid: &'a Grid) -> Window<'a> {
-        Window::new(grid.dims(), grid.spacing(), grid.origin(), 0, grid.values())
+    /// All of a view.
+    pub(super) fn whole(view: GridView<'a>) -> Window<'a> {
+        Window { view, skipped: 0 }
     }
 
     /// Planes `first..first + values.len() / (nx · ny)` of a grid with this geometry.
@@ -30,69 +29,77 @@ impl<'a> Window<'a> {
     ) -> Window<'a> {
         debug_assert_eq!(values.len() % (dims[0] * dims[1]), 0);
         Window {
-            dims,
-            spacing,
-            origin,
-            first,
-            values,
+            view: GridView::planes(values, dims, spacing, origin),
+            skipped: first * dims[0] * dims[1],
         }
     }
 
     /// The whole grid's dimensions.
     #[inline]
     pub(super) fn dims(&self) -> [usize; 3] {
-        self.dims
+        self.view.dims()
     }
 
     #[inline]
     pub(super) fn spacing(&self) -> [f64; 3] {
-        self.spacing
+        self.view.spacing()
+    }
+
+    /// Elements between neighbouring points along each axis.
+    #[inline]
+    pub(super) fn strides(&self) -> [usize; 3] {
+        self.view.strides()
     }
 
     /// Offset in [`Window::values`] of point `(i, j, k)`.
     #[inline]
     pub(super) fn index(&self, i: usize, j: usize, k: usize) -> usize {
-        i + self.dims[0] * (j + self.dims[1] * (k - self.first))
+        self.view.index(i, j, k) - self.skipped
     }
 
     #[inline]
     pub(super) fn value(&self, i: usize, j: usize, k: usize) -> f32 {
-        self.values[self.index(i, j, k)]
+        self.view.values()[self.index(i, j, k)]
     }
 
-    /// The grid's number for point `p` (`x + nx·(y + ny·z)`), wherever the window starts.
+    /// The grid's number for point `p` (`x + nx·(y + ny·z)`), wherever and however the values
+    /// are stored: the key vertices are welded by.
     #[inline]
     pub(super) fn point_index(&self, p: [usize; 3]) -> usize {
-        p[0] + self.dims[0] * (p[1] + self.dims[1] * p[2])
+        let [nx, ny, _] = self.dims();
+        p[0] + nx * (p[1] + ny * p[2])
     }
 
-    /// Points `x0..=x1` of row `(j, k)`.
-    #[inline]
-    pub(super) fn row(&self, j: usize, k: usize, x0: usize, x1: usize) -> &'a [f32] {
-        let start = self.index(0, j, k);
-        &self.values[start + x0..=start + x1]
+    /// Calls `f` with the values of points `min..=max` row by row (`x` fastest, then `y`, then
+    /// `z`): slices of the values where rows lie `x` fastest, else gathered into one buffer.
+    pub(super) fn for_each_row(&self, min: [usize; 3], max: [usize; 3], mut f: impl FnMut(&[f32])) {
+        let values = self.view.values();
+        let sx = self.strides()[0];
+        let mut gathered = Vec::new();
+        for k in min[2]..=max[2] {
+            for j in min[1]..=max[1] {
+                let start = self.index(min[0], j, k);
+                if sx == 1 {
+                    f(&values[start..=start + (max[0] - min[0])]);
+                } else {
+                    gathered.clear();
+                    gathered.extend((0..=max[0] - min[0]).map(|i| values[start + i * sx]));
+                    f(&gathered);
+                }
+            }
+        }
     }
 
-    /// The window's values, from plane `first`.
+    /// The window's values (point `(i, j, k)` at [`Window::index`]).
     #[inline]
     pub(super) fn values(&self) -> &'a [f32] {
-        self.values
+        self.view.values()
     }
 
-    /// The values of planes `k0..=k1`.
-    pub(super) fn planes(&self, k0: usize, k1: usize) -> &'a [f32] {
-        let plane = self.dims[0] * self.dims[1];
-        &self.values[(k0 - self.first) * plane..(k1 + 1 - self.first) * plane]
-    }
-
-    /// World position of point `(i, j, k)`: the same arithmetic as [`Grid::point`], so the
-    /// same bits.
+    /// World position of point `(i, j, k)` in the grid's frame: the same arithmetic as
+    /// [`crate::field::Grid::point`], so the same bits.
     #[inline]
     pub(super) fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
-        [
-            self.origin[0] + i as f64 * self.spacing[0],
-            self.origin[1] + j as f64 * self.spacing[1],
-            self.origin[2] + k as f64 * self.spacing[2],
-        ]
+        self.view.point(i, j, k)
     }
 }

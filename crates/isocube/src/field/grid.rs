@@ -1,5 +1,7 @@
 use thiserror::Error;
 
+use super::{GridView, Sample};
+
 /// Why a grid could not be built.
 #[derive(Debug, Error, Clone, PartialEq)]
 #[non_exhaustive]
@@ -51,12 +53,24 @@ pub enum GridError {
 /// assert_eq!(g.value(2, 2, 2), 1.5);
 /// assert_eq!(g.point(0, 0, 0), [-0.5, -0.5, -0.5]);
 /// ```
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Grid {
     dims: [usize; 3],
     spacing: [f64; 3],
     origin: [f64; 3],
     values: Vec<f32>,
+    /// The sample the values were computed from, while the grid is still exactly that.
+    exact: Option<Sample>,
+}
+
+/// Grids are equal when their points and values are: how the values were made does not count.
+impl PartialEq for Grid {
+    fn eq(&self, other: &Grid) -> bool {
+        self.dims == other.dims
+            && self.spacing == other.spacing
+            && self.origin == other.origin
+            && self.values == other.values
+    }
 }
 
 impl Grid {
@@ -76,6 +90,7 @@ impl Grid {
             spacing: [1.0; 3],
             origin: [0.0; 3],
             values,
+            exact: None,
         })
     }
 
@@ -95,6 +110,7 @@ impl Grid {
             return Err(GridError::Spacing { spacing });
         }
         self.spacing = spacing;
+        self.exact = None;
         Ok(self)
     }
 
@@ -104,6 +120,7 @@ impl Grid {
             return Err(GridError::Origin { origin });
         }
         self.origin = origin;
+        self.exact = None;
         Ok(self)
     }
 
@@ -157,6 +174,7 @@ impl Grid {
 
     /// Mutable access to the values (the dimensions stay fixed).
     pub fn values_mut(&mut self) -> &mut [f32] {
+        self.exact = None;
         &mut self.values
     }
 
@@ -237,7 +255,29 @@ impl Grid {
             spacing: self.spacing.map(|h| h / k as f64),
             origin: self.origin,
             values,
+            exact: None,
         }
+    }
+
+    /// The grid as a borrowed view (what every extraction entry point takes).
+    pub fn view(&self) -> GridView<'_> {
+        let view = GridView::planes(&self.values, self.dims, self.spacing, self.origin);
+        match self.exact {
+            Some(sample) => view.with_exact(sample),
+            None => view,
+        }
+    }
+
+    /// Marks the values as computed from `sample` at these points, so relaxation follows its
+    /// exact function.
+    pub(crate) fn with_exact(mut self, sample: Sample) -> Grid {
+        self.exact = Some(sample);
+        self
+    }
+
+    /// The built-in sample the values were computed from, if the grid is still exactly that.
+    pub fn exact(&self) -> Option<Sample> {
+        self.exact
     }
 
     /// Smallest and largest finite value, if any value is finite.

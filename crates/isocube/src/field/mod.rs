@@ -9,8 +9,10 @@ mod grid;
 mod orientation;
 mod samples;
 mod source;
+mod view;
 
 pub use grid::{Grid, GridError};
 pub use orientation::Orientation;
 pub use samples::{Sample, SampleSpec};
 pub use source::PlaneSource;
+pub use view::GridView;

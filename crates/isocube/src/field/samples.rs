@@ -141,7 +141,7 @@ impl Sample {
         let (lo, hi) = self.bounds();
         let n = n.max(2);
         let h = (hi - lo) / (n - 1) as f64;
-        Grid::from_fn([n; 3], [h; 3], [lo; 3], |p| self.eval(p))
+        Grid::from_fn([n; 3], [h; 3], [lo; 3], |p| self.eval(p)).with_exact(self)
     }
 }
 
@@ -188,7 +188,7 @@ fn value_noise(seed: u64, p: [f64; 3]) -> f64 {
 }
 
 impl FromStr for Sample {
-    type Err = String;
+    type Err = crate::ParseError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Sample::ALL
             .iter()
@@ -196,7 +196,11 @@ impl FromStr for Sample {
             .find(|x| x.name() == s)
             .ok_or_else(|| {
                 let names: Vec<&str> = Sample::ALL.iter().map(|x| x.name()).collect();
-                format!("unknown sample '{s}': expected one of {}", names.join(", "))
+                crate::ParseError::new(
+                    "sample",
+                    s,
+                    format!("unknown sample '{s}': expected one of {}", names.join(", ")),
+                )
             })
     }
 }
@@ -242,32 +246,58 @@ impl fmt::Display for SampleSpec {
 }
 
 impl FromStr for SampleSpec {
-    type Err = String;
+    type Err = crate::ParseError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let rest = s
-            .strip_prefix("sample:")
-            .ok_or_else(|| format!("'{s}' is not of the form sample:NAME:N"))?;
+        let rest = s.strip_prefix("sample:").ok_or_else(|| {
+            crate::ParseError::new(
+                "sample",
+                s,
+                format!("'{s}' is not of the form sample:NAME:N"),
+            )
+        })?;
         let parts: Vec<&str> = rest.split(':').collect();
         if parts.len() < 2 || parts.len() > 3 {
-            return Err(format!("'{s}' is not of the form sample:NAME:N[:SEED]"));
+            return Err(crate::ParseError::new(
+                "sample",
+                s,
+                format!("'{s}' is not of the form sample:NAME:N[:SEED]"),
+            ));
         }
         let mut sample: Sample = parts[0].parse()?;
-        let n: usize = parts[1]
-            .parse()
-            .map_err(|_| format!("'{}' in '{s}' is not a whole number of points", parts[1]))?;
+        let n: usize = parts[1].parse().map_err(|_| {
+            crate::ParseError::new(
+                "sample",
+                s,
+                format!("'{}' in '{s}' is not a whole number of points", parts[1]),
+            )
+        })?;
         if !(2..=Self::MAX_N).contains(&n) {
-            return Err(format!(
-                "{n} points per axis in '{s}' is out of range (2 to {})",
-                Self::MAX_N
+            return Err(crate::ParseError::new(
+                "sample",
+                s,
+                format!(
+                    "{n} points per axis in '{s}' is out of range (2 to {})",
+                    Self::MAX_N
+                ),
             ));
         }
         if let Some(seed) = parts.get(2) {
-            let seed: u64 = seed
-                .parse()
-                .map_err(|_| format!("seed '{seed}' in '{s}' is not a whole number"))?;
+            let seed: u64 = seed.parse().map_err(|_| {
+                crate::ParseError::new(
+                    "sample",
+                    s,
+                    format!("seed '{seed}' in '{s}' is not a whole number"),
+                )
+            })?;
             match &mut sample {
                 Sample::Noise { seed: s0 } => *s0 = seed,
-                _ => return Err(format!("only the noise sample takes a seed ('{s}')")),
+                _ => {
+                    return Err(crate::ParseError::new(
+                        "sample",
+                        s,
+                        format!("only the noise sample takes a seed ('{s}')"),
+                    ))
+                }
             }
         }
         Ok(SampleSpec { sample, n })

@@ -14,7 +14,7 @@
 //! `(180° − largest angle) · 3/7` (so 30° and 110° score the same); otherwise half the move is
 //! tried, then none. Vertices on open edges stay put, so boundaries do not drift.
 
-use crate::field::Grid;
+use crate::field::GridView;
 use crate::mesh::{cross, dot, sub, Mesh};
 
 /// A scalar field that can be evaluated with its gradient anywhere near the surface.
@@ -24,7 +24,7 @@ pub trait Field {
 }
 
 /// The trilinear interpolant of a grid (the field Marching Cubes approximates).
-pub struct Trilinear<'a>(pub &'a Grid);
+pub struct Trilinear<'a>(pub GridView<'a>);
 
 impl Field for Trilinear<'_> {
     fn value_and_gradient(&self, p: [f64; 3]) -> Option<(f64, [f64; 3])> {
@@ -612,14 +612,14 @@ fn reset_normals(mesh: &mut Mesh, field: &dyn Field, incident: &[u32], start: &[
 mod tests {
     use super::*;
     use crate::extract::{extract, ExtractOptions};
-    use crate::field::Sample;
+    use crate::field::{Grid, Sample};
     use crate::quality::angle_summary;
 
     #[test]
     fn trilinear_matches_a_linear_field_and_its_gradient() {
         let f = |p: [f64; 3]| 0.5 * p[0] - 2.0 * p[1] + 0.25 * p[2];
         let grid = Grid::from_fn([5, 6, 7], [0.5, 0.25, 0.2], [-1.0, 0.0, 1.0], f);
-        let t = Trilinear(&grid);
+        let t = Trilinear(grid.view());
         for p in [[0.1, 0.3, 1.3], [-0.9, 1.2, 2.1], [0.7, 0.01, 1.05]] {
             let (v, g) = t.value_and_gradient(p).unwrap();
             assert!((v - f(p)).abs() < 1e-5, "{v} {}", f(p));
@@ -637,7 +637,13 @@ mod tests {
         let (mut mesh, _) = extract(&grid, &ExtractOptions::default()).unwrap();
         let before = angle_summary(&mesh);
         let report = mesh.report();
-        let kept = relax(&mut mesh, &Trilinear(&grid), 0.0, 5, grid.spacing()[0]);
+        let kept = relax(
+            &mut mesh,
+            &Trilinear(grid.view()),
+            0.0,
+            5,
+            grid.spacing()[0],
+        );
         assert!(kept > 0);
         let after = angle_summary(&mesh);
         assert!(after.min_angle >= before.min_angle, "{before:?} {after:?}");
@@ -647,7 +653,7 @@ mod tests {
             (r.watertight, r.oriented, r.euler),
             (report.watertight, report.oriented, report.euler)
         );
-        let t = Trilinear(&grid);
+        let t = Trilinear(grid.view());
         for p in &mesh.positions {
             let (v, _) = t.value_and_gradient(p.map(f64::from)).unwrap();
             assert!(v.abs() < 1e-4, "{v}");

@@ -36,15 +36,17 @@ impl Strategy {
 }
 
 impl std::str::FromStr for Strategy {
-    type Err = String;
+    type Err = crate::ParseError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "fan" => Ok(Strategy::Fan),
             "local" => Ok(Strategy::Local),
             "optimal" => Ok(Strategy::Optimal),
-            _ => Err(format!(
-                "unknown triangulation '{s}': expected fan, local or optimal"
+            _ => Err(crate::ParseError::new(
+                "triangulation",
+                s,
+                format!("unknown triangulation '{s}': expected fan, local or optimal"),
             )),
         }
     }
