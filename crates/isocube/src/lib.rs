@@ -93,3 +93,33 @@ pub(crate) fn with_nan_holes(grid: field::Grid, every: usize) -> field::Grid {
         .collect();
     field::Grid::new(grid.dims(), values).expect("same dimensions")
 }
+
+#[cfg(test)]
+/// Random partitions of a grid's cells into boxes: cuts at random places along random axes,
+/// down to single cells, in a random order.
+pub(crate) fn random_partition(dims: [usize; 3], rng: &mut TestRng) -> Vec<extract::CellBox> {
+    let mut done = Vec::new();
+    let mut todo = vec![extract::CellBox::whole(dims)];
+    while let Some(b) = todo.pop() {
+        let e = b.extent();
+        let splittable: Vec<usize> = (0..3).filter(|&a| e[a] > 1).collect();
+        // Stop with probability 1/4 (or when the box is a single cell).
+        if splittable.is_empty() || rng.next_u64() % 4 == 0 {
+            done.push(b);
+            continue;
+        }
+        let a = splittable[(rng.next_u64() % splittable.len() as u64) as usize];
+        let cut = b.min[a] + 1 + (rng.next_u64() % (e[a] as u64 - 1)) as usize;
+        let (mut lo, mut hi) = (b, b);
+        lo.max[a] = cut;
+        hi.min[a] = cut;
+        todo.push(lo);
+        todo.push(hi);
+    }
+    // Fisher–Yates: the joiner must not depend on the order of the chunks.
+    for i in (1..done.len()).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        done.swap(i, j);
+    }
+    done
+}

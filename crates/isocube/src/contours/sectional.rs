@@ -33,7 +33,9 @@ use super::sparse::SparseField;
 use super::{Point2, Section, SectionStack};
 use crate::cube::polygons::face_segments;
 use crate::cube::{CaseTable, Corner, EDGES, EDGE_AXIS, VERTICES};
-use crate::extract::{cell_config, face_decisions};
+use crate::extract::{
+    cell_config, face_decisions, join, CellBox, ChunkMesh, ExtractError, VertexKey,
+};
 use crate::mesh::Mesh;
 use crate::quality::{triangulate, Strategy};
 use rayon::prelude::*;
@@ -93,6 +95,20 @@ struct Pieces {
 }
 
 impl Pieces {
+    /// A number for every contour point the pieces insert, unique in the stack.
+    fn numbered(&self) -> HashMap<Key, usize> {
+        let mut numbers = HashMap::default();
+        for layer in &self.layers {
+            for piece in layer.squares.values().flatten() {
+                for &(key, _) in &piece.inner {
+                    let next = numbers.len();
+                    numbers.entry(key).or_insert(next);
+                }
+            }
+        }
+        numbers
+    }
+
     fn square(&self, layer: usize, i: usize, j: usize) -> Option<&Vec<Piece>> {
         self.layers.get(layer)?.squares.get(&(i, j))
     }
@@ -338,14 +354,17 @@ pub(super) struct SectionalStats {
 }
 
 /// Extracts the surface between the sections (see the module documentation). The stack must
-/// give at least two layers (two sections, or one with extension caps).
+/// give at least two layers (two sections, or one with extension caps). The engine's grid is
+/// the plane grid's points by layers; `boxes` (disjoint, covering its cells) cut the work, a box
+/// a layer pair by default: the mesh is the same, to the bit, however it is cut.
 pub(super) fn extract_sectional(
     stack: &SectionStack,
     plane: &PlaneGrid,
     extend: Option<f64>,
     fidelity: Fidelity,
     triangulation: Strategy,
-) -> (Mesh, SectionalStats) {
+    boxes: Option<&[CellBox]>,
+) -> Result<(Mesh, SectionalStats), ExtractError> {
     let field = SparseField::new(stack, plane, extend);
     let [nx, ny] = plane.dims;
     let offset = usize::from(extend.is_some());
@@ -364,45 +383,25 @@ pub(super) fn extract_sectional(
         offset,
         table,
         triangulation,
+        dims: [nx, ny, field.heights.len()],
+        contour_points: pieces.numbered(),
     };
     let layers = field.heights.len();
-    // Layer pairs are meshed in parallel, each with its own vertices; the vertices on section
-    // planes, which two pairs share, are then welded by key in pair order, so the mesh is the
-    // same whatever the number of threads.
-    let parts: Vec<PairMesh> = (0..layers - 1)
+    // Layer pairs are boxes of the engine's grid of (x, y, layer) points, meshed in parallel and
+    // joined by their vertices' keys.
+    let boxes = match boxes {
+        Some(boxes) => boxes.to_vec(),
+        None => CellBox::tile(ctx.dims, [nx - 1, ny - 1, 1])?,
+    };
+    let chunks: Vec<ChunkMesh> = boxes
         .into_par_iter()
-        .map(|l| ctx.pair_mesh(l))
-        .collect();
+        .map(|cells| {
+            cells.check(ctx.dims)?;
+            ctx.mesh_box(cells)
+        })
+        .collect::<Result<_, _>>()?;
     let mut mesh = Mesh::new();
-    let total: usize = parts.iter().map(|p| p.triangles.len()).sum();
-    mesh.triangles.reserve(total);
-    mesh.positions.reserve(total / 2 + 16);
-    let mut below: HashMap<Key, u32> = HashMap::default();
-    for (l, part) in parts.into_iter().enumerate() {
-        let mut above: HashMap<Key, u32> = HashMap::default();
-        let mut global = Vec::with_capacity(part.positions.len());
-        for (p, key) in part.positions.into_iter().zip(part.keys) {
-            let map = match ctx.layer_of_key(key) {
-                Some(layer) if layer == l => Some(&mut below),
-                Some(_) => Some(&mut above),
-                None => None,
-            };
-            let id = match map {
-                Some(map) => *map.entry(key).or_insert_with(|| {
-                    mesh.positions.push(p);
-                    (mesh.positions.len() - 1) as u32
-                }),
-                None => {
-                    mesh.positions.push(p);
-                    (mesh.positions.len() - 1) as u32
-                }
-            };
-            global.push(id);
-        }
-        mesh.triangles
-            .extend(part.triangles.iter().map(|t| t.map(|v| global[v as usize])));
-        below = above;
-    }
+    join(ctx.dims, chunks, &mut mesh, &mut |_| {})?;
     mesh.flip_orientation();
     mesh.compute_normals();
     let stats = SectionalStats {
@@ -412,7 +411,7 @@ pub(super) fn extract_sectional(
         unresolved_edges: pieces.unresolved_edges,
         missed_contours: pieces.missed_contours,
     };
-    (mesh, stats)
+    Ok((mesh, stats))
 }
 
 /// The plane edge a cube edge lies on, if it lies in the cell's bottom or top face.
@@ -436,71 +435,83 @@ struct Context<'a> {
     offset: usize,
     table: &'a CaseTable,
     triangulation: Strategy,
-}
-
-/// The mesh of one layer pair, with the key of every vertex.
-struct PairMesh {
-    positions: Vec<[f32; 3]>,
-    keys: Vec<Key>,
-    triangles: Vec<[u32; 3]>,
+    /// The engine's grid: plane points by layers.
+    dims: [usize; 3],
+    /// The number of every contour point a piece inserts (their keys in the engine).
+    contour_points: HashMap<Key, usize>,
 }
 
 impl Context<'_> {
-    /// The section layer a vertex lies on, for the vertices two layer pairs share.
-    fn layer_of_key(&self, key: Key) -> Option<usize> {
-        match key {
-            Key::Plane(pe) => Some(pe.0),
-            Key::ContourVertex(s, ..) | Key::ContourCrossing(s, ..) => Some(s + self.offset),
-            Key::Vertical(..) | Key::Centre(..) => None,
-        }
+    /// The engine's key of a vertex, and whether it lies on one of `faces` (a box's faces
+    /// that other boxes share, per axis; see [`ChunkMesh`]).
+    fn engine_key(&self, key: Key, faces: &[[usize; 2]; 3]) -> (VertexKey, bool) {
+        let [nx, ny, _] = self.dims;
+        let point = |i: usize, j: usize, layer: usize| i + nx * (j + ny * layer);
+        let engine = match key {
+            Key::Plane((layer, axis, i, j)) => {
+                VertexKey::crossing(point(i, j, layer), usize::from(axis))
+            }
+            Key::Vertical(i, j, l) => VertexKey::crossing(point(i, j, l), 2),
+            Key::Centre(i, j, l, index) => VertexKey::interior(point(i, j, l), index),
+            Key::ContourVertex(s, ..) | Key::ContourCrossing(s, ..) => {
+                // Strictly inside a square of its section plane: shared only across that plane.
+                let engine = VertexKey::contour(self.contour_points[&key]);
+                return (engine, faces[2].contains(&(s + self.offset)));
+            }
+        };
+        let shared = (0..3).any(|a| faces[a].iter().any(|&p| engine.on_plane(self.dims, a, p)));
+        (engine, shared)
     }
 
     /// Meshes the active cells between layers `l` and `l + 1`.
-    fn pair_mesh(&self, l: usize) -> PairMesh {
+    fn mesh_box(&self, cells: CellBox) -> Result<ChunkMesh, ExtractError> {
         let field = self.field;
         let table = self.table;
         let mut ids: HashMap<Key, u32> = HashMap::default();
-        let mut mesh = Mesh::new();
-        let mut keys = Vec::new();
-        for j in 0..field.dims[1] - 1 {
-            for span in &field.active[l][j] {
-                let (first, last) = (span[0], span[1] + 1);
-                // The four point rows bounding this run of cells: (layer, row) by dz * 2 + dy.
-                let rows: [Option<(&[f64], f64)>; 4] = std::array::from_fn(|r| {
-                    let (layer, partner) = if r < 2 { (l, l + 1) } else { (l + 1, l) };
-                    field.run(layer, partner, j + r % 2, first, last)
-                });
-                for i in span[0]..=span[1] {
-                    let v: [f32; 8] = std::array::from_fn(|c| {
-                        let o = VERTICES[c];
-                        let (dx, dy, dz) =
-                            (usize::from(o[0]), usize::from(o[1]), usize::from(o[2]));
-                        let x = (i - first) as usize + dx;
-                        let value = match rows[dz * 2 + dy] {
-                            Some((values, drop)) => values[x] - drop,
-                            None => field.value(l + dz, l + 1 - dz, i as usize + dx, j + dy),
-                        };
-                        value as f32
-                    });
-                    let config = cell_config(&v, 0.0);
-                    if config == 0 || config == 255 {
+        let mut out = ChunkMesh::new(cells);
+        out.on_faces = Some(Vec::new());
+        out.faces = cells.shared_faces(self.dims);
+        let [x0, x1] = [cells.min[0] as u32, cells.max[0] as u32 - 1];
+        for l in cells.min[2]..cells.max[2] {
+            for j in cells.min[1]..cells.max[1] {
+                for span in &field.active[l][j] {
+                    let (first, last) = (span[0], span[1] + 1);
+                    let (lo, hi) = (span[0].max(x0), span[1].min(x1));
+                    if lo > hi {
                         continue;
                     }
-                    let cell = [i as usize, j, l];
-                    let decisions = self.decisions(table, config, &v, cell);
-                    for (loop_index, polygon) in table.polygons(config, decisions).enumerate() {
-                        self.emit_loop(
-                            polygon, cell, loop_index, &v, &mut ids, &mut keys, &mut mesh,
-                        );
+                    // The four point rows bounding this run of cells: (layer, row) by dz * 2 + dy.
+                    let rows: [Option<(&[f64], f64)>; 4] = std::array::from_fn(|r| {
+                        let (layer, partner) = if r < 2 { (l, l + 1) } else { (l + 1, l) };
+                        field.run(layer, partner, j + r % 2, first, last)
+                    });
+                    for i in lo..=hi {
+                        let v: [f32; 8] = std::array::from_fn(|c| {
+                            let o = VERTICES[c];
+                            let (dx, dy, dz) =
+                                (usize::from(o[0]), usize::from(o[1]), usize::from(o[2]));
+                            let x = (i - first) as usize + dx;
+                            let value = match rows[dz * 2 + dy] {
+                                Some((values, drop)) => values[x] - drop,
+                                None => field.value(l + dz, l + 1 - dz, i as usize + dx, j + dy),
+                            };
+                            value as f32
+                        });
+                        let config = cell_config(&v, 0.0);
+                        if config == 0 || config == 255 {
+                            continue;
+                        }
+                        let cell = [i as usize, j, l];
+                        let decisions = self.decisions(table, config, &v, cell);
+                        for (loop_index, polygon) in table.polygons(config, decisions).enumerate() {
+                            self.emit_loop(polygon, cell, loop_index, &v, &mut ids, &mut out);
+                        }
                     }
                 }
+                out.end_row()?;
             }
         }
-        PairMesh {
-            positions: mesh.positions,
-            keys,
-            triangles: mesh.triangles,
-        }
+        Ok(out)
     }
 
     /// Whether `layer` is a section (not a cap's virtual layer) whose contour is followed.
@@ -575,7 +586,6 @@ impl Context<'_> {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn emit_loop(
         &self,
         polygon: &[Corner],
@@ -583,8 +593,7 @@ impl Context<'_> {
         loop_index: usize,
         v: &[f32; 8],
         ids: &mut HashMap<Key, u32>,
-        keys: &mut Vec<Key>,
-        mesh: &mut Mesh,
+        out: &mut ChunkMesh,
     ) {
         let [i, j, l] = cell;
         let heights = &self.field.heights;
@@ -624,17 +633,24 @@ impl Context<'_> {
                 }
             }
         }
-        let mut id = |key: Key, p: [f64; 3], mesh: &mut Mesh| -> u32 {
+        let mut id = |key: Key, p: [f64; 3], out: &mut ChunkMesh| -> u32 {
             *ids.entry(key).or_insert_with(|| {
-                mesh.positions.push(p.map(|c| c as f32));
-                keys.push(key);
-                (mesh.positions.len() - 1) as u32
+                // Checked for the whole chunk when its row ends.
+                let id = out.mesh.positions.len() as u32;
+                out.mesh.positions.push(p.map(|c| c as f32));
+                let (engine, shared) = self.engine_key(key, &out.faces);
+                out.keys.push(engine);
+                if shared {
+                    let row = out.rows.len() as u32;
+                    out.on_faces.get_or_insert_with(Vec::new).push([id, row]);
+                }
+                id
             })
         };
-        let vids: Vec<u32> = corners.iter().map(|&(k, p, _)| id(k, p, mesh)).collect();
+        let vids: Vec<u32> = corners.iter().map(|&(k, p, _)| id(k, p, out)).collect();
         let positions: Vec<[f64; 3]> = vids
             .iter()
-            .map(|&v| mesh.positions[v as usize].map(f64::from))
+            .map(|&v| out.mesh.positions[v as usize].map(f64::from))
             .collect();
         // No diagonal in a section plane (it would add a chord to the cut) or on a face a
         // neighbour could also split.
@@ -661,23 +677,24 @@ impl Context<'_> {
             Some(t) => {
                 let centre = t
                     .interior
-                    .map(|x| id(Key::Centre(i, j, l, loop_index), x, mesh));
+                    .map(|x| id(Key::Centre(i, j, l, loop_index), x, out));
                 for tri in t.triangles {
                     let pick = |q: u8| {
                         vids.get(usize::from(q))
                             .copied()
                             .unwrap_or_else(|| centre.expect("a centre"))
                     };
-                    mesh.triangles.push(tri.map(pick));
+                    out.mesh.triangles.push(tri.map(pick));
                 }
             }
             None => {
                 let m = positions.len() as f64;
                 let x: [f64; 3] =
                     std::array::from_fn(|d| positions.iter().map(|p| p[d]).sum::<f64>() / m);
-                let centre = id(Key::Centre(i, j, l, loop_index), x, mesh);
+                let centre = id(Key::Centre(i, j, l, loop_index), x, out);
                 for k in 0..vids.len() {
-                    mesh.triangles
+                    out.mesh
+                        .triangles
                         .push([vids[k], vids[(k + 1) % vids.len()], centre]);
                 }
             }

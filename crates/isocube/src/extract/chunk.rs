@@ -100,7 +100,7 @@ impl CellBox {
 
     /// Per axis, the planes of the box's low and high faces where another box of a grid of
     /// `dims` points may share them, else `usize::MAX`.
-    pub(super) fn shared_faces(&self, dims: [usize; 3]) -> [[usize; 2]; 3] {
+    pub(crate) fn shared_faces(&self, dims: [usize; 3]) -> [[usize; 2]; 3] {
         std::array::from_fn(|a| {
             [
                 if self.min[a] > 0 {
@@ -118,7 +118,7 @@ impl CellBox {
     }
 
     /// An error unless the box is non-empty and inside a grid of `dims` points.
-    pub(super) fn check(&self, dims: [usize; 3]) -> Result<(), ExtractError> {
+    pub(crate) fn check(&self, dims: [usize; 3]) -> Result<(), ExtractError> {
         let inside = (0..3).all(|a| self.min[a] < self.max[a] && self.max[a] < dims[a]);
         if inside {
             Ok(())
@@ -144,6 +144,7 @@ pub struct VertexKey(u64);
 
 /// What a [`VertexKey`] names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum KeyKind {
     /// The crossing on the grid edge from `point` one step along `axis`.
     Crossing {
@@ -161,6 +162,10 @@ pub enum KeyKind {
         /// Which of the cell's interior points.
         index: usize,
     },
+    /// A point of the input contours (a contour vertex, or a crossing folded into a contour
+    /// piece) in sectional meshing, by its number in the stack. Its section plane is not in the
+    /// key: the sectional mesher notes such vertices on shared faces itself.
+    Contour(usize),
     /// The centroid of a simplex of the cells' Kuhn triangulation (labelled meshing): its lowest
     /// grid point and, as bits `1 << (o − 1)`, the corner offsets `o` (1 = +x, 2 = +y, 4 = +z,
     /// summed) of its other points.
@@ -172,12 +177,14 @@ pub enum KeyKind {
     },
 }
 
-const TAG_SHIFT: u32 = 62;
-const CROSSING: u64 = 0;
-const POINT: u64 = 1;
-const INTERIOR: u64 = 2;
+// The kind in the top bits, then the payload; the ternary mesher builds keys from these too.
+pub(super) const TAG_SHIFT: u32 = 61;
+pub(super) const CROSSING: u64 = 0;
+pub(super) const POINT: u64 = 1;
+pub(super) const INTERIOR: u64 = 2;
 const SIMPLEX: u64 = 3;
-const PAYLOAD: u64 = (1 << TAG_SHIFT) - 1;
+const CONTOUR: u64 = 4;
+pub(super) const PAYLOAD: u64 = (1 << TAG_SHIFT) - 1;
 /// Interior points per cell that keys can tell apart.
 pub(super) const INTERIOR_SLOTS: usize = 8;
 
@@ -209,7 +216,13 @@ impl VertexKey {
         VertexKey(SIMPLEX << TAG_SHIFT | (point as u64) << 7 | u64::from(corners))
     }
 
-    /// The key as one number (its kind in the top two bits).
+    /// Point `number` of the input contours (see [`KeyKind::Contour`]).
+    #[inline]
+    pub fn contour(number: usize) -> VertexKey {
+        VertexKey(CONTOUR << TAG_SHIFT | number as u64)
+    }
+
+    /// The key as one number (its kind in the top three bits).
     pub fn to_bits(self) -> u64 {
         self.0
     }
@@ -232,6 +245,7 @@ impl VertexKey {
                 point: payload >> 7,
                 corners: (payload & 127) as u8,
             },
+            CONTOUR => KeyKind::Contour(payload),
             _ => KeyKind::Interior {
                 cell: payload / INTERIOR_SLOTS,
                 index: payload % INTERIOR_SLOTS,
@@ -253,7 +267,7 @@ impl VertexKey {
                 let moves = (1..8u8).any(|o| corners >> (o - 1) & 1 == 1 && o >> axis & 1 == 1);
                 !moves && coord(point)[axis] == value
             }
-            KeyKind::Interior { .. } => false,
+            KeyKind::Interior { .. } | KeyKind::Contour(_) => false,
         }
     }
 }
@@ -273,13 +287,13 @@ pub struct ChunkMesh {
     /// One tag per triangle (the label, for labelled meshing), or none.
     pub tags: Vec<u32>,
     /// After each row of cells (`y` fastest, then `z`): triangles and vertices made so far.
-    pub(super) rows: Vec<[u32; 2]>,
+    pub(crate) rows: Vec<[u32; 2]>,
     /// The vertices on faces the box shares with others and the rows that made them, when the
     /// mesher noted them as it went (else they are found from the keys).
-    pub(super) on_faces: Option<Vec<[u32; 2]>>,
+    pub(crate) on_faces: Option<Vec<[u32; 2]>>,
     /// For the mesher: per axis, the planes of the box's two faces if another box may share
     /// them, else `usize::MAX`.
-    pub(super) faces: [[usize; 2]; 3],
+    pub(crate) faces: [[usize; 2]; 3],
 }
 
 impl Default for CellBox {
@@ -290,7 +304,7 @@ impl Default for CellBox {
 
 impl ChunkMesh {
     /// An empty chunk for `cells`, ready for a cell mesher.
-    pub(super) fn new(cells: CellBox) -> ChunkMesh {
+    pub(crate) fn new(cells: CellBox) -> ChunkMesh {
         ChunkMesh {
             cells,
             stats: ExtractStats {
@@ -304,7 +318,7 @@ impl ChunkMesh {
 
     /// Closes the current row of cells.
     #[inline]
-    pub(super) fn end_row(&mut self) -> Result<(), ExtractError> {
+    pub(crate) fn end_row(&mut self) -> Result<(), ExtractError> {
         let count = |n: usize| u32::try_from(n).map_err(|_| ExtractError::TooManyVertices);
         let row = [
             count(self.mesh.triangles.len())?,

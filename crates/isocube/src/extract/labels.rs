@@ -633,6 +633,12 @@ mod partition_tests {
             for (a, b) in default.iter().zip(&whole) {
                 prop_assert_eq!(&a.mesh, &b.mesh);
             }
+            // Cuts at random places along random axes, in a random order.
+            let boxes = crate::random_partition(points, &mut rng);
+            let cut = extract_labels_boxes(&grid, &options, &boxes).unwrap();
+            for (a, b) in cut.iter().zip(&whole) {
+                prop_assert_eq!(&a.mesh, &b.mesh, "boxes {:?}", &boxes);
+            }
         }
     }
 }

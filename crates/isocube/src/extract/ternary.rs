@@ -147,13 +147,10 @@ impl Snapping {
 }
 
 // Keys name patch vertices independently of cells: a crossing by its grid edge, a zero point by
-// its index, an interior point by its cell and number.
+// its index, an interior point by its cell and number; they are the bits of the engine's
+// `VertexKey`s.
 type Key = u64;
-const TAG_SHIFT: u32 = 62;
-const EDGE: u64 = 0;
-const POINT: u64 = 1;
-const INTERIOR: u64 = 2;
-const PAYLOAD: u64 = (1 << TAG_SHIFT) - 1;
+use super::chunk::{CROSSING as EDGE, INTERIOR, PAYLOAD, POINT, TAG_SHIFT};
 
 fn tag(k: Key) -> u64 {
     k >> TAG_SHIFT

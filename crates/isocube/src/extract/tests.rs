@@ -885,35 +885,6 @@ mod strategies {
     }
 }
 
-/// Random partitions of a grid's cells into boxes: cuts at random places along random axes,
-/// down to single cells, in a random order.
-fn random_partition(dims: [usize; 3], rng: &mut crate::TestRng) -> Vec<CellBox> {
-    let mut done = Vec::new();
-    let mut todo = vec![CellBox::whole(dims)];
-    while let Some(b) = todo.pop() {
-        let e = b.extent();
-        let splittable: Vec<usize> = (0..3).filter(|&a| e[a] > 1).collect();
-        // Stop with probability 1/4 (or when the box is a single cell).
-        if splittable.is_empty() || rng.next_u64() % 4 == 0 {
-            done.push(b);
-            continue;
-        }
-        let a = splittable[(rng.next_u64() % splittable.len() as u64) as usize];
-        let cut = b.min[a] + 1 + (rng.next_u64() % (e[a] as u64 - 1)) as usize;
-        let (mut lo, mut hi) = (b, b);
-        lo.max[a] = cut;
-        hi.min[a] = cut;
-        todo.push(lo);
-        todo.push(hi);
-    }
-    // Fisher–Yates: the joiner must not depend on the order of the chunks.
-    for i in (1..done.len()).rev() {
-        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-        done.swap(i, j);
-    }
-    done
-}
-
 /// Every method, topology, triangulation and option that changes the mesh.
 fn any_options() -> impl Strategy<Value = ExtractOptions> {
     (
@@ -1089,7 +1060,7 @@ proptest! {
         let options = options.with_relax(relax);
         let one = extract(&grid, &options).unwrap();
         let mut rng = crate::TestRng::new(seed);
-        let boxes = random_partition(grid.dims(), &mut rng);
+        let boxes = crate::random_partition(grid.dims(), &mut rng);
         let joined = extract_boxes(&grid, &options, &boxes).unwrap();
         prop_assert_eq!(&joined.0, &one.0, "boxes {:?}", boxes);
         prop_assert_eq!(joined.1, one.1);

@@ -198,16 +198,12 @@ impl Grid {
     /// World position of point (i, j, k).
     #[inline]
     pub fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
-        [
-            self.origin[0] + i as f64 * self.spacing[0],
-            self.origin[1] + j as f64 * self.spacing[1],
-            self.origin[2] + k as f64 * self.spacing[2],
-        ]
+        self.view().point(i, j, k)
     }
 
     /// Number of cells (`(nx−1)(ny−1)(nz−1)`).
     pub fn cell_count(&self) -> usize {
-        self.dims.iter().map(|d| d - 1).product()
+        self.view().cell_count()
     }
 
     /// The same trilinear field sampled `k` times finer along each axis: `(n − 1)·k + 1` points
@@ -260,6 +256,7 @@ impl Grid {
     }
 
     /// The grid as a borrowed view (what every extraction entry point takes).
+    #[inline]
     pub fn view(&self) -> GridView<'_> {
         let view = GridView::planes(&self.values, self.dims, self.spacing, self.origin);
         match self.exact {

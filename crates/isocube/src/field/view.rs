@@ -204,8 +204,8 @@ impl<'a> GridView<'a> {
         self.values[self.index(i, j, k)]
     }
 
-    /// Position of point `(i, j, k)` in the grid's frame (before [`GridView::orientation`]):
-    /// the same arithmetic as [`Grid::point`], so the same bits.
+    /// Position of point `(i, j, k)` in the grid's frame (before [`GridView::orientation`]);
+    /// [`Grid::point`] is this.
     #[inline]
     pub fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
         [
