@@ -23,15 +23,18 @@
 pub(crate) mod cap;
 pub use cap::LoopError;
 mod field;
+mod plane;
 mod reconstruct;
 mod sectional;
 mod sparse;
 
-pub use field::{inside_flags, section_field, stacked_field, PlaneGrid, SectionField};
+pub use field::{inside_flags, section_field, stacked_field, SectionField};
+pub use plane::PlaneGrid;
 pub use reconstruct::{
-    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, Fidelity, MeshEstimate,
+    cut_distance, reconstruct, reconstruct_with, Cap, CutDistance, MeshEstimate,
     ReconstructOptions, Reconstruction,
 };
+pub use sectional::Fidelity;
 
 use thiserror::Error;
 

@@ -1,8 +1,8 @@
 //! Surfaces through a stack of sections: Marching Cubes (MC33 topology) on the stacked field,
 //! heights mapped back to the sections' own, unevenly spaced planes.
 
-use super::field::PlaneGrid;
-use super::sectional::{extract_sectional, resolution};
+use super::plane::PlaneGrid;
+use super::sectional::{extract_sectional, resolution, Fidelity};
 use super::SectionStack;
 use crate::extract::ExtractError;
 use crate::mesh::Mesh;
@@ -18,18 +18,6 @@ pub enum Cap {
     Extend(f64),
     /// The end sections' contours are filled flat (holes kept open), in their planes.
     Flat,
-}
-
-/// How closely the mesh follows the contours on the section planes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Fidelity {
-    /// The cut by each section plane is the input contour: exact crossings, contour vertices
-    /// inserted, ambiguous squares decided by the contour (default).
-    #[default]
-    Exact,
-    /// The section-data paper's plain approach: crossings interpolated from the distances, no
-    /// contour vertices inserted (chords cut corners).
-    Plain,
 }
 
 /// A reconstructed surface and what it cost.

@@ -27,11 +27,11 @@
 
 use rustc_hash::FxHashMap as HashMap;
 
-use super::field::PlaneGrid;
-use super::reconstruct::Fidelity;
+use super::plane::PlaneGrid;
 use super::sparse::SparseField;
 use super::{Point2, Section, SectionStack};
 use crate::cube::polygons::face_segments;
+use crate::cube::triangulate::{may_join_on, Z_FACES};
 use crate::cube::{CaseTable, Corner, EDGES, EDGE_AXIS, VERTICES};
 use crate::extract::{
     cell_config, face_decisions, join, CellBox, ChunkMesh, ExtractError, VertexKey,
@@ -39,6 +39,18 @@ use crate::extract::{
 use crate::mesh::Mesh;
 use crate::quality::{triangulate, Strategy};
 use rayon::prelude::*;
+
+/// How closely the mesh follows the contours on the section planes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Fidelity {
+    /// The cut by each section plane is the input contour: exact crossings, contour vertices
+    /// inserted, ambiguous squares decided by the contour (default).
+    #[default]
+    Exact,
+    /// The section-data paper's plain approach: crossings interpolated from the distances, no
+    /// contour vertices inserted (chords cut corners).
+    Plain,
+}
 
 /// The closest a crossing on a vertical edge comes to either section, as a fraction of their
 /// distance (more where single precision needs it: far from the origin, or for very close
@@ -652,13 +664,7 @@ impl Context<'_> {
             .iter()
             .map(|&v| out.mesh.positions[v as usize].map(f64::from))
             .collect();
-        // No diagonal in a section plane (it would add a chord to the cut) or on a face a
-        // neighbour could also split.
-        let section_faces = 1 << 4 | 1 << 5;
-        let allowed = |x: usize, y: usize| {
-            let shared = corners[x].2 & corners[y].2;
-            shared & section_faces == 0 && shared & (1 << 0 | 1 << 3) == 0
-        };
+        let allowed = |x: usize, y: usize| may_join_on(corners[x].2 & corners[y].2, Z_FACES);
         let c = self.plane.point(i, j);
         // An interior vertex stays strictly between the sections: on a section plane it would
         // add edges to the cut that are not the contour.

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use rstar::primitives::Line;
 use rstar::RTree;
 
-use super::field::PlaneGrid;
+use super::plane::PlaneGrid;
 use super::{segment_distance, Point2, Section, SectionStack};
 
 /// An inclusive range of point (or cell) indices along a grid row.

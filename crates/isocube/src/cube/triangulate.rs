@@ -7,17 +7,41 @@
 use super::polygons::Corner;
 use super::{EDGES, VERTICES};
 
-/// Faces y=0, x=0 and z=0.
-const NEGATIVE_FACES: u8 = 1 << 0 | 1 << 3 | 1 << 4;
+/// Faces y=0, x=0 and z=0 (bits as in [`Corner::faces`]).
+pub const NEGATIVE_FACES: u8 = 1 << 0 | 1 << 3 | 1 << 4;
+/// Faces z=0 and z=1: the section planes of sectional meshing.
+pub const Z_FACES: u8 = 1 << 4 | 1 << 5;
+/// All six faces.
+pub const ALL_FACES: u8 = 0b11_1111;
 
-/// Whether an edge between two corners of one cell may be used inside the cell.
+/// The diagonal rule that keeps meshes manifold, for every cell mesher: a chord between two
+/// corners of a cell's loop that lie on the common faces `shared` (bits as in
+/// [`Corner::faces`]) may be used inside the cell unless one of those faces is a negative one or
+/// in `also`.
 ///
 /// Two corners on a common face can only be joined inside a cell when the face is ambiguous (four
 /// crossings); the cell across the face sees the same four crossings and might join the same two,
 /// giving an edge of four triangles. So such joins are allowed only across the cell's positive
 /// faces (x=1, y=1, z=1): the neighbour sees that face as a negative one and never uses it.
+/// Meshers forbid more faces where they must: ternary cells every face (their corners include
+/// zero points, which a neighbour's patch may use differently), sectional cells the section
+/// planes (a chord there would add an edge to the contour's cut).
+///
+/// ```
+/// use isocube::cube::triangulate::{may_join_on, ALL_FACES};
+/// assert!(may_join_on(1 << 1, 0)); // both on x = 1
+/// assert!(!may_join_on(1 << 3, 0)); // both on x = 0
+/// assert!(!may_join_on(1 << 1, ALL_FACES));
+/// assert!(may_join_on(0, ALL_FACES)); // no common face
+/// ```
+#[inline]
+pub fn may_join_on(shared: u8, also: u8) -> bool {
+    shared & (NEGATIVE_FACES | also) == 0
+}
+
+/// [`may_join_on`] for two corners of a binary cell's loop.
 pub fn may_join(a: Corner, b: Corner) -> bool {
-    a.faces() & b.faces() & NEGATIVE_FACES == 0
+    may_join_on(a.faces() & b.faces(), 0)
 }
 
 /// Triangulation of a disk bounded by one loop that respects [`may_join`]: a fan when some apex

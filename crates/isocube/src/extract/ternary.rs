@@ -48,7 +48,7 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-use crate::cube::triangulate::{safe_triangulation, star};
+use crate::cube::triangulate::{may_join_on, safe_triangulation, star, ALL_FACES};
 use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
 use std::borrow::Cow;
 
@@ -503,10 +503,15 @@ impl<'a> Ternary<'a> {
         let interior_key = INTERIOR << TAG_SHIFT | (base * 8 + 4 + l) as u64;
         if simple {
             let cell = self.coords(base).map(|c| 2 * c);
+            // The cube faces a key lies on, numbered as `Corner::faces`: x, y, z low faces are
+            // 3, 0, 4 and high faces 1, 2, 5.
+            const LOW: [u8; 3] = [3, 0, 4];
+            const HIGH: [u8; 3] = [1, 2, 5];
             let faces = |k: Key| {
                 let c = self.key_coords(k);
                 (0..3).fold(0u8, |m, a| {
-                    m | u8::from(c[a] == cell[a]) << a | u8::from(c[a] == cell[a] + 2) << (a + 3)
+                    m | u8::from(c[a] == cell[a]) << LOW[a]
+                        | u8::from(c[a] == cell[a] + 2) << HIGH[a]
                 })
             };
             let masks: Vec<u8> = keys.iter().map(|&k| faces(k)).collect();
@@ -519,7 +524,7 @@ impl<'a> Ternary<'a> {
                 self.grid.point(c[0], c[1], c[2]),
                 self.grid.point(c[0] + 1, c[1] + 1, c[2] + 1),
             );
-            let allowed = |a: usize, b: usize| masks[a] & masks[b] == 0;
+            let allowed = |a: usize, b: usize| may_join_on(masks[a] & masks[b], ALL_FACES);
             if let Some(result) = triangulate(&positions, &allowed, self.strategy, bounds) {
                 if let Some(x) = result.interior {
                     patch.interiors.push(Interior {
