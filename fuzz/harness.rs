@@ -82,10 +82,8 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
             }
         }
         _ => {
-            let options = VolumeOptions {
-                max_memory: Some(MAX_MEMORY),
-                ..VolumeOptions::default()
-            };
+            let mut options = VolumeOptions::default();
+            options.max_memory = Some(MAX_MEMORY);
             if let Ok((grid, orientation)) = io::read_volume_oriented(read, &options) {
                 let [nx, ny, nz] = grid.dims();
                 assert_eq!(grid.values().len(), nx * ny * nz);

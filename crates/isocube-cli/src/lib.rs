@@ -183,6 +183,14 @@ fn dispatch(cli: &Cli) -> Result<(), Failure> {
     }
 }
 
+/// How meshes are written: ASCII or binary, with or without normals.
+pub(crate) fn write_options(ascii: bool, normals: bool) -> isocube_io::MeshWriteOptions {
+    let mut options = isocube_io::MeshWriteOptions::default();
+    options.ascii = ascii;
+    options.normals = normals;
+    options
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

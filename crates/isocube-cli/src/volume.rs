@@ -144,11 +144,12 @@ impl VolumeArgs {
     /// How to read the volume file (not a sample).
     pub(crate) fn file_options(&self) -> Result<VolumeOptions, Failure> {
         let raw = match (self.dims, self.scalar) {
-            (Some(dims), Some(scalar)) => Some(RawOptions {
-                endian: self.endian,
-                header_bytes: self.header_bytes,
-                ..RawOptions::new(dims, scalar)
-            }),
+            (Some(dims), Some(scalar)) => {
+                let mut raw = RawOptions::new(dims, scalar);
+                raw.endian = self.endian;
+                raw.header_bytes = self.header_bytes;
+                Some(raw)
+            }
             (None, None) => None,
             _ => {
                 return Err(Failure::input(anyhow::anyhow!(
@@ -156,13 +157,13 @@ impl VolumeArgs {
                 )))
             }
         };
-        Ok(VolumeOptions {
-            raw,
-            npy_axes: self.axes,
-            spacing: self.spacing,
-            origin: self.origin,
-            max_memory: MemoryLimit::or_default(self.max_memory),
-        })
+        let mut options = VolumeOptions::default();
+        options.raw = raw;
+        options.npy_axes = self.axes;
+        options.spacing = self.spacing;
+        options.origin = self.origin;
+        options.max_memory = MemoryLimit::or_default(self.max_memory);
+        Ok(options)
     }
 
     /// Maps the volume file for slab-wise reading (raw or .npy).

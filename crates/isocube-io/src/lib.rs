@@ -213,6 +213,7 @@ impl IoError {
 
 /// How to read a volume file.
 #[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
 pub struct VolumeOptions {
     /// Layout of a raw file (required for raw files, ignored otherwise).
     pub raw: Option<RawOptions>,

@@ -26,10 +26,8 @@ use isocube::field::{Grid, PlaneSource};
 /// use isocube::extract::{extract_streamed, ExtractOptions};
 /// use isocube_io::{MappedVolume, PlyWriter, RawOptions, ScalarType, VolumeOptions};
 /// use std::path::Path;
-/// let options = VolumeOptions {
-///     raw: Some(RawOptions::new([1024, 1024, 1024], ScalarType::U16)),
-///     ..VolumeOptions::default()
-/// };
+/// let mut options = VolumeOptions::default();
+/// options.raw = Some(RawOptions::new([1024, 1024, 1024], ScalarType::U16));
 /// let volume = MappedVolume::open(Path::new("ct.raw"), &options)?;
 /// let mut ply = PlyWriter::create(Path::new("ct.ply"), true)?;
 /// let extract = ExtractOptions::default().with_level(1200.0);

@@ -67,6 +67,7 @@ impl MeshFormat {
 
 /// How to write a mesh.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct MeshWriteOptions {
     /// ASCII PLY instead of binary little-endian (PLY only).
     pub ascii: bool,

@@ -149,6 +149,7 @@ impl FromStr for Endian {
 /// Layout of a raw volume file: `dims[0] × dims[1] × dims[2]` values, `x` fastest, no header
 /// (or `header_bytes` skipped).
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct RawOptions {
     /// Points along x, y, z.
     pub dims: [usize; 3],

@@ -52,9 +52,7 @@ fn main() {
 }
 
 fn ternary(snap: f32, position: SnapPosition) -> ExtractOptions {
-    ExtractOptions::default().with_method(Method::Ternary(Snapping {
-        zero_threshold: 0.0,
-        snap,
-        position,
-    }))
+    ExtractOptions::default().with_method(Method::Ternary(
+        Snapping::default().with_snap(snap).with_position(position),
+    ))
 }

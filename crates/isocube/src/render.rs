@@ -9,7 +9,8 @@
 //! use isocube::render::{render, RenderOptions, View};
 //!
 //! let (mesh, _) = extract(&Sample::Torus.grid(24), &ExtractOptions::default()).unwrap();
-//! let picture = render(&mesh, &RenderOptions { width: 160, height: 120, view: View::ISO, wireframe: true });
+//! let options = RenderOptions::new(160, 120).with_view(View::ISO).with_wireframe(true);
+//! let picture = render(&mesh, &options);
 //! assert_eq!(picture.rgb.len(), 160 * 120 * 3);
 //! assert!(picture.coverage() > 0.1);
 //! ```
@@ -85,6 +86,7 @@ impl std::str::FromStr for View {
 
 /// What to draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct RenderOptions {
     /// Picture width in pixels.
     pub width: usize,
@@ -94,6 +96,29 @@ pub struct RenderOptions {
     pub view: View,
     /// Draw every triangle's edges over the shading.
     pub wireframe: bool,
+}
+
+impl RenderOptions {
+    /// A picture of `width × height` pixels, the other settings as [`RenderOptions::default`].
+    pub fn new(width: usize, height: usize) -> RenderOptions {
+        RenderOptions {
+            width,
+            height,
+            ..RenderOptions::default()
+        }
+    }
+
+    /// Sets the view direction.
+    pub fn with_view(mut self, view: View) -> RenderOptions {
+        self.view = view;
+        self
+    }
+
+    /// Draws the triangles' edges over the shading, or not.
+    pub fn with_wireframe(mut self, wireframe: bool) -> RenderOptions {
+        self.wireframe = wireframe;
+        self
+    }
 }
 
 impl Default for RenderOptions {

@@ -54,11 +54,12 @@ fn options() -> impl Strategy<Value = ExtractOptions> {
                 .with_triangulation(strategy)
                 .with_relax(relax);
             if let Some((zero_threshold, snap, on_grid)) = ternary {
-                o = o.with_method(Method::Ternary(Snapping {
-                    zero_threshold,
-                    snap,
-                    position: if on_grid { SnapPosition::GridPoint } else { SnapPosition::NearestCrossing },
-                }));
+                o = o.with_method(Method::Ternary(
+                    Snapping::default()
+                        .with_zero_threshold(zero_threshold)
+                        .with_snap(snap)
+                        .with_position(if on_grid { SnapPosition::GridPoint } else { SnapPosition::NearestCrossing }),
+                ));
             }
             o
         })
@@ -374,10 +375,9 @@ proptest! {
         sharp: bool,
         rule in proptest::option::of(0u8..3),
     ) {
-        let options = SubdivOptions {
-            boundary: rule.map(|r| [BoundaryRule::None, BoundaryRule::EdgeAndCorner, BoundaryRule::EdgeOnly][usize::from(r)]),
-            holes: if sharp { HoleMethod::Sharp } else { HoleMethod::Smooth },
-        };
+        let mut options = SubdivOptions::default();
+        options.boundary = rule.map(|r| [BoundaryRule::None, BoundaryRule::EdgeAndCorner, BoundaryRule::EdgeOnly][usize::from(r)]);
+        options.holes = if sharp { HoleMethod::Sharp } else { HoleMethod::Smooth };
         if let Ok(fine) = subdivide(&cage, levels, &options) {
             fine.validate().unwrap();
             prop_assert!(fine.positions.iter().flatten().all(|c| c.is_finite()));

@@ -9,7 +9,7 @@ use isocube::contours::{
 };
 use isocube::extract::ExtractError;
 use isocube::quality::Strategy;
-use isocube_io::{read_contours, write_mesh, MeshWriteOptions};
+use isocube_io::{read_contours, write_mesh};
 
 use crate::volume::{parse_memory, MemoryLimit};
 use crate::Failure;
@@ -154,10 +154,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     write_mesh(
         &args.output,
         &r.mesh,
-        &MeshWriteOptions {
-            ascii: args.ascii,
-            normals: true,
-        },
+        &crate::write_options(args.ascii, true),
     )
     .map_err(|e| crate::io_failure(e, false))?;
     if !quiet {

@@ -14,9 +14,7 @@ use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
 use isocube::mesh::Mesh;
 use isocube::quality::{Field, Strategy, Trilinear};
-use isocube_io::{
-    write_mesh_with_values, MappedVolume, MeshFormat, MeshWriteOptions, PlyWriter, VertexValues,
-};
+use isocube_io::{write_mesh_with_values, MappedVolume, MeshFormat, PlyWriter, VertexValues};
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;
@@ -178,10 +176,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     write_mesh_with_values(
         &args.output,
         &mesh,
-        &MeshWriteOptions {
-            ascii: args.ascii,
-            normals: !args.no_normals,
-        },
+        &crate::write_options(args.ascii, !args.no_normals),
         values
             .as_ref()
             .map(|(name, v)| VertexValues { name, values: v }),
@@ -270,11 +265,10 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
     let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
     let view = grid.view().with_orientation(orientation);
     let started = Instant::now();
-    let options = LabelOptions {
-        background: args.background,
-        labels: selection.clone(),
-        smoothing: args.smooth,
-    };
+    let mut options = LabelOptions::default();
+    options.background = args.background;
+    options.labels = selection.clone();
+    options.smoothing = args.smooth;
     let surfaces = match args.chunk {
         Some(size) => {
             let points = label_cells(grid.dims()).max.map(|c| c + 1);
@@ -313,10 +307,7 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         write_mesh_with_values(
             &path,
             &surface.mesh,
-            &MeshWriteOptions {
-                ascii: args.ascii,
-                normals: !args.no_normals,
-            },
+            &crate::write_options(args.ascii, !args.no_normals),
             None,
         )
         .map_err(|e| crate::io_failure(e, false))?;
@@ -477,11 +468,12 @@ fn options(args: &Args) -> ExtractOptions {
         .with_triangulation(args.triangulate)
         .with_relax(args.relax)
         .with_method(match args.method.as_str() {
-            "ternary" => Method::Ternary(Snapping {
-                zero_threshold: args.zero_threshold,
-                snap: args.snap,
-                position: args.snap_position,
-            }),
+            "ternary" => Method::Ternary(
+                Snapping::default()
+                    .with_zero_threshold(args.zero_threshold)
+                    .with_snap(args.snap)
+                    .with_position(args.snap_position),
+            ),
             _ => Method::MarchingCubes,
         })
 }

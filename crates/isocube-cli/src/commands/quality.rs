@@ -93,10 +93,8 @@ fn distance(
             min_spacing(&grid),
         ));
     }
-    let options = VolumeOptions {
-        max_memory: MemoryLimit::or_default(max_memory),
-        ..VolumeOptions::default()
-    };
+    let mut options = VolumeOptions::default();
+    options.max_memory = MemoryLimit::or_default(max_memory);
     let (grid, orientation) =
         read_volume_oriented(Path::new(spec), &options).map_err(volume_failure)?;
     let field = Trilinear(grid.view());

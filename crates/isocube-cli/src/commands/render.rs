@@ -59,15 +59,10 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
 
 /// The picture of a mesh (also used by `isocube demo`).
 pub(crate) fn picture(mesh: &Mesh, view: View, size: (usize, usize), wireframe: bool) -> Picture {
-    render(
-        mesh,
-        &RenderOptions {
-            width: size.0,
-            height: size.1,
-            view,
-            wireframe,
-        },
-    )
+    let options = RenderOptions::new(size.0, size.1)
+        .with_view(view)
+        .with_wireframe(wireframe);
+    render(mesh, &options)
 }
 
 pub(crate) fn check_png(path: &Path) -> Result<(), Failure> {

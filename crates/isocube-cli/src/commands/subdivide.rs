@@ -9,7 +9,7 @@ use isocube::subdiv::{
     limit_positions, samples, subdivide, BoundaryRule, HoleMethod, SubdivError, SubdivOptions,
     MAX_FACES,
 };
-use isocube_io::{read_poly_mesh, write_poly_mesh, MeshWriteOptions};
+use isocube_io::{read_poly_mesh, write_poly_mesh};
 
 use crate::Failure;
 
@@ -68,16 +68,15 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         })?,
         None => read_poly_mesh(Path::new(&args.mesh)).map_err(|e| crate::io_failure(e, true))?,
     };
-    let options = SubdivOptions {
-        boundary: args.boundary.map(|b| match b {
-            Boundary::EdgeOnly => BoundaryRule::EdgeOnly,
-            Boundary::EdgeAndCorner => BoundaryRule::EdgeAndCorner,
-            Boundary::None => BoundaryRule::None,
-        }),
-        holes: match args.holes {
-            Holes::Smooth => HoleMethod::Smooth,
-            Holes::Sharp => HoleMethod::Sharp,
-        },
+    let mut options = SubdivOptions::default();
+    options.boundary = args.boundary.map(|b| match b {
+        Boundary::EdgeOnly => BoundaryRule::EdgeOnly,
+        Boundary::EdgeAndCorner => BoundaryRule::EdgeAndCorner,
+        Boundary::None => BoundaryRule::None,
+    });
+    options.holes = match args.holes {
+        Holes::Smooth => HoleMethod::Smooth,
+        Holes::Sharp => HoleMethod::Sharp,
     };
     let started = Instant::now();
     let mut fine = subdivide(&cage, args.levels, &options).map_err(|e| match e {
@@ -95,15 +94,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             limit_positions(&fine).map_err(|e| Failure::input(anyhow::anyhow!("--limit: {e}")))?;
     }
     let elapsed = started.elapsed();
-    write_poly_mesh(
-        &args.output,
-        &fine,
-        &MeshWriteOptions {
-            ascii: args.ascii,
-            normals: true,
-        },
-    )
-    .map_err(|e| crate::io_failure(e, false))?;
+    write_poly_mesh(&args.output, &fine, &crate::write_options(args.ascii, true))
+        .map_err(|e| crate::io_failure(e, false))?;
     if !quiet {
         eprintln!(
             "{}: {} vertices, {} faces ({} levels from {} faces) in {:.1} ms",

@@ -111,6 +111,7 @@ pub fn reconstruct(
 /// assert_eq!(options.fidelity, Fidelity::Plain);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct ReconstructOptions {
     /// How the ends are closed.
     pub cap: Cap,

@@ -43,6 +43,7 @@ pub enum LabelSelection {
 
 /// Options of [`extract_labels`].
 #[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct LabelOptions {
     /// The label that is never meshed (the surroundings), usually 0.
     pub background: i64,

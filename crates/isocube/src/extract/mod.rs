@@ -38,10 +38,8 @@
 //! use isocube::field::Sample;
 //! let grid = Sample::Sphere.grid(40);
 //! let mc = extract(&grid, &ExtractOptions::default()).unwrap().0.report();
-//! let options = ExtractOptions::default().with_method(Method::Ternary(Snapping {
-//!     snap: 0.5,
-//!     ..Snapping::default()
-//! }));
+//! let options =
+//!     ExtractOptions::default().with_method(Method::Ternary(Snapping::default().with_snap(0.5)));
 //! let ternary = extract(&grid, &options).unwrap().0.report();
 //! assert_eq!((ternary.components, ternary.euler), (mc.components, mc.euler));
 //! assert!(ternary.min_angle > 30.0 && mc.min_angle < 5.0);
@@ -114,6 +112,7 @@ use window::Window;
 
 /// Options of [`extract`].
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct ExtractOptions {
     /// The iso-value.
     pub level: f32,

@@ -67,6 +67,7 @@ pub const MIN_OFFSET: f64 = 1e-3;
 
 /// How ternary extraction picks the grid points the surface passes through.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct Snapping {
     /// Values with `|value − level| ≤ zero_threshold` count as zero (the extended-MC paper's ε).
     pub zero_threshold: f32,
@@ -127,6 +128,24 @@ impl Default for Snapping {
 }
 
 impl Snapping {
+    /// Sets [`Snapping::snap`].
+    pub fn with_snap(mut self, snap: f32) -> Snapping {
+        self.snap = snap;
+        self
+    }
+
+    /// Sets [`Snapping::zero_threshold`].
+    pub fn with_zero_threshold(mut self, zero_threshold: f32) -> Snapping {
+        self.zero_threshold = zero_threshold;
+        self
+    }
+
+    /// Sets [`Snapping::position`].
+    pub fn with_position(mut self, position: SnapPosition) -> Snapping {
+        self.position = position;
+        self
+    }
+
     pub(super) fn validate(&self) -> Result<(), ExtractError> {
         if !(self.zero_threshold >= 0.0 && self.zero_threshold.is_finite()) {
             return Err(ExtractError::Option {

@@ -157,6 +157,7 @@ pub const MAX_FACES: usize = 1 << 28;
 
 /// What [`subdivide`] is asked to do beyond the mesh's own tags.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[non_exhaustive]
 pub struct SubdivOptions {
     /// Overrides the mesh's boundary rule.
     pub boundary: Option<BoundaryRule>,
