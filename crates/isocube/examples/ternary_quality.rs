@@ -6,7 +6,7 @@
 use isocube::cube::Topology;
 use isocube::extract::{extract, ExtractOptions, Method, SnapPosition, Snapping};
 use isocube::field::Sample;
-use isocube::quality::{angle_summary, level_set_distance};
+use isocube::quality::{level_set_distance, quality_report};
 
 fn main() {
     let cases = [
@@ -36,15 +36,15 @@ fn main() {
         let grid = sample.grid(n);
         for (name, options) in &methods {
             let (mesh, _) = extract(&grid, options).expect("samples extract");
-            let a = angle_summary(&mesh);
+            let a = quality_report(&mesh);
             let d = level_set_distance(&mesh, |p| sample.eval(p), 0.0, grid.spacing()[0]);
             println!(
                 "| {sample}:{n} | {name} | {} | {:.2}° | {:.2}° | {:.2} % | {:.2} % | {:.4} |",
                 mesh.triangle_count(),
-                a.min_angle,
-                a.max_angle,
-                100.0 * a.below_10,
-                100.0 * a.below_20,
+                a.min_angle.min,
+                a.max_angle.max,
+                100.0 * a.below[0],
+                100.0 * a.below[1],
                 d.max
             );
         }

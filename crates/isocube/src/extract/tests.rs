@@ -766,21 +766,21 @@ mod ternary {
 #[test]
 fn ternary_sphere_quality_matches_snapmc() {
     use crate::extract::{Method, Snapping};
-    use crate::quality::{angle_summary, level_set_distance};
+    use crate::quality::{level_set_distance, quality_report};
     let grid = Sample::Sphere.grid(40);
     let (mc, _) = extract(&grid, &ExtractOptions::default()).unwrap();
-    let mc_angles = angle_summary(&mc);
+    let mc_angles = quality_report(&mc);
     for (snap, min_angle) in [(0.3, 17.0), (0.5, 30.0)] {
         let options = ExtractOptions::default().with_method(Method::Ternary(Snapping {
             snap,
             ..Snapping::default()
         }));
         let (mesh, _) = extract(&grid, &options).unwrap();
-        let a = angle_summary(&mesh);
+        let a = quality_report(&mesh);
         let d = level_set_distance(&mesh, |p| Sample::Sphere.eval(p), 0.0, grid.spacing()[0]);
-        assert!(a.min_angle >= min_angle, "D {snap}: {a:?}");
+        assert!(a.min_angle.min >= min_angle, "D {snap}: {a:?}");
         assert!(d.max <= 0.05, "D {snap}: {d:?}");
-        assert!(a.below_10 < mc_angles.below_10 && a.max_angle < mc_angles.max_angle);
+        assert!(a.below[0] < mc_angles.below[0] && a.max_angle.max < mc_angles.max_angle.max);
     }
 }
 
@@ -829,7 +829,7 @@ mod strategies {
     /// triangles of classic Marching Cubes, same topology as MC33.
     #[test]
     fn best_combination_meets_the_quality_targets() {
-        use crate::quality::{angle_summary, level_set_distance, relax, Implicit};
+        use crate::quality::{level_set_distance, quality_report, relax, Implicit};
         for sample in [
             Sample::Sphere,
             Sample::Torus,
@@ -864,11 +864,14 @@ mod strategies {
                     10,
                     h,
                 );
-                let a = angle_summary(&mesh);
+                let a = quality_report(&mesh);
                 let d = level_set_distance(&mesh, |p| sample.eval(p), 0.0, h);
                 let r = mesh.report();
                 let what = format!("{sample}:{n}: {a:?} {d:?}");
-                assert!(a.min_angle >= 30.0 && a.max_angle <= 110.0, "{what}");
+                assert!(
+                    a.min_angle.min >= 30.0 && a.max_angle.max <= 110.0,
+                    "{what}"
+                );
                 assert!(d.max <= 0.05, "{what}");
                 assert!(
                     mesh.triangle_count() as f64 <= 1.3 * classic.triangle_count() as f64,

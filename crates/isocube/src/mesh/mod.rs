@@ -218,3 +218,23 @@ pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
+
+/// The three angles of triangle `p` in degrees (at `p[0]`, `p[1]`, `p[2]`), or `None` when it
+/// has zero area: the one angle measure of every report.
+///
+/// ```
+/// let a = isocube::mesh::triangle_angles([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]).unwrap();
+/// assert!((a[0] - 90.0).abs() < 1e-12 && (a[1] - 45.0).abs() < 1e-12);
+/// ```
+pub fn triangle_angles(p: [[f64; 3]; 3]) -> Option<[f64; 3]> {
+    let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+    if dot(n, n) == 0.0 {
+        return None;
+    }
+    Some(std::array::from_fn(|k| {
+        let a = sub(p[(k + 1) % 3], p[k]);
+        let b = sub(p[(k + 2) % 3], p[k]);
+        let c = cross(a, b);
+        dot(c, c).sqrt().atan2(dot(a, b)).to_degrees()
+    }))
+}

@@ -134,11 +134,7 @@ impl MeshReport {
                 degenerate += 1;
                 continue;
             }
-            for k in 0..3 {
-                let a = sub(p[(k + 1) % 3], p[k]);
-                let b = sub(p[(k + 2) % 3], p[k]);
-                let c = cross(a, b);
-                let angle = dot(c, c).sqrt().atan2(dot(a, b)).to_degrees();
+            for angle in super::triangle_angles(p).into_iter().flatten() {
                 min_angle = min_angle.min(angle);
                 max_angle = max_angle.max(angle);
             }

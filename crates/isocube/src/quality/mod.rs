@@ -1,13 +1,15 @@
-//! Mesh quality: angle statistics and the distance of a mesh from a field's level set.
+//! Mesh quality: one report of the Verdict measures and angles ([`QualityReport`]) and the
+//! distance of a mesh from a field's level set.
 //!
 //! ```
 //! use isocube::extract::{extract, ExtractOptions};
 //! use isocube::field::Sample;
-//! use isocube::quality::{angle_summary, level_set_distance};
+//! use isocube::quality::{level_set_distance, quality_report};
 //! let grid = Sample::Sphere.grid(20);
 //! let (mesh, _) = extract(&grid, &ExtractOptions::default()).unwrap();
-//! let angles = angle_summary(&mesh);
-//! assert!(angles.min_angle > 0.0 && angles.max_angle < 180.0);
+//! let q = quality_report(&mesh);
+//! assert!(q.min_angle.min > 0.0 && q.max_angle.max < 180.0);
+//! assert_eq!(q.min_angle.min, mesh.report().min_angle); // one angle measure everywhere
 //! // The sphere's field is a distance, so this is the geometric error in grid spacings.
 //! let d = level_set_distance(&mesh, |p| Sample::Sphere.eval(p), 0.0, grid.spacing()[0]);
 //! assert!(d.max < 0.05);
@@ -21,65 +23,6 @@ pub use triangulate::{triangulate, PolygonTriangles, Strategy};
 pub(crate) use triangulate::{triangulate_polygon, Chords, MAX_CORNERS};
 
 use crate::mesh::{cross, dot, sub, Mesh};
-
-/// Angle statistics over the non-degenerate triangles of a mesh.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AngleSummary {
-    /// Triangles counted (non-degenerate).
-    pub triangles: usize,
-    /// Smallest angle, degrees.
-    pub min_angle: f64,
-    /// Largest angle, degrees.
-    pub max_angle: f64,
-    /// Fraction of triangles whose smallest angle is below 10°.
-    pub below_10: f64,
-    /// Fraction of triangles whose smallest angle is below 20°.
-    pub below_20: f64,
-}
-
-fn angles(p: [[f64; 3]; 3]) -> Option<[f64; 3]> {
-    let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-    if dot(n, n) == 0.0 {
-        return None;
-    }
-    Some(std::array::from_fn(|k| {
-        let a = sub(p[(k + 1) % 3], p[k]);
-        let b = sub(p[(k + 2) % 3], p[k]);
-        let c = cross(a, b);
-        dot(c, c).sqrt().atan2(dot(a, b)).to_degrees()
-    }))
-}
-
-/// Smallest and largest angles and the share of triangles with small angles.
-pub fn angle_summary(mesh: &Mesh) -> AngleSummary {
-    let mut s = AngleSummary {
-        triangles: 0,
-        min_angle: f64::NAN,
-        max_angle: f64::NAN,
-        below_10: 0.0,
-        below_20: 0.0,
-    };
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    let (mut n10, mut n20) = (0usize, 0usize);
-    for t in &mesh.triangles {
-        let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
-        let Some(a) = angles(p) else { continue };
-        let min = a[0].min(a[1]).min(a[2]);
-        let max = a[0].max(a[1]).max(a[2]);
-        lo = lo.min(min);
-        hi = hi.max(max);
-        n10 += usize::from(min < 10.0);
-        n20 += usize::from(min < 20.0);
-        s.triangles += 1;
-    }
-    if s.triangles > 0 {
-        s.min_angle = lo;
-        s.max_angle = hi;
-        s.below_10 = n10 as f64 / s.triangles as f64;
-        s.below_20 = n20 as f64 / s.triangles as f64;
-    }
-    s
-}
 
 /// Distance statistics of a mesh from a level set, in units of the grid spacing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -182,9 +125,9 @@ mod tests {
             normals: Vec::new(),
             triangles: vec![[0, 1, 2]],
         };
-        let s = angle_summary(&mesh);
-        assert!((s.min_angle - 45.0).abs() < 1e-9 && (s.max_angle - 90.0).abs() < 1e-9);
-        assert_eq!((s.below_10, s.below_20), (0.0, 0.0));
+        let s = quality_report(&mesh);
+        assert!((s.min_angle.min - 45.0).abs() < 1e-9 && (s.max_angle.max - 90.0).abs() < 1e-9);
+        assert_eq!((s.below[0], s.below[1]), (0.0, 0.0));
         // Plane z = 0.25 as the field: every sample point is 0.25 away.
         let d = level_set_distance(&mesh, |p| p[2] - 0.25, 0.0, 0.5);
         assert!((d.max - 0.5).abs() < 1e-6 && (d.mean - 0.5).abs() < 1e-6);
@@ -218,7 +161,7 @@ pub struct TriangleQuality {
 /// assert!((q.aspect_ratio - 1.0).abs() < 1e-9 && (q.edge_ratio - 1.0).abs() < 1e-9);
 /// ```
 pub fn triangle_quality(p: [[f64; 3]; 3]) -> Option<TriangleQuality> {
-    let a = angles(p)?;
+    let a = crate::mesh::triangle_angles(p)?;
     let len: [f64; 3] = std::array::from_fn(|k| {
         let d = sub(p[(k + 1) % 3], p[k]);
         dot(d, d).sqrt()
@@ -311,7 +254,9 @@ pub fn quality_report(mesh: &Mesh) -> QualityReport {
         .collect();
     let mut histogram = [0usize; 36];
     for t in &mesh.triangles {
-        if let Some(a) = angles(t.map(|v| mesh.positions[v as usize].map(f64::from))) {
+        if let Some(a) =
+            crate::mesh::triangle_angles(t.map(|v| mesh.positions[v as usize].map(f64::from)))
+        {
             for x in a {
                 histogram[((x / 5.0) as usize).min(35)] += 1;
             }
