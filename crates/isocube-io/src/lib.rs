@@ -323,47 +323,157 @@ pub fn read_volume(path: &Path, options: &VolumeOptions) -> Result<Grid, IoError
 }
 
 /// Reads a volume and how its axes lie in the world: a folder is a DICOM series (feature
-/// `dicom`); files by extension: `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`), `.mha`/`.mhd`, `.tif`/`.tiff`
-/// (feature `tiff`), `.vti`, otherwise raw
-/// (which needs [`VolumeOptions::raw`]). Formats without a direction give
-/// [`Orientation::IDENTITY`].
+/// `dicom`); files by extension: `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`),
+/// `.mha`/`.mhd`, `.tif`/`.tiff` (feature `tiff`), `.vti`, otherwise raw (which needs
+/// [`VolumeOptions::raw`]). Formats without a direction give [`Orientation::IDENTITY`].
 pub fn read_volume_oriented(
     path: &Path,
     options: &VolumeOptions,
 ) -> Result<(Grid, Orientation), IoError> {
-    let name = path
-        .file_name()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
     let identity = |grid| (grid, Orientation::IDENTITY);
     let budget = Budget::new(options.max_memory);
-    let (grid, orientation) = match ext.as_str() {
-        _ if path.is_dir() => read_dicom_volume(path, budget)?,
-        "npy" => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
-        "nrrd" | "nhdr" => nrrd::read_nrrd_within(path, budget)?,
-        "mha" | "mhd" => metaimage::read_metaimage_within(path, budget)?,
-        "vti" => vti::read_vti_within(path, budget)?,
-        _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => {
-            read_nifti_volume(path, budget)?
-        }
-        "tif" | "tiff" => identity(read_tiff_volume(path, budget)?),
-        _ => match &options.raw {
-            Some(raw) => identity(raw::read_raw_within(path, raw, budget)?),
-            None => {
-                return Err(IoError::unsupported(
-                    path,
-                    Position::File,
-                    "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .vti, .tif or .tiff",
-                ))
-            }
-        },
+    let read = match VolumeFormat::of(path, options)? {
+        VolumeFormat::DicomSeries => read_dicom_volume(path, budget)?,
+        VolumeFormat::Npy => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
+        VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget)?,
+        VolumeFormat::MetaImage => metaimage::read_metaimage_within(path, budget)?,
+        VolumeFormat::Vti => vti::read_vti_within(path, budget)?,
+        VolumeFormat::Nifti => read_nifti_volume(path, budget)?,
+        VolumeFormat::Tiff => identity(read_tiff_volume(path, budget)?),
+        VolumeFormat::Raw(raw) => identity(raw::read_raw_within(path, raw, budget)?),
     };
+    with_overrides(path, read, options)
+}
+
+/// [`read_volume_oriented`] on a file's content already in memory: an upload, an object from a
+/// store, a decompressed archive member. `name` chooses the format by its extension and names
+/// the volume in errors; a detached header (`.nhdr`, `.mhd`) finds its data file beside `name`.
+/// A DICOM series (a folder) is read from files only.
+///
+/// ```
+/// use std::path::Path;
+/// use isocube_io::{read_volume_bytes, VolumeOptions};
+/// // A 2 × 2 × 2 `.npy` of float32, written by hand.
+/// let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+/// let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 2, 2), }";
+/// let padded = format!("{header:<117}\n");
+/// npy.extend((padded.len() as u16).to_le_bytes());
+/// npy.extend(padded.as_bytes());
+/// for v in 0..8 {
+///     npy.extend((v as f32).to_le_bytes());
+/// }
+/// let (grid, _) = read_volume_bytes(&npy, Path::new("cube.npy"), &VolumeOptions::default())?;
+/// assert_eq!((grid.dims(), grid.value(1, 0, 0)), ([2, 2, 2], 4.0));
+/// # Ok::<(), isocube_io::IoError>(())
+/// ```
+pub fn read_volume_bytes(
+    bytes: &[u8],
+    name: &Path,
+    options: &VolumeOptions,
+) -> Result<(Grid, Orientation), IoError> {
+    let identity = |grid| (grid, Orientation::IDENTITY);
+    let budget = Budget::new(options.max_memory);
+    let read = match VolumeFormat::of(name, options)? {
+        VolumeFormat::DicomSeries => {
+            return Err(IoError::unsupported(
+                name,
+                Position::File,
+                "a DICOM series is a folder of files: read it with read_volume_oriented",
+            ))
+        }
+        VolumeFormat::Npy => identity(npy::read_npy_bytes(name, bytes, options.npy_axes, budget)?),
+        VolumeFormat::Nrrd => nrrd::read_nrrd_bytes(name, bytes, budget)?,
+        VolumeFormat::MetaImage => metaimage::read_metaimage_bytes(name, bytes, budget)?,
+        VolumeFormat::Vti => vti::read_vti_bytes(name, bytes, budget)?,
+        VolumeFormat::Nifti => read_nifti_bytes(name, bytes, budget)?,
+        VolumeFormat::Tiff => identity(read_tiff_bytes(name, bytes, budget)?),
+        VolumeFormat::Raw(raw) => identity(raw::read_raw_bytes(name, bytes, raw, budget)?),
+    };
+    with_overrides(name, read, options)
+}
+
+/// [`read_volume_bytes`] from any seekable source (a file opened elsewhere, a cursor, a
+/// network stream buffered to disk): its length is checked against
+/// [`VolumeOptions::max_memory`] before anything is read.
+///
+/// ```
+/// use std::io::Cursor;
+/// use std::path::Path;
+/// use isocube_io::{read_volume_from, RawOptions, ScalarType, VolumeOptions};
+/// let bytes: Vec<u8> = (0..27u8).collect();
+/// let mut options = VolumeOptions::default();
+/// options.raw = Some(RawOptions::new([3, 3, 3], ScalarType::U8));
+/// let (grid, _) = read_volume_from(Cursor::new(bytes), Path::new("ramp.raw"), &options)?;
+/// assert_eq!(grid.value(2, 2, 2), 26.0);
+/// # Ok::<(), isocube_io::IoError>(())
+/// ```
+pub fn read_volume_from<R: std::io::Read + std::io::Seek>(
+    mut source: R,
+    name: &Path,
+    options: &VolumeOptions,
+) -> Result<(Grid, Orientation), IoError> {
+    use std::io::SeekFrom;
+    let os = |e| IoError::os(name, e);
+    let len = source.seek(SeekFrom::End(0)).map_err(os)?;
+    let start = source.seek(SeekFrom::Start(0)).map_err(os)?;
+    Budget::new(options.max_memory).check(name, Position::File, len - start)?;
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+    source.read_to_end(&mut bytes).map_err(os)?;
+    read_volume_bytes(&bytes, name, options)
+}
+
+/// Which reader a volume's name (or a folder) calls for.
+enum VolumeFormat<'a> {
+    DicomSeries,
+    Npy,
+    Nrrd,
+    MetaImage,
+    Vti,
+    Nifti,
+    Tiff,
+    Raw(&'a RawOptions),
+}
+
+impl<'a> VolumeFormat<'a> {
+    fn of(path: &Path, options: &'a VolumeOptions) -> Result<VolumeFormat<'a>, IoError> {
+        let name = path
+            .file_name()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        Ok(match ext.as_str() {
+            _ if path.is_dir() => VolumeFormat::DicomSeries,
+            "npy" => VolumeFormat::Npy,
+            "nrrd" | "nhdr" => VolumeFormat::Nrrd,
+            "mha" | "mhd" => VolumeFormat::MetaImage,
+            "vti" => VolumeFormat::Vti,
+            _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => VolumeFormat::Nifti,
+            "tif" | "tiff" => VolumeFormat::Tiff,
+            _ => match &options.raw {
+                Some(raw) => VolumeFormat::Raw(raw),
+                None => {
+                    return Err(IoError::unsupported(
+                        path,
+                        Position::File,
+                        "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .vti, .tif or .tiff",
+                    ))
+                }
+            },
+        })
+    }
+}
+
+/// The read volume with the spacing and origin the options override.
+fn with_overrides(
+    path: &Path,
+    (grid, orientation): (Grid, Orientation),
+    options: &VolumeOptions,
+) -> Result<(Grid, Orientation), IoError> {
     let grid = match options.spacing {
         Some(s) => grid.with_spacing(s).map_err(|e| IoError::grid(path, e))?,
         None => grid,
@@ -404,6 +514,35 @@ fn read_tiff_volume(path: &Path, _: Budget) -> Result<Grid, IoError> {
 }
 
 #[cfg(feature = "nifti")]
+fn read_nifti_bytes(
+    path: &Path,
+    bytes: &[u8],
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    nifti::read_nifti_bytes(path, bytes, budget)
+}
+
+#[cfg(not(feature = "nifti"))]
+fn read_nifti_bytes(path: &Path, _: &[u8], budget: Budget) -> Result<(Grid, Orientation), IoError> {
+    read_nifti_volume(path, budget)
+}
+
+#[cfg(feature = "tiff")]
+fn read_tiff_bytes(path: &Path, bytes: &[u8], budget: Budget) -> Result<Grid, IoError> {
+    tiff_stack::read_tiff_from(
+        path,
+        std::io::Cursor::new(bytes),
+        bytes.len() as u64,
+        budget,
+    )
+}
+
+#[cfg(not(feature = "tiff"))]
+fn read_tiff_bytes(path: &Path, _: &[u8], budget: Budget) -> Result<Grid, IoError> {
+    read_tiff_volume(path, budget)
+}
+
+#[cfg(feature = "nifti")]
 fn read_nifti_volume(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
     nifti::read_nifti_within(path, budget)
 }
@@ -425,6 +564,23 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, IoError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sources_larger_than_the_budget_are_refused_before_reading() {
+        let mut options = VolumeOptions::default();
+        options.raw = Some(RawOptions::new([4, 4, 4], ScalarType::F32));
+        options.max_memory = Some(100);
+        let source = std::io::Cursor::new(vec![0u8; 256]);
+        assert!(matches!(
+            read_volume_from(source, Path::new("big.raw"), &options),
+            Err(IoError::TooLarge { .. })
+        ));
+        // Bytes that are not the format they are named as: a typed error naming them.
+        let e = read_volume_bytes(b"not a volume", Path::new("x.nrrd"), &options).unwrap_err();
+        assert!(e.to_string().starts_with("x.nrrd"), "{e}");
+        let e = read_volume_bytes(b"", Path::new("series"), &options).unwrap_err();
+        assert!(e.to_string().contains("series"), "{e}");
+    }
 
     /// Volumes written by nibabel and SimpleITK (`tests/interop/make_volumes.py`): every value at
     /// its index, and every grid corner at the world position the writing program was given.
@@ -448,9 +604,20 @@ mod tests {
             {
                 continue;
             }
+            let path = dir.join(name);
             let (grid, orientation) =
-                read_volume_oriented(&dir.join(name), &VolumeOptions::default()).unwrap();
+                read_volume_oriented(&path, &VolumeOptions::default()).unwrap();
             assert_eq!(grid.dims().to_vec(), dims, "{name}");
+            // From the bytes in memory and from a seekable source: the same volume. A detached
+            // header finds its data beside the name.
+            if !path.is_dir() {
+                let bytes = std::fs::read(&path).unwrap();
+                let from_bytes = read_volume_bytes(&bytes, &path, &VolumeOptions::default());
+                assert_eq!(from_bytes.unwrap(), (grid.clone(), orientation), "{name}");
+                let cursor = std::io::Cursor::new(bytes);
+                let from = read_volume_from(cursor, &path, &VolumeOptions::default());
+                assert_eq!(from.unwrap(), (grid.clone(), orientation), "{name}");
+            }
             let num = |v: &serde_json::Value| v.as_f64().unwrap();
             let (scale, offset) = (num(&file["scale"]), num(&file["offset"]));
             let linear: Vec<Vec<f64>> = file["linear"]

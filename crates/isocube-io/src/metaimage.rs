@@ -20,6 +20,16 @@ pub(super) fn read_metaimage_within(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     let bytes = budget.read_file(path)?;
+    read_metaimage_bytes(path, &bytes, budget)
+}
+
+/// [`read_metaimage_within`] on a file's bytes already in memory (`path` names it in errors and, for a
+/// detached header, locates its data).
+pub(super) fn read_metaimage_bytes(
+    path: &Path,
+    bytes: &[u8],
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
     let header = Header::parse(path, &bytes)?;
     let count = header
         .dims

@@ -7,7 +7,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use nifti::{IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
+use nifti::{InMemNiftiObject, IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
 
 use super::{Budget, IoError, Position};
 use isocube::field::{Grid, Orientation};
@@ -24,11 +24,19 @@ pub fn read_nifti(path: &Path) -> Result<(Grid, Orientation), IoError> {
 fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
     let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
-    let gz = path
-        .file_name()
+    check_header(path, std::io::BufReader::new(file), len, budget)
+}
+
+/// Whether `path` names a gzip-compressed file.
+fn gzipped(path: &Path) -> bool {
+    path.file_name()
         .and_then(|n| n.to_str())
-        .is_some_and(|n| n.to_ascii_lowercase().ends_with(".gz"));
-    let reader = std::io::BufReader::new(file);
+        .is_some_and(|n| n.to_ascii_lowercase().ends_with(".gz"))
+}
+
+/// [`check_size`] on the file's content (`len` bytes as stored, compressed or not).
+fn check_header(path: &Path, reader: impl Read, len: u64, budget: Budget) -> Result<(), IoError> {
+    let gz = gzipped(path);
     let mut reader: Box<dyn Read> = if gz {
         Box::new(flate2::read::MultiGzDecoder::new(reader))
     } else {
@@ -175,17 +183,49 @@ pub(super) fn read_nifti_within(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     check_size(path, budget)?;
+    let object = ReaderOptions::new()
+        .read_file(path)
+        .map_err(|e| nifti_error(path, e))?;
+    finish(path, object)
+}
+
+/// [`read_nifti_within`] on a single-file NIfTI (`.nii`, or `.nii.gz` when `path` ends so)
+/// already in memory.
+pub(super) fn read_nifti_bytes(
+    path: &Path,
+    bytes: &[u8],
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    check_header(path, bytes, bytes.len() as u64, budget)?;
+    let object = if gzipped(path) {
+        InMemNiftiObject::from_reader(flate2::read::MultiGzDecoder::new(bytes))
+    } else {
+        InMemNiftiObject::from_reader(bytes)
+    }
+    .map_err(|e| nifti_error(path, e))?;
+    finish(path, object)
+}
+
+fn nifti_error(path: &Path, e: nifti::NiftiError) -> IoError {
     let fail = |reason: String| IoError::format(path, Position::File, reason);
-    let object = ReaderOptions::new().read_file(path).map_err(|e| match e {
+    match e {
         nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
             fail("the file ends inside its header or data".into())
         }
         nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::NotFound => {
             IoError::os(path, io)
         }
+        nifti::NiftiError::NoVolumeData => fail(
+            "a header without its data (a .hdr/.img pair is read from files, not bytes)".into(),
+        ),
         nifti::NiftiError::Io(io) => fail(format!("not a readable NIfTI-1 file: {io}")),
         other => fail(format!("not a readable NIfTI-1 file: {other}")),
-    })?;
+    }
+}
+
+/// The grid and orientation of a NIfTI object the checks above let through.
+fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), IoError> {
+    let fail = |reason: String| IoError::format(path, Position::File, reason);
     let header = object.header().clone();
     let dim = header.dim;
     let rank = usize::from(dim[0]);

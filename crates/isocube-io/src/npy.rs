@@ -62,6 +62,17 @@ pub fn read_npy(path: &Path, axes: NpyAxes) -> Result<Grid, IoError> {
 
 pub(super) fn read_npy_within(path: &Path, axes: NpyAxes, budget: Budget) -> Result<Grid, IoError> {
     let bytes = budget.read_file(path)?;
+    read_npy_bytes(path, &bytes, axes, budget)
+}
+
+/// [`read_npy_within`] on a file's bytes already in memory (`path` names it in errors and, for a
+/// detached header, locates its data).
+pub(super) fn read_npy_bytes(
+    path: &Path,
+    bytes: &[u8],
+    axes: NpyAxes,
+    budget: Budget,
+) -> Result<Grid, IoError> {
     let layout = layout(path, &bytes, axes)?;
     let [nx, ny, nz] = layout.dims;
     budget.check_values(

@@ -28,6 +28,16 @@ pub(super) fn read_nrrd_within(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     let bytes = budget.read_file(path)?;
+    read_nrrd_bytes(path, &bytes, budget)
+}
+
+/// [`read_nrrd_within`] on a file's bytes already in memory (`path` names it in errors and, for a
+/// detached header, locates its data).
+pub(super) fn read_nrrd_bytes(
+    path: &Path,
+    bytes: &[u8],
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
     let header = Header::parse(path, &bytes)?;
     let grid = read_data(path, &bytes, &header, budget)?;
     Ok((grid, header.orientation))

@@ -195,8 +195,19 @@ pub(super) fn read_raw_within(
         .len();
     check_raw_size(path, options, count, len)?;
     budget.check_values(path, Position::File, len, count)?;
-    let bytes = read_file(path)?;
+    read_raw_bytes(path, &read_file(path)?, options, budget)
+}
+
+/// [`read_raw_within`] on a file's bytes already in memory (`path` names it in errors).
+pub(super) fn read_raw_bytes(
+    path: &Path,
+    bytes: &[u8],
+    options: &RawOptions,
+    budget: Budget,
+) -> Result<Grid, IoError> {
+    let count = Grid::point_count(options.dims).map_err(|e| IoError::grid(path, e))?;
     check_raw_size(path, options, count, bytes.len() as u64)?;
+    budget.check_values(path, Position::File, bytes.len() as u64, count)?;
     let values = decode_all(
         &bytes[options.header_bytes as usize..],
         options.scalar,

@@ -3,7 +3,7 @@
 //! (pixels per unit), the slice spacing from an ImageJ description (`spacing=`); without them
 //! the spacing is 1. Every page must have the first one's size and a single grey channel.
 
-use std::io::BufReader;
+use std::io::{BufReader, Read, Seek};
 use std::path::Path;
 
 use tiff::decoder::{ifd::Value, Decoder, DecodingResult, Limits};
@@ -21,6 +21,16 @@ pub fn read_tiff_stack(path: &Path) -> Result<Grid, IoError> {
 pub(super) fn read_tiff_within(path: &Path, budget: Budget) -> Result<Grid, IoError> {
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
     let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
+    read_tiff_from(path, BufReader::new(file), len, budget)
+}
+
+/// [`read_tiff_within`] from any seekable source of `len` bytes (`path` names it in errors).
+pub(super) fn read_tiff_from<R: Read + Seek>(
+    path: &Path,
+    source: R,
+    len: u64,
+    budget: Budget,
+) -> Result<Grid, IoError> {
     let page_error = |page: usize, e: tiff::TiffError| {
         IoError::format(path, Position::Field(format!("page {page}")), e.to_string())
     };
@@ -35,12 +45,12 @@ pub(super) fn read_tiff_within(path: &Path, budget: Budget) -> Result<Grid, IoEr
         l.intermediate_buffer_size = l.decoding_buffer_size;
         l
     };
-    let mut decoder = Decoder::new(BufReader::new(file))
+    let mut decoder = Decoder::new(source)
         .map_err(|e| IoError::format(path, Position::File, format!("not a readable TIFF: {e}")))?
         .with_limits(limits);
     let (width, height) = decoder.dimensions().map_err(|e| page_error(0, e))?;
     let (nx, ny) = (width as usize, height as usize);
-    let pixel = |d: &mut Decoder<BufReader<std::fs::File>>, tag| -> Option<f64> {
+    let pixel = |d: &mut Decoder<R>, tag| -> Option<f64> {
         match d.find_tag(tag).ok()?? {
             Value::Rational(n, d) if n > 0 && d > 0 => Some(f64::from(d) / f64::from(n)),
             Value::Float(x) if x > 0.0 => Some(1.0 / f64::from(x)),

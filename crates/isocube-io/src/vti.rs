@@ -21,6 +21,16 @@ pub fn read_vti(path: &Path) -> Result<(Grid, Orientation), IoError> {
 
 pub(super) fn read_vti_within(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
     let bytes = budget.read_file(path)?;
+    read_vti_bytes(path, &bytes, budget)
+}
+
+/// [`read_vti_within`] on a file's bytes already in memory (`path` names it in errors and, for a
+/// detached header, locates its data).
+pub(super) fn read_vti_bytes(
+    path: &Path,
+    bytes: &[u8],
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
     // Raw appended data is not XML: parse only what comes before it.
     let appended_tag = find(&bytes, b"<AppendedData");
     let head = &bytes[..appended_tag.unwrap_or(bytes.len())];
