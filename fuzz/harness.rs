@@ -94,7 +94,10 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
                         let bits = |g: &isocube::field::Grid| {
                             g.values().iter().map(|v| v.to_bits()).collect::<Vec<_>>()
                         };
-                        assert_eq!((a.dims(), a.spacing(), a.origin(), o), (b.dims(), b.spacing(), b.origin(), p));
+                        assert_eq!(
+                            (a.dims(), a.spacing(), a.origin(), o),
+                            (b.dims(), b.spacing(), b.origin(), p)
+                        );
                         assert_eq!(bits(a), bits(b));
                     }
                     (Err(_), Err(_)) => {}

@@ -30,7 +30,7 @@ pub(super) fn read_metaimage_bytes(
     bytes: &[u8],
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
-    let header = Header::parse(path, &bytes)?;
+    let header = Header::parse(path, bytes)?;
     let count = header
         .dims
         .iter()

@@ -73,7 +73,7 @@ pub(super) fn read_npy_bytes(
     axes: NpyAxes,
     budget: Budget,
 ) -> Result<Grid, IoError> {
-    let layout = layout(path, &bytes, axes)?;
+    let layout = layout(path, bytes, axes)?;
     let [nx, ny, nz] = layout.dims;
     budget.check_values(
         path,

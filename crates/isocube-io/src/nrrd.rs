@@ -38,8 +38,8 @@ pub(super) fn read_nrrd_bytes(
     bytes: &[u8],
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
-    let header = Header::parse(path, &bytes)?;
-    let grid = read_data(path, &bytes, &header, budget)?;
+    let header = Header::parse(path, bytes)?;
+    let grid = read_data(path, bytes, &header, budget)?;
     Ok((grid, header.orientation))
 }
 

@@ -32,7 +32,7 @@ pub(super) fn read_vti_bytes(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     // Raw appended data is not XML: parse only what comes before it.
-    let appended_tag = find(&bytes, b"<AppendedData");
+    let appended_tag = find(bytes, b"<AppendedData");
     let head = &bytes[..appended_tag.unwrap_or(bytes.len())];
     let doc = Document::parse(path, head)?;
     let extent = doc.extent;
