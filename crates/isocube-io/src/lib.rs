@@ -567,9 +567,11 @@ mod tests {
 
     #[test]
     fn sources_larger_than_the_budget_are_refused_before_reading() {
-        let mut options = VolumeOptions::default();
-        options.raw = Some(RawOptions::new([4, 4, 4], ScalarType::F32));
-        options.max_memory = Some(100);
+        let options = VolumeOptions {
+            raw: Some(RawOptions::new([4, 4, 4], ScalarType::F32)),
+            max_memory: Some(100),
+            ..VolumeOptions::default()
+        };
         let source = std::io::Cursor::new(vec![0u8; 256]);
         assert!(matches!(
             read_volume_from(source, Path::new("big.raw"), &options),
