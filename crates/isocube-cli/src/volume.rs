@@ -40,7 +40,8 @@ pub(crate) struct VolumeArgs {
     pub axes: NpyAxes,
     /// The most memory reading the volume may take: `512M`, `8G`, `1.5T` (binary units), a
     /// number of bytes, or `none`. Files whose header asks for more are refused before anything
-    /// is allocated. [default: the machine's physical memory]
+    /// is allocated; `extract` gives the mesh what the volume leaves. [default: the machine's
+    /// physical memory]
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     pub max_memory: Option<MemoryLimit>,
 }

@@ -153,6 +153,41 @@ fn extract_raw_big_endian_with_level() {
 /// same bytes as the in-memory path, with spacing, origin, flip and MC33; and it is refused with
 /// a reason where the options need the whole volume.
 #[test]
+fn a_mesh_past_max_memory_is_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = isocube(
+        dir.path(),
+        &[
+            "extract",
+            "sample:gyroid:64",
+            "--max-memory",
+            "3M",
+            "-o",
+            "g.ply",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("sample:gyroid:64") && err.contains("--max-memory"),
+        "{err}"
+    );
+    assert!(!dir.path().join("g.ply").exists());
+    ok(
+        dir.path(),
+        &[
+            "extract",
+            "sample:gyroid:64",
+            "--max-memory",
+            "64M",
+            "-o",
+            "g.ply",
+        ],
+    );
+    assert!(dir.path().join("g.ply").exists());
+}
+
+#[test]
 fn streamed_extraction_matches_in_memory() {
     let dir = tempfile::tempdir().unwrap();
     let n = 48usize;

@@ -7,8 +7,8 @@ use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{
     extract_boxes_into, extract_into, extract_labels, extract_labels_boxes, extract_streamed,
-    label_cells, streams_by_default, CellBox, ExtractOptions, ExtractStats, LabelOptions,
-    LabelSelection, Method, SnapPosition, Snapping, StreamError,
+    label_cells, streams_by_default, CellBox, ExtractError, ExtractOptions, ExtractStats,
+    LabelOptions, LabelSelection, Method, SnapPosition, Snapping, StreamError,
 };
 use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
@@ -141,7 +141,10 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     // The view carries the file's direction, and a built-in sample its exact function: the
     // library orients the mesh and relaxes on the right field.
     let view = grid.view().with_orientation(orientation);
-    let options = options(args);
+    // The mesh may use what the volume leaves of --max-memory (the machine's memory by default).
+    let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
+        .map(|limit| limit.saturating_sub(std::mem::size_of_val(grid.values()) as u64));
+    let options = options(args).with_max_memory(room);
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
@@ -153,7 +156,13 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         }),
         None => extract_into(view, &options, &mut mesh, &mut |d, t| progress.update(d, t)),
     }
-    .map_err(Failure::input)?;
+    .map_err(|e| match e {
+        ExtractError::MeshMemory { .. } => Failure::input(anyhow::anyhow!(
+            "{}: {e} (raise it with --max-memory)",
+            args.volume.volume
+        )),
+        e => Failure::input(e),
+    })?;
     progress.finish();
     if args.strict && stats.skipped_cells > 0 {
         let first = grid.values().iter().position(|v| !v.is_finite());

@@ -316,6 +316,19 @@ impl ChunkMesh {
         }
     }
 
+    /// Bytes the chunk holds (what its arrays use, not what they reserved).
+    pub fn bytes(&self) -> u64 {
+        let m = &self.mesh;
+        let v3 = std::mem::size_of::<[f32; 3]>();
+        let n = (m.positions.len() + m.normals.len()) * v3
+            + m.triangles.len() * std::mem::size_of::<[u32; 3]>()
+            + self.keys.len() * std::mem::size_of::<VertexKey>()
+            + self.tags.len() * 4
+            + self.rows.len() * 8
+            + self.on_faces.as_ref().map_or(0, |f| f.len() * 8);
+        n as u64
+    }
+
     /// Closes the current row of cells.
     #[inline]
     pub(crate) fn end_row(&mut self) -> Result<(), ExtractError> {

@@ -128,6 +128,11 @@ pub struct ExtractOptions {
     pub triangulation: Strategy,
     /// Relaxation sweeps after extraction (see [`crate::quality::relax()`]); 0 for none.
     pub relax: usize,
+    /// The most memory the mesh may take, in bytes (`None`: no limit). Extraction stops with
+    /// [`ExtractError::MeshMemory`] as soon as the boxes meshed so far, and the joined copy
+    /// they become, would need more: a clean error instead of the system's out-of-memory
+    /// killer, whatever the front end.
+    pub max_memory: Option<u64>,
 }
 
 /// Which Marching Cubes: binary (values at or above the level versus below) or ternary.
@@ -162,11 +167,18 @@ impl Default for ExtractOptions {
             method: Method::MarchingCubes,
             triangulation: Strategy::Fan,
             relax: 0,
+            max_memory: None,
         }
     }
 }
 
 impl ExtractOptions {
+    /// Sets [`ExtractOptions::max_memory`].
+    pub fn with_max_memory(mut self, bytes: Option<u64>) -> Self {
+        self.max_memory = bytes;
+        self
+    }
+
     /// Sets the level.
     pub fn with_level(mut self, level: f32) -> Self {
         self.level = level;
@@ -285,6 +297,23 @@ pub enum ExtractError {
         /// The estimated bytes.
         bytes: f64,
         /// The limit in bytes.
+        limit: u64,
+    },
+    /// The mesh needs more memory than [`ExtractOptions::max_memory`] allows.
+    #[error(
+        "the mesh of {done} of {total} cells already takes {:.1} MiB; with its joined copy it \
+         needs more than the limit of {:.1} MiB",
+        *bytes as f64 / f64::from(1u32 << 20),
+        *limit as f64 / f64::from(1u32 << 20)
+    )]
+    MeshMemory {
+        /// Cells meshed when the limit was passed.
+        done: usize,
+        /// Cells to mesh.
+        total: usize,
+        /// Bytes of the meshed boxes.
+        bytes: u64,
+        /// The limit.
         limit: u64,
     },
     /// A single section closes only with an extension cap.
@@ -419,11 +448,21 @@ pub fn extract_boxes_into<'a>(
     // Boxes are meshed a batch at a time so that progress is told, and a stop honoured, while
     // the work runs: some 32 batches, each enough to keep every thread busy.
     let batch = (boxes.len() / 32).max(4 * rayon::current_num_threads());
-    let mut chunks = Vec::with_capacity(boxes.len());
-    let mut done = 0;
+    let mut chunks: Vec<ChunkMesh> = Vec::with_capacity(boxes.len());
+    let (mut done, mut held) = (0, 0u64);
     for group in boxes.chunks(batch) {
-        chunks.extend(extractor.mesh_boxes(group)?);
+        let meshed = extractor.mesh_boxes(group)?;
+        held += meshed.iter().map(ChunkMesh::bytes).sum::<u64>();
+        chunks.extend(meshed);
         done += group.iter().map(|b| b.cell_count()).sum::<usize>();
+        if let Some(limit) = options.max_memory.filter(|&l| held.saturating_mul(2) > l) {
+            return Err(ExtractError::MeshMemory {
+                done,
+                total,
+                bytes: held,
+                limit,
+            });
+        }
         if progress(done, total).is_break() {
             return Err(ExtractError::Cancelled);
         }

@@ -1080,6 +1080,30 @@ proptest! {
 }
 
 #[test]
+fn a_mesh_larger_than_the_memory_limit_stops_with_a_typed_error() {
+    let grid = Sample::Gyroid.grid(48);
+    let options = ExtractOptions::default();
+    let (mesh, _) = extract(&grid, &options).unwrap();
+    let bytes = (mesh.positions.len() * 24 + mesh.triangles.len() * 12) as u64;
+    // Far below the mesh: refused, saying how far it got.
+    let small = options.with_max_memory(Some(bytes / 4));
+    match extract(&grid, &small) {
+        Err(ExtractError::MeshMemory {
+            done,
+            total,
+            bytes: held,
+            limit,
+        }) => {
+            assert!(done <= total && held * 2 > limit && limit == bytes / 4);
+        }
+        other => panic!("{other:?}"),
+    }
+    // Room enough: the same mesh as without a limit.
+    let roomy = options.with_max_memory(Some(bytes * 4));
+    assert_eq!(extract(&grid, &roomy).unwrap().0, mesh);
+}
+
+#[test]
 fn overlapping_and_outside_boxes_are_refused() {
     let grid = Sample::Sphere.grid(8);
     let options = ExtractOptions::default();
