@@ -61,17 +61,23 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
     };
     match name {
         "ply" | "obj" | "stl" | "off" => {
-            if let Ok(mesh) = io::read_mesh(read) {
+            let mesh = io::read_mesh(read);
+            same_outcome(&mesh, &io::read_mesh_bytes(data, read));
+            if let Ok(mesh) = mesh {
                 check_mesh(&mesh);
             }
         }
         "poly_obj" => {
-            if let Ok(poly) = io::read_poly_mesh(read) {
+            let poly = io::read_poly_mesh(read);
+            same_outcome(&poly, &io::read_poly_mesh_bytes(data, read));
+            if let Ok(poly) = poly {
                 check_poly(&poly);
             }
         }
         n if n.starts_with("contours") => {
-            if let Ok(stack) = io::read_contours(read) {
+            let stack = io::read_contours(read);
+            same_outcome(&stack, &io::read_contours_bytes(data, read));
+            if let Ok(stack) = stack {
                 for section in stack.sections() {
                     assert!(section.z().is_finite());
                     for c in section.contours() {
@@ -152,5 +158,17 @@ fn check_poly(poly: &isocube::subdiv::PolyMesh) {
     let options = isocube::subdiv::SubdivOptions::default();
     if let Ok(fine) = isocube::subdiv::subdivide(poly, 1, &options) {
         assert!(fine.positions.iter().flatten().all(|c| c.is_finite()));
+    }
+}
+
+/// A file and the same bytes from memory: the same value, or an error both ways.
+fn same_outcome<T: PartialEq + std::fmt::Debug>(
+    file: &Result<T, io::IoError>,
+    bytes: &Result<T, io::IoError>,
+) {
+    match (file, bytes) {
+        (Ok(a), Ok(b)) => assert_eq!(a, b),
+        (Err(_), Err(_)) => {}
+        _ => panic!("file and bytes disagree: {file:?} / {bytes:?}"),
     }
 }

@@ -34,23 +34,44 @@ use super::{IoError, Position};
 
 /// Reads a contour stack, by extension: `.csv`, `.json` or `.dxf`.
 pub fn read_contours(path: &Path) -> Result<SectionStack, IoError> {
+    let bytes = std::fs::read(path).map_err(|source| IoError::Os {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    read_contours_bytes(&bytes, path)
+}
+
+/// [`read_contours`] on a file's content already in memory; `name`'s extension chooses the
+/// format and `name` appears in errors.
+///
+/// ```
+/// use std::path::Path;
+/// let mut csv = String::from("section,z,contour,x,y\n");
+/// for (s, z) in [(0, 0), (1, 2)] {
+///     for [x, y] in [[0, 0], [1, 0], [0, 1], [0, 0]] {
+///         csv += &format!("{s},{z},0,{x},{y}\n");
+///     }
+/// }
+/// let csv = csv.as_bytes();
+/// let stack = isocube_io::read_contours_bytes(csv, Path::new("two.csv"))?;
+/// assert_eq!(stack.sections().len(), 2);
+/// # Ok::<(), isocube_io::IoError>(())
+/// ```
+pub fn read_contours_bytes(bytes: &[u8], name: &Path) -> Result<SectionStack, IoError> {
+    let path = name;
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let text = std::fs::read(path).map_err(|source| IoError::Os {
+    let text = std::str::from_utf8(bytes).map_err(|e| IoError::Format {
         path: path.to_path_buf(),
-        source,
-    })?;
-    let text = String::from_utf8(text).map_err(|e| IoError::Format {
-        path: path.to_path_buf(),
-        position: Position::Byte(e.utf8_error().valid_up_to() as u64),
+        position: Position::Byte(e.valid_up_to() as u64),
         reason: "not UTF-8 text".into(),
     })?;
     match ext.as_deref() {
-        Some("csv") => parse_contours_csv(&text, path),
-        Some("json") => parse_contours_json(&text, path),
-        Some("dxf") => parse_contours_dxf(&text, path),
+        Some("csv") => parse_contours_csv(text, path),
+        Some("json") => parse_contours_json(text, path),
+        Some("dxf") => parse_contours_dxf(text, path),
         _ => Err(IoError::Unsupported {
             path: path.to_path_buf(),
             position: Position::File,

@@ -67,14 +67,14 @@ use thiserror::Error;
 
 use isocube::field::{Grid, GridError, Orientation};
 
-pub use contours::{parse_contours_csv, parse_contours_json, read_contours};
+pub use contours::{parse_contours_csv, parse_contours_json, read_contours, read_contours_bytes};
 #[cfg(feature = "dicom")]
 #[cfg_attr(docsrs, doc(cfg(feature = "dicom")))]
 pub use dicom::read_dicom_series;
 pub use export::VertexValues;
 pub use mapped::MappedVolume;
 pub use mesh_io::{
-    read_mesh, write_file_atomic, write_mesh, write_mesh_data_to, write_mesh_to,
+    read_mesh, read_mesh_bytes, write_file_atomic, write_mesh, write_mesh_data_to, write_mesh_to,
     write_mesh_with_values, MeshFormat, MeshWriteOptions, PlyWriter,
 };
 pub use metaimage::read_metaimage;
@@ -83,7 +83,7 @@ pub use metaimage::read_metaimage;
 pub use nifti::read_nifti;
 pub use npy::{read_npy, NpyAxes};
 pub use nrrd::{read_nrrd, read_nrrd_oriented};
-pub use poly::{read_poly_mesh, write_poly_mesh};
+pub use poly::{read_poly_mesh, read_poly_mesh_bytes, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
 #[cfg(feature = "tiff")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tiff")))]

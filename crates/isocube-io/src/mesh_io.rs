@@ -485,13 +485,28 @@ fn write_stl(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<()> {
 /// Reads a mesh in the format its extension names. Polygons are fan-triangulated; STL
 /// triangles are welded by exact position.
 pub fn read_mesh(path: &Path) -> Result<Mesh, IoError> {
+    MeshFormat::from_path(path).ok_or_else(|| unknown_format(path))?;
+    read_mesh_bytes(&read_file(path)?, path)
+}
+
+/// [`read_mesh`] on a file's content already in memory; `name`'s extension chooses the format
+/// and `name` appears in errors.
+///
+/// ```
+/// use std::path::Path;
+/// let off = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+/// let mesh = isocube_io::read_mesh_bytes(off, Path::new("one.off"))?;
+/// assert_eq!((mesh.positions.len(), mesh.triangles.len()), (3, 1));
+/// # Ok::<(), isocube_io::IoError>(())
+/// ```
+pub fn read_mesh_bytes(bytes: &[u8], name: &Path) -> Result<Mesh, IoError> {
+    let path = name;
     let format = MeshFormat::from_path(path).ok_or_else(|| unknown_format(path))?;
-    let bytes = read_file(path)?;
     let mesh = match format {
-        MeshFormat::Ply => read_ply(path, &bytes)?,
-        MeshFormat::Obj => read_obj(path, &bytes)?,
-        MeshFormat::Stl => read_stl(path, &bytes)?,
-        MeshFormat::Off => read_off(path, &bytes)?,
+        MeshFormat::Ply => read_ply(path, bytes)?,
+        MeshFormat::Obj => read_obj(path, bytes)?,
+        MeshFormat::Stl => read_stl(path, bytes)?,
+        MeshFormat::Off => read_off(path, bytes)?,
         other => {
             return Err(IoError::unsupported(
                 path,

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::mesh_io::{read_mesh, write_atomic, write_mesh, MeshFormat, MeshWriteOptions};
+use super::mesh_io::{read_mesh_bytes, write_atomic, write_mesh, MeshFormat, MeshWriteOptions};
 use super::{read_file, IoError, Position};
 use isocube::subdiv::{Face, PolyMesh, SubdivError};
 
@@ -36,10 +36,16 @@ fn subdiv_error(path: &Path, text: &str, e: SubdivError) -> IoError {
 /// Reads a polygon mesh: OBJ keeps its polygons and tags (creases, corners, holes, boundary
 /// rule, inner loops); PLY and STL give their triangles (STL welded by exact position).
 pub fn read_poly_mesh(path: &Path) -> Result<PolyMesh, IoError> {
+    read_poly_mesh_bytes(&read_file(path)?, path)
+}
+
+/// [`read_poly_mesh`] on a file's content already in memory; `name`'s extension chooses the
+/// format and `name` appears in errors.
+pub fn read_poly_mesh_bytes(bytes: &[u8], name: &Path) -> Result<PolyMesh, IoError> {
+    let path = name;
     match MeshFormat::from_path(path) {
         Some(MeshFormat::Obj) => {
-            let bytes = read_file(path)?;
-            let text = std::str::from_utf8(&bytes).map_err(|e| {
+            let text = std::str::from_utf8(bytes).map_err(|e| {
                 IoError::format(
                     path,
                     Position::Byte(e.valid_up_to() as u64),
@@ -49,7 +55,7 @@ pub fn read_poly_mesh(path: &Path) -> Result<PolyMesh, IoError> {
             PolyMesh::from_obj(text).map_err(|e| subdiv_error(path, text, e))
         }
         _ => {
-            let mesh = read_mesh(path)?;
+            let mesh = read_mesh_bytes(bytes, path)?;
             Ok(PolyMesh {
                 positions: mesh.positions.iter().map(|p| p.map(f64::from)).collect(),
                 faces: mesh
@@ -86,6 +92,7 @@ pub fn write_poly_mesh(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::read_mesh;
 
     #[test]
     fn obj_round_trips_tags_and_inner_loops() {
