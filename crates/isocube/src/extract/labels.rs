@@ -241,7 +241,10 @@ impl<'a> Labelled<'a> {
                         });
                     }
                     let label = v as i64;
-                    let next = names.len() as u32 + 1;
+                    // Dense numbers are u32 (so are the padded grid's); past that, too many
+                    // labels to mesh.
+                    let next = u32::try_from(names.len() + 1)
+                        .map_err(|_| ExtractError::TooManyVertices)?;
                     let id = *dense.entry(label).or_insert_with(|| {
                         names.push(label);
                         next

@@ -277,7 +277,10 @@ fn split_far_edges(
         let m = m32.map(f64::from);
         // The new triangles must face the way the old ones did.
         let mut new_triangles = Vec::with_capacity(4);
-        let id = mesh.positions.len() as u32;
+        // A mesh at the end of u32 numbering is not split further.
+        let Ok(id) = u32::try_from(mesh.positions.len()) else {
+            break;
+        };
         for h in group {
             let t = mesh.triangles[h.2 as usize];
             let k = (0..3)
