@@ -13,9 +13,11 @@ small=256
 mkdir -p "$work"
 cargo build --release -q -p isocube-cli
 cargo build --release -q -p isocube --example ct_volume
-bin=target/release/isocube
+# Binaries where cargo puts them (CARGO_TARGET_DIR when set).
+target=${CARGO_TARGET_DIR:-target}
+bin=$target/release/isocube
 for size in "$n" "$small"; do
-  [ -f "$work/ct-$size.npy" ] || target/release/examples/ct_volume "$work/ct-$size.npy" "$size"
+  [ -f "$work/ct-$size.npy" ] || "$target/release/examples/ct_volume" "$work/ct-$size.npy" "$size"
 done
 
 peak() { # peak resident set size of a command, in MiB (from /usr/bin/time, or getrusage)

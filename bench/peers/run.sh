@@ -13,4 +13,4 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p isocube-io --example peer_timing
 mapfile -t specs < <("$venv/bin/python" "$here/volumes.py" "$here/data" "$@")
-"$venv/bin/python" "$here/peers.py" "$root/target/release/examples/peer_timing" "${specs[@]}"
+"$venv/bin/python" "$here/peers.py" "${CARGO_TARGET_DIR:-$root/target}/release/examples/peer_timing" "${specs[@]}"

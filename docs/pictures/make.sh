@@ -10,7 +10,7 @@ root="$(cd "$here/../.." && pwd)"
 out="${1:-$here}"
 mkdir -p "$out"
 cargo build --quiet --release --manifest-path "$root/Cargo.toml" -p isocube-cli
-isocube="$root/target/release/isocube"
+isocube="${CARGO_TARGET_DIR:-$root/target}/release/isocube"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 # Four of the demo's pictures, smaller.

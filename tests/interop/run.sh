@@ -17,7 +17,7 @@ if [ ! -x "$venv/bin/python" ]; then
   "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$here/requirements.txt"
 fi
 cargo build --quiet --release --manifest-path "$root/Cargo.toml" -p isocube-cli
-isocube="$root/target/release/isocube"
+isocube="${CARGO_TARGET_DIR:-$root/target}/release/isocube"
 
 # Two surfaces: a closed torus with another field's values on it, an open gyroid patch.
 cases=("torus sample:torus:40 sample:sphere:40" "gyroid sample:gyroid:36 sample:tangle:36")
