@@ -22,7 +22,12 @@
 //!   of crossing distance × 8 parity classes), each decision reading the zero state of points
 //!   one step away decided in earlier groups, so a box's zero points depend on the field up to
 //!   89 points beyond it. [`super::Extractor`] decides them once on the whole grid, and every box
-//!   then needs one point beyond it, as for binary.
+//!   then needs one point beyond it, as for binary;
+//! - labels: the labelled grid is padded by a layer of outside points, and a box of its cells
+//!   reads only its own corner points (smoothing runs after the join, on the whole mesh);
+//! - the contours' sectional cells (a grid of plane points by section layers): the sparse
+//!   distances and the contour pieces are computed once for the stack, and a box reads only its
+//!   own corners and the pieces of its own squares.
 
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
