@@ -9,7 +9,7 @@ use memmap2::Mmap;
 use super::npy::layout;
 use super::raw::{check_raw_size, decode_into, Endian, ScalarType};
 use super::{IoError, Position, VolumeOptions};
-use isocube::field::{Grid, PlaneSource};
+use isocube::field::{Grid, GridView, PlaneSource};
 
 /// A raw or `.npy` volume mapped into memory, decoded to `f32` a few planes at a time.
 ///
@@ -130,6 +130,40 @@ impl MappedVolume {
 
     fn data(&self) -> &[u8] {
         &self.map[self.data_offset..]
+    }
+
+    /// The mapped values as a grid view, read where they lie (any axis convention and memory
+    /// order), when they are `f32` in this machine's byte order at an aligned offset: `None`
+    /// otherwise (other types are converted slab by slab by [`PlaneSource::read_planes`]).
+    ///
+    /// ```no_run
+    /// use isocube::extract::{extract, ExtractOptions};
+    /// use isocube_io::{MappedVolume, VolumeOptions};
+    /// use std::path::Path;
+    /// let volume = MappedVolume::open(Path::new("scan.npy"), &VolumeOptions::default())?;
+    /// if let Some(view) = volume.view() {
+    ///     let (mesh, _) = extract(view, &ExtractOptions::default().with_level(0.5))?;
+    ///     println!("{} triangles, no copy of the volume", mesh.triangle_count());
+    /// }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn view(&self) -> Option<GridView<'_>> {
+        let native = match self.endian {
+            Endian::Little => cfg!(target_endian = "little"),
+            Endian::Big => cfg!(target_endian = "big"),
+        };
+        if self.scalar != ScalarType::F32 || !native {
+            return None;
+        }
+        // The map starts on a page; the data is aligned when its offset is.
+        let values: &[f32] = bytemuck::try_cast_slice(self.data()).ok().or_else(|| {
+            let data = self.data();
+            bytemuck::try_cast_slice(&data[..data.len() / 4 * 4]).ok()
+        })?;
+        GridView::strided(values, self.dims, self.strides)
+            .and_then(|v| v.with_spacing(self.spacing))
+            .and_then(|v| v.with_origin(self.origin))
+            .ok()
     }
 }
 

@@ -137,19 +137,35 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(volume) = streamable(args)? {
         return run_streamed(args, &volume, quiet);
     }
-    let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
+    // A mapped `f32` file is meshed where it lies, in whatever order its axes are stored;
+    // anything else is read into a grid first.
+    let mapped = match args.volume.mappable() {
+        true => Some(args.volume.map()?),
+        false => None,
+    };
+    let loaded;
     // The view carries the file's direction, and a built-in sample its exact function: the
     // library orients the mesh and relaxes on the right field.
-    let view = grid.view().with_orientation(orientation);
+    let view = match mapped.as_ref().and_then(MappedVolume::view) {
+        Some(view) if args.index_space => view
+            .with_spacing([1.0; 3])
+            .and_then(|v| v.with_origin([0.0; 3]))
+            .map_err(Failure::input)?,
+        Some(view) => view,
+        None => {
+            loaded = in_frame(args, args.volume.load_oriented()?)?;
+            loaded.0.view().with_orientation(loaded.1)
+        }
+    };
     // The mesh may use what the volume leaves of --max-memory (the machine's memory by default).
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
-        .map(|limit| limit.saturating_sub(std::mem::size_of_val(grid.values()) as u64));
+        .map(|limit| limit.saturating_sub(std::mem::size_of_val(view.values()) as u64));
     let options = options(args).with_max_memory(room);
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
     let stats = match args.chunk {
-        Some(size) => CellBox::tile(grid.dims(), size).and_then(|boxes| {
+        Some(size) => CellBox::tile(view.dims(), size).and_then(|boxes| {
             extract_boxes_into(view, &options, &boxes, &mut mesh, &mut |d, t| {
                 progress.update(d, t)
             })
@@ -165,8 +181,11 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     })?;
     progress.finish();
     if args.strict && stats.skipped_cells > 0 {
-        let first = grid.values().iter().position(|v| !v.is_finite());
-        let [nx, ny, _] = grid.dims();
+        let [nx, ny, nz] = view.dims();
+        let first = (0..nx * ny * nz).find(|p| {
+            let (i, j, k) = (p % nx, p / nx % ny, p / (nx * ny));
+            !view.value(i, j, k).is_finite()
+        });
         let at = first.map_or_else(String::new, |p| {
             format!(
                 ", the first at point ({}, {}, {})",
