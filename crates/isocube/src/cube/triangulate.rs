@@ -176,36 +176,47 @@ fn band_search(
     let phases = if through_interior { 3 } else { 1 };
     let last = phases - 1;
     let x = Corner::INTERIOR;
+    // Rung lengths and admissibility between every pair of corners, computed once (the search
+    // below visits each pair for every start rung); the same arithmetic, so the same bits.
+    let pair = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+        (0..n1 * n2).map(|k| f(k / n2, k % n2)).collect()
+    };
+    let rung_length = pair(&|u, v| distance(l1[u], l2[v]));
+    let via_length = match through_interior {
+        true => pair(&|u, v| distance(l1[u], x) + distance(x, l2[v])),
+        false => Vec::new(),
+    };
+    let joinable: Vec<bool> = (0..n1 * n2)
+        .map(|k| may_join(l1[k / n2], l2[k % n2]))
+        .collect();
+    let inf = f64::INFINITY;
+    let size = phases * (n1 + 1) * (n2 + 1);
+    let at = |phase: usize, i: usize, m: usize| (phase * (n1 + 1) + i) * (n2 + 1) + m;
+    let mut cost = vec![inf; size];
+    let mut step = vec![u8::MAX; size];
     let mut best: Option<(f64, Vec<[Corner; 3]>)> = None;
     // Phases: 0 before the interior stretch, 1 inside it (rungs pass through the point), 2 after.
     for r in 0..n1 {
         for s in 0..n2 {
-            let a = |i: usize| l1[(r + i) % n1];
-            let c = |m: usize| l2[(s + n2 * 2 - m) % n2];
-            if !may_join(a(0), c(0)) {
+            let ai = |i: usize| (r + i) % n1;
+            let ci = |m: usize| (s + n2 * 2 - m) % n2;
+            let a = |i: usize| l1[ai(i)];
+            let c = |m: usize| l2[ci(m)];
+            if !joinable[ai(0) * n2 + ci(0)] {
                 continue;
             }
-            let inf = f64::INFINITY;
             // cost[phase][i][m] and the step that reached it: 0 L1 advance, 1 L2 advance,
             // 2 phase change at the same rung.
-            let mut cost = vec![vec![vec![inf; n2 + 1]; n1 + 1]; phases];
-            let mut step = vec![vec![vec![u8::MAX; n2 + 1]; n1 + 1]; phases];
-            cost[0][0][0] = 0.0;
+            cost.fill(inf);
+            step.fill(u8::MAX);
+            cost[at(0, 0, 0)] = 0.0;
             for i in 0..=n1 {
                 for m in 0..=n2 {
                     let final_state = (i, m) == (n1, n2);
-                    let direct_ok =
-                        final_state || (i > 0 && (i, m) != (n1, 0) && may_join(a(i), c(m)));
-                    let direct = if final_state {
-                        0.0
-                    } else {
-                        distance(a(i), c(m))
-                    };
-                    let via = if through_interior {
-                        distance(a(i), x) + distance(x, c(m))
-                    } else {
-                        0.0
-                    };
+                    let k = ai(i) * n2 + ci(m);
+                    let direct_ok = final_state || (i > 0 && (i, m) != (n1, 0) && joinable[k]);
+                    let direct = if final_state { 0.0 } else { rung_length[k] };
+                    let via = if through_interior { via_length[k] } else { 0.0 };
                     for phase in 0..phases {
                         if (i, m) == (0, 0) && phase == 0 {
                             continue;
@@ -226,32 +237,32 @@ fn band_search(
                             continue;
                         }
                         if i > 0 && !(final_state && phase != 1) {
-                            offer(cost[phase][i - 1][m] + rung, 0);
+                            offer(cost[at(phase, i - 1, m)] + rung, 0);
                         }
                         if m > 0 {
-                            offer(cost[phase][i][m - 1] + rung, 1);
+                            offer(cost[at(phase, i, m - 1)] + rung, 1);
                         }
                         // Entering the stretch: from the direct rung at the same place.
                         if phase == 1 && (i, m) != (n1, n2) {
-                            offer(cost[0][i][m] + via, 2);
+                            offer(cost[at(0, i, m)] + via, 2);
                         }
                         // Leaving it: back to a direct rung here, after at least one step inside.
-                        if phase == 2 && step[1][i][m] < 2 {
-                            offer(cost[1][i][m] + direct, 2);
+                        if phase == 2 && step[at(1, i, m)] < 2 {
+                            offer(cost[at(1, i, m)] + direct, 2);
                         }
-                        cost[phase][i][m] = here.0;
-                        step[phase][i][m] = here.1;
+                        cost[at(phase, i, m)] = here.0;
+                        step[at(phase, i, m)] = here.1;
                     }
                 }
             }
-            let total = cost[last][n1][n2];
+            let total = cost[at(last, n1, n2)];
             if total == inf || best.as_ref().is_some_and(|(b, _)| *b <= total) {
                 continue;
             }
             let mut triangles = Vec::with_capacity(n1 + n2 + 2);
             let (mut i, mut m, mut phase) = (n1, n2, last);
             while (i, m, phase) != (0, 0, 0) {
-                match step[phase][i][m] {
+                match step[at(phase, i, m)] {
                     0 => {
                         triangles.push(if phase == 1 {
                             [a(i - 1), a(i), x]
