@@ -10,6 +10,7 @@
 use std::borrow::Cow;
 use std::io::{self, Write};
 
+use super::blocks::write_blocks;
 use isocube::mesh::Mesh;
 
 /// One scalar per vertex, written under `name` (for example the value of a second volume at
@@ -322,13 +323,23 @@ pub(crate) fn write_legacy_vtk(
 pub(crate) fn write_off(w: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
     writeln!(w, "OFF")?;
     writeln!(w, "{} {} 0", mesh.positions.len(), mesh.triangles.len())?;
-    for p in &mesh.positions {
-        writeln!(w, "{} {} {}", p[0], p[1], p[2])?;
-    }
-    for t in &mesh.triangles {
-        writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
-    }
-    Ok(())
+    positions_text(w, &mesh.positions)?;
+    // Writing to a Vec cannot fail.
+    write_blocks(w, mesh.triangles.len(), |out, r| {
+        for t in &mesh.triangles[r] {
+            let _ = writeln!(out, "3 {} {} {}", t[0], t[1], t[2]);
+        }
+    })
+}
+
+/// One `x y z` line per position, as Rust prints each `f32` (the shortest text that reads back
+/// to the same value).
+fn positions_text(w: &mut impl Write, positions: &[[f32; 3]]) -> io::Result<()> {
+    write_blocks(w, positions.len(), |out, r| {
+        for p in &positions[r] {
+            let _ = writeln!(out, "{} {} {}", p[0], p[1], p[2]);
+        }
+    })
 }
 
 /// Gmsh MSH 4.1 (ASCII): one surface entity holding every node and every 3-node triangle
@@ -352,29 +363,34 @@ pub(crate) fn write_msh(
     writeln!(w, "$EndEntities")?;
     writeln!(w, "$Nodes\n1 {n} 1 {n}")?;
     writeln!(w, "2 1 0 {n}")?;
-    for tag in 1..=n {
-        writeln!(w, "{tag}")?;
-    }
-    for p in &mesh.positions {
-        writeln!(w, "{} {} {}", p[0], p[1], p[2])?;
-    }
+    write_blocks(w, n, |out, r| {
+        for tag in r {
+            let _ = writeln!(out, "{}", tag + 1);
+        }
+    })?;
+    positions_text(w, &mesh.positions)?;
     writeln!(w, "$EndNodes")?;
     writeln!(w, "$Elements\n1 {f} 1 {f}")?;
     writeln!(w, "2 1 2 {f}")?;
-    for (i, t) in mesh.triangles.iter().enumerate() {
-        writeln!(w, "{} {} {} {}", i + 1, t[0] + 1, t[1] + 1, t[2] + 1)?;
-    }
+    write_blocks(w, f, |out, r| {
+        for i in r {
+            let t = mesh.triangles[i];
+            let _ = writeln!(out, "{} {} {} {}", i + 1, t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+    })?;
     writeln!(w, "$EndElements")?;
     let mut view = |name: &str, components: usize, data: &[f32]| -> io::Result<()> {
         writeln!(w, "$NodeData\n1\n\"{}\"\n1\n0.0", name.replace('"', "'"))?;
         writeln!(w, "3\n0\n{components}\n{n}")?;
-        for (i, chunk) in data.chunks_exact(components).enumerate() {
-            write!(w, "{}", i + 1)?;
-            for x in chunk {
-                write!(w, " {x}")?;
+        write_blocks(w, data.len() / components, |out, r| {
+            for i in r {
+                let _ = write!(out, "{}", i + 1);
+                for x in &data[i * components..(i + 1) * components] {
+                    let _ = write!(out, " {x}");
+                }
+                out.push(b'\n');
             }
-            writeln!(w)?;
-        }
+        })?;
         writeln!(w, "$EndNodeData")
     };
     if normals {

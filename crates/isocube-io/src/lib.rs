@@ -43,6 +43,7 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 
+mod blocks;
 mod contours;
 #[cfg(feature = "dicom")]
 mod dicom;
