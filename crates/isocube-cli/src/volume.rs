@@ -167,31 +167,18 @@ impl VolumeArgs {
         Ok(options)
     }
 
-    /// Maps the volume file for slab-wise reading (raw or .npy).
-    pub(crate) fn map(&self) -> Result<MappedVolume, Failure> {
-        MappedVolume::open(Path::new(&self.volume), &self.file_options()?)
+    /// The volume file memory-mapped, when it is stored uncompressed (raw, `.npy`, `.nii`,
+    /// MetaImage, raw-appended `.vti`): `None` for samples and for files that must be read.
+    pub(crate) fn try_map(&self) -> Result<Option<MappedVolume>, Failure> {
+        if SampleSpec::is_sample(&self.volume) {
+            return Ok(None);
+        }
+        MappedVolume::try_open(Path::new(&self.volume), &self.file_options()?)
             .map_err(|e| crate::io_failure(e, true))
             .map_err(|f| Failure {
                 error: f.error.context("cannot read the volume"),
                 ..f
             })
-    }
-
-    /// Whether the volume can be mapped: a .npy file, or a raw file (dims and type given).
-    pub(crate) fn mappable(&self) -> bool {
-        if SampleSpec::is_sample(&self.volume) {
-            return false;
-        }
-        let ext = Path::new(&self.volume)
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .unwrap_or_default();
-        match ext.as_str() {
-            "npy" => true,
-            "nrrd" | "nhdr" => false,
-            _ => self.dims.is_some() && self.scalar.is_some(),
-        }
     }
 }
 

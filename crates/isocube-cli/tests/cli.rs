@@ -261,7 +261,7 @@ fn streamed_extraction_matches_in_memory() {
         &["extract", "sample:sphere:10", "-o", "s.ply", "--stream"],
     );
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("raw or .npy"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("stored uncompressed"));
 }
 
 #[test]

@@ -9,7 +9,7 @@ use memmap2::Mmap;
 use super::npy::layout;
 use super::raw::{check_raw_size, decode_into, Endian, ScalarType};
 use super::{IoError, Position, VolumeOptions};
-use isocube::field::{Grid, GridView, PlaneSource};
+use isocube::field::{Grid, GridView, Orientation, PlaneSource};
 
 /// A raw or `.npy` volume mapped into memory, decoded to `f32` a few planes at a time.
 ///
@@ -43,23 +43,110 @@ pub struct MappedVolume {
     dims: [usize; 3],
     spacing: [f64; 3],
     origin: [f64; 3],
+    orientation: Orientation,
+    /// `stored * slope + intercept` (NIfTI's `scl_slope`, `scl_inter`), when not the identity.
+    scale: Option<(f32, f32)>,
     /// Element strides of x, y and z.
     strides: [usize; 3],
     data_offset: usize,
 }
 
+/// Where a format keeps its values uncompressed (x fastest, then y, then z), and how its grid
+/// lies in the world: what a header reader hands to [`MappedVolume`].
+pub(crate) struct Placement {
+    /// The file holding the values, when not the header's own (`.mhd` + `.raw`).
+    pub(crate) data_file: Option<PathBuf>,
+    /// Byte offset of the first value in that file.
+    pub(crate) offset: usize,
+    pub(crate) scalar: ScalarType,
+    pub(crate) endian: Endian,
+    pub(crate) dims: [usize; 3],
+    pub(crate) spacing: [f64; 3],
+    pub(crate) origin: [f64; 3],
+    pub(crate) orientation: Orientation,
+    pub(crate) scale: Option<(f32, f32)>,
+}
+
+/// The formats [`MappedVolume`] can hold, by a path's name.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Npy,
+    Nifti,
+    MetaImage,
+    Vti,
+    Other,
+}
+
+fn kind(path: &Path) -> Kind {
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    match name.rsplit('.').next().unwrap_or("") {
+        "npy" => Kind::Npy,
+        "nii" => Kind::Nifti,
+        "mha" | "mhd" => Kind::MetaImage,
+        "vti" => Kind::Vti,
+        _ => Kind::Other,
+    }
+}
+
 impl MappedVolume {
-    /// Maps a `.npy` file, or a raw file laid out as [`VolumeOptions::raw`] says (other
-    /// formats are compressed or small enough to read: use [`super::read_volume`]).
+    /// Maps a volume whose values are stored uncompressed: `.npy`, a raw file laid out as
+    /// [`VolumeOptions::raw`] says, NIfTI `.nii` (with the `nifti` feature), MetaImage
+    /// (`.mha`, `.mhd`) and VTK ImageData (`.vti` with raw appended data). Compressed files
+    /// are refused (read them with [`super::read_volume`]); [`MappedVolume::try_open`] tells
+    /// them apart without an error.
     pub fn open(path: &Path, options: &VolumeOptions) -> Result<MappedVolume, IoError> {
+        MappedVolume::try_open(path, options)?.ok_or_else(|| {
+            IoError::unsupported(
+                path,
+                Position::File,
+                "only uncompressed raw, .npy, .nii, .mha/.mhd and raw-appended .vti volumes can be mapped",
+            )
+        })
+    }
+
+    /// [`MappedVolume::open`], or `None` for a file whose format or encoding cannot be mapped
+    /// (compressed, ASCII, or a format without a mapped reader): read that one instead. Errors
+    /// are those of a malformed header or a file too short for its data.
+    pub fn try_open(path: &Path, options: &VolumeOptions) -> Result<Option<MappedVolume>, IoError> {
+        let kind = kind(path);
+        if options.raw.is_none() && kind == Kind::Other {
+            return Ok(None);
+        }
         let file = File::open(path).map_err(|e| IoError::os(path, e))?;
         // SAFETY: the map is read-only; the documented condition is that the file is not
         // truncated meanwhile, as for every reader of a mapped file.
         let map = unsafe { Mmap::map(&file) }.map_err(|e| IoError::os(path, e))?;
-        let is_npy = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+        let placement = match (kind, &options.raw) {
+            (Kind::Npy, _) | (_, Some(_)) => None,
+            #[cfg(feature = "nifti")]
+            (Kind::Nifti, None) => super::nifti::placement(path, &map)?,
+            (Kind::MetaImage, None) => super::metaimage::placement(path, &map)?,
+            (Kind::Vti, None) => super::vti::placement(path, &map)?,
+            _ => return Ok(None),
+        };
+        let volume = match placement {
+            Some(p) => MappedVolume::placed(path, map, p, options)?,
+            None if kind == Kind::Npy || options.raw.is_some() => {
+                MappedVolume::npy_or_raw(path, map, kind == Kind::Npy, options)?
+            }
+            None => return Ok(None),
+        };
+        if volume.planes_contiguous() {
+            let _ = volume.map.advise(memmap2::Advice::Sequential);
+        }
+        Ok(Some(volume))
+    }
+
+    fn npy_or_raw(
+        path: &Path,
+        map: Mmap,
+        is_npy: bool,
+        options: &VolumeOptions,
+    ) -> Result<MappedVolume, IoError> {
         let (scalar, endian, dims, strides, data_offset) = if is_npy {
             let l = layout(path, &map, options.npy_axes)?;
             (l.scalar, l.endian, l.dims, l.strides, l.data_offset)
@@ -97,9 +184,6 @@ impl MappedVolume {
             .and_then(|g| g.with_spacing(spacing))
             .and_then(|g| g.with_origin(origin))
             .map_err(|e| IoError::grid(path, e))?;
-        if strides[2] == dims[0] * dims[1] {
-            let _ = map.advise(memmap2::Advice::Sequential);
-        }
         Ok(MappedVolume {
             path: path.to_path_buf(),
             map,
@@ -108,9 +192,78 @@ impl MappedVolume {
             dims,
             spacing,
             origin,
+            orientation: Orientation::IDENTITY,
+            scale: None,
             strides,
             data_offset,
         })
+    }
+
+    /// A volume a header placed (in the header's own file or a data file beside it), its size
+    /// checked against the dimensions; `--spacing` and `--origin` override the header's.
+    fn placed(
+        path: &Path,
+        map: Mmap,
+        p: Placement,
+        options: &VolumeOptions,
+    ) -> Result<MappedVolume, IoError> {
+        let (data_path, map) = match &p.data_file {
+            None => (path.to_path_buf(), map),
+            Some(file) => {
+                let f = File::open(file).map_err(|e| IoError::os(file, e))?;
+                // SAFETY: as for the header's file.
+                let data = unsafe { Mmap::map(&f) }.map_err(|e| IoError::os(file, e))?;
+                (file.clone(), data)
+            }
+        };
+        let count = Grid::point_count(p.dims).map_err(|e| IoError::grid(path, e))?;
+        let need = count.checked_mul(p.scalar.size());
+        let end = need.and_then(|n| n.checked_add(p.offset));
+        if end.is_none_or(|end| end > map.len()) {
+            return Err(IoError::format(
+                &data_path,
+                Position::File,
+                format!(
+                    "{:?} {} values need {} bytes from byte {}, the file has {}",
+                    p.dims,
+                    p.scalar,
+                    need.unwrap_or(usize::MAX),
+                    p.offset,
+                    map.len()
+                ),
+            ));
+        }
+        let spacing = options.spacing.unwrap_or(p.spacing);
+        let origin = options.origin.unwrap_or(p.origin);
+        // The same checks as a grid's.
+        Grid::new([2, 2, 2], vec![0.0; 8])
+            .and_then(|g| g.with_spacing(spacing))
+            .and_then(|g| g.with_origin(origin))
+            .map_err(|e| IoError::grid(path, e))?;
+        let [nx, ny, _] = p.dims;
+        Ok(MappedVolume {
+            path: path.to_path_buf(),
+            map,
+            scalar: p.scalar,
+            endian: p.endian,
+            dims: p.dims,
+            spacing,
+            origin,
+            orientation: p.orientation,
+            scale: p.scale,
+            strides: [1, nx, nx * ny],
+            data_offset: p.offset,
+        })
+    }
+
+    /// The same volume in grid index space: spacing 1, origin 0, no direction.
+    pub fn into_index_space(self) -> MappedVolume {
+        MappedVolume {
+            spacing: [1.0; 3],
+            origin: [0.0; 3],
+            orientation: Orientation::IDENTITY,
+            ..self
+        }
     }
 
     /// The file.
@@ -152,7 +305,7 @@ impl MappedVolume {
             Endian::Little => cfg!(target_endian = "little"),
             Endian::Big => cfg!(target_endian = "big"),
         };
-        if self.scalar != ScalarType::F32 || !native {
+        if self.scalar != ScalarType::F32 || !native || self.scale.is_some() {
             return None;
         }
         // The map starts on a page; the data is aligned when its offset is.
@@ -163,24 +316,14 @@ impl MappedVolume {
         GridView::strided(values, self.dims, self.strides)
             .and_then(|v| v.with_spacing(self.spacing))
             .and_then(|v| v.with_origin(self.origin))
+            .map(|v| v.with_orientation(self.orientation))
             .ok()
     }
 }
 
-impl PlaneSource for MappedVolume {
-    fn dims(&self) -> [usize; 3] {
-        self.dims
-    }
-
-    fn spacing(&self) -> [f64; 3] {
-        self.spacing
-    }
-
-    fn origin(&self) -> [f64; 3] {
-        self.origin
-    }
-
-    fn read_planes(&self, first: usize, out: &mut [f32]) {
+impl MappedVolume {
+    /// The stored values of planes `first, …` as `f32`, before any scale.
+    fn read_stored_planes(&self, first: usize, out: &mut [f32]) {
         let size = self.scalar.size();
         let [nx, ny, _] = self.dims;
         let [sx, sy, sz] = self.strides;
@@ -208,6 +351,33 @@ impl PlaneSource for MappedVolume {
                         *o = self.scalar.decode(&data[at..at + size], self.endian) as f32;
                     }
                 }
+            }
+        }
+    }
+}
+
+impl PlaneSource for MappedVolume {
+    fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    fn spacing(&self) -> [f64; 3] {
+        self.spacing
+    }
+
+    fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    fn orientation(&self) -> Orientation {
+        self.orientation
+    }
+
+    fn read_planes(&self, first: usize, out: &mut [f32]) {
+        self.read_stored_planes(first, out);
+        if let Some((slope, intercept)) = self.scale {
+            for v in out.iter_mut() {
+                *v = *v * slope + intercept;
             }
         }
     }
@@ -370,6 +540,77 @@ mod tests {
         assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
     }
 
+    /// Meshing a mapped file (in place for `f32`, slab by slab otherwise) gives the mesh of
+    /// the reader's grid, oriented: NIfTI with a reflected sform, its values scaled; MetaImage
+    /// with a rotation, attached and detached; raw appended VTI. Compressed files are not
+    /// mapped.
+    #[test]
+    fn mapped_formats_mesh_as_their_readers() {
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+        let dir = tempfile::tempdir().unwrap();
+        // flipped.nii with scl_slope 2 and scl_inter -3 (header bytes 112 and 116).
+        let mut nii = std::fs::read(data.join("flipped.nii")).unwrap();
+        nii[112..116].copy_from_slice(&2.0f32.to_le_bytes());
+        nii[116..120].copy_from_slice(&(-3.0f32).to_le_bytes());
+        let scaled = dir.path().join("scaled.nii");
+        std::fs::write(&scaled, nii).unwrap();
+        // A rotated, reflected MetaImage with its u16 values after the header.
+        let dims = [9, 7, 6];
+        let mut mha = format!(
+            "ObjectType = Image\nNDims = 3\nDimSize = {} {} {}\nElementType = MET_USHORT\n\
+             ElementSpacing = 0.5 0.75 1.25\nOffset = 1 2 3\n\
+             TransformMatrix = 0 1 0 1 0 0 0 0 -1\nElementDataFile = LOCAL\n",
+            dims[0], dims[1], dims[2]
+        )
+        .into_bytes();
+        mha.extend(values(dims).iter().flat_map(|v| v.to_le_bytes()));
+        let rotated = dir.path().join("rotated-raw.mha");
+        std::fs::write(&rotated, mha).unwrap();
+        let options = VolumeOptions::default();
+        for (path, level, in_place) in [
+            (data.join("flipped.nii"), 455.5, true),
+            (scaled, 900.0, false),
+            (rotated, 1200.0, false),
+            (data.join("plain.mhd"), 455.5, false),
+            (data.join("appended-raw.vti"), 455.5, false),
+        ] {
+            let (grid, orientation) = crate::read_volume_oriented(&path, &options).unwrap();
+            let extract_options = ExtractOptions::default().with_level(level);
+            let (expected, _) =
+                extract(grid.view().with_orientation(orientation), &extract_options).unwrap();
+            assert!(!expected.triangles.is_empty(), "{}", path.display());
+            let volume = MappedVolume::open(&path, &options).unwrap();
+            assert_eq!(volume.view().is_some(), in_place, "{}", path.display());
+            let mesh = match volume.view() {
+                Some(view) => extract(view, &extract_options).unwrap().0,
+                None => {
+                    let mut mesh = isocube::mesh::Mesh::new();
+                    extract_streamed(
+                        &volume,
+                        &extract_options,
+                        &mut mesh,
+                        &mut isocube::no_progress,
+                    )
+                    .unwrap();
+                    mesh
+                }
+            };
+            assert_eq!(mesh, expected, "{}", path.display());
+        }
+        for compressed in [
+            "rotated.mha",
+            "binary-zlib.vti",
+            "appended-base64.vti",
+            "rotated.nii.gz",
+        ] {
+            let path = data.join(compressed);
+            assert!(
+                MappedVolume::try_open(&path, &options).unwrap().is_none(),
+                "{compressed}"
+            );
+        }
+    }
+
     #[test]
     fn bad_files_are_refused_before_mapping_is_used() {
         let dir = tempfile::tempdir().unwrap();
@@ -391,7 +632,7 @@ mod tests {
             .err()
             .unwrap()
             .to_string();
-        assert!(e.contains("only raw"), "{e}");
+        assert!(e.contains("only uncompressed raw"), "{e}");
         let npy_path = dir.path().join("bad.npy");
         std::fs::write(&npy_path, b"\x93NUMPY\x01\x00\x05\x00{}").unwrap();
         assert!(MappedVolume::open(&npy_path, &VolumeOptions::default()).is_err());

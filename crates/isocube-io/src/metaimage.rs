@@ -6,6 +6,7 @@
 use std::io::Read;
 use std::path::Path;
 
+use super::mapped::Placement;
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{Budget, IoError, Position};
 use isocube::field::{Grid, Orientation};
@@ -65,6 +66,68 @@ pub(super) fn read_metaimage_bytes(
     }
 }
 
+/// Where an uncompressed MetaImage keeps its values (for [`super::MappedVolume`]), from the
+/// mapped header file; `None` when they are zlib-compressed.
+pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
+    let header = Header::parse(path, bytes)?;
+    if header.compressed {
+        return Ok(None);
+    }
+    let need = header
+        .dims
+        .iter()
+        .try_fold(header.scalar.size(), |n, &d| n.checked_mul(d))
+        .ok_or_else(|| {
+            IoError::format(
+                path,
+                Position::Field("DimSize".into()),
+                "dimensions overflow",
+            )
+        })?;
+    let (data_file, start, len) = match &header.data_file {
+        None => (None, header.length, bytes.len()),
+        Some(name) => {
+            let file = path.parent().unwrap_or(Path::new(".")).join(name);
+            let len = std::fs::metadata(&file)
+                .map_err(|e| IoError::os(&file, e))?
+                .len() as usize;
+            (Some(file), 0, len)
+        }
+    };
+    let skip = match header.header_size {
+        // −1: the data are the file's last bytes.
+        Some(-1) => len.saturating_sub(start).saturating_sub(need),
+        Some(n) if n >= 0 => n as usize,
+        _ => 0,
+    };
+    let (spacing, orientation) = world(path, &header)?;
+    Ok(Some(Placement {
+        data_file,
+        offset: start.saturating_add(skip),
+        scalar: header.scalar,
+        endian: header.endian,
+        dims: header.dims,
+        spacing,
+        origin: header.offset,
+        orientation,
+        scale: None,
+    }))
+}
+
+/// Spacing and orientation from `ElementSpacing` and `TransformMatrix`.
+fn world(path: &Path, header: &Header) -> Result<([f64; 3], Orientation), IoError> {
+    let linear: [[f64; 3]; 3] = std::array::from_fn(|r| {
+        std::array::from_fn(|c| header.direction[c][r] * header.spacing[c])
+    });
+    Orientation::from_linear(linear).ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field("TransformMatrix".into()),
+            "the direction matrix is singular or not finite",
+        )
+    })
+}
+
 fn finish(
     path: &Path,
     header: &Header,
@@ -110,16 +173,7 @@ fn finish(
     }
     let values = decode_all(&raw, header.scalar, header.endian);
     debug_assert_eq!(values.len(), count);
-    let linear: [[f64; 3]; 3] = std::array::from_fn(|r| {
-        std::array::from_fn(|c| header.direction[c][r] * header.spacing[c])
-    });
-    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
-        IoError::format(
-            path,
-            Position::Field("TransformMatrix".into()),
-            "the direction matrix is singular or not finite",
-        )
-    })?;
+    let (spacing, orientation) = world(path, header)?;
     let grid = Grid::new(header.dims, values)
         .and_then(|g| g.with_spacing(spacing))
         .and_then(|g| g.with_origin(header.offset))

@@ -9,6 +9,8 @@ use std::path::Path;
 
 use nifti::{InMemNiftiObject, IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
 
+use super::mapped::Placement;
+use super::raw::{Endian, ScalarType};
 use super::{Budget, IoError, Position};
 use isocube::field::{Grid, Orientation};
 
@@ -223,6 +225,81 @@ fn nifti_error(path: &Path, e: nifti::NiftiError) -> IoError {
     }
 }
 
+/// Where a single-file `.nii` keeps its voxels (for [`super::MappedVolume`]), from the mapped
+/// file; `None` for what the mapped path does not cover (more than one frame, a `.hdr`/`.img`
+/// pair): the reader handles those, or says why not.
+pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
+    check_header(path, bytes, bytes.len() as u64, Budget::UNLIMITED)?;
+    let header = NiftiHeader::from_reader(bytes).map_err(|e| nifti_error(path, e))?;
+    let dim = header.dim;
+    let rank = usize::from(dim[0]);
+    let frames: usize = dim[4..=rank.max(3)]
+        .iter()
+        .map(|&d| usize::from(d.max(1)))
+        .product();
+    if &header.magic != b"n+1\0" || frames != 1 {
+        return Ok(None);
+    }
+    let scalar = match header.datatype {
+        2 => ScalarType::U8,
+        256 => ScalarType::I8,
+        4 => ScalarType::I16,
+        512 => ScalarType::U16,
+        8 => ScalarType::I32,
+        768 => ScalarType::U32,
+        1024 => ScalarType::I64,
+        1280 => ScalarType::U64,
+        16 => ScalarType::F32,
+        64 => ScalarType::F64,
+        _ => return Ok(None),
+    };
+    let endian = match header.endianness {
+        nifti::Endianness::Little => Endian::Little,
+        nifti::Endianness::Big => Endian::Big,
+    };
+    let dims: [usize; 3] = std::array::from_fn(|a| {
+        if a < rank {
+            usize::from(dim[a + 1]).max(1)
+        } else {
+            1
+        }
+    });
+    let (spacing, orientation) = world(path, &header)?;
+    let (slope, intercept) = (header.scl_slope, header.scl_inter);
+    // As the reader applies them: a zero slope means no scaling.
+    let scale = (slope != 0.0 && (slope != 1.0 || intercept != 0.0)).then_some((slope, intercept));
+    Ok(Some(Placement {
+        data_file: None,
+        offset: f64::from(header.vox_offset).max(352.0) as usize,
+        scalar,
+        endian,
+        dims,
+        spacing,
+        origin: index_to_world(&header).1,
+        orientation,
+        scale,
+    }))
+}
+
+/// Spacing and orientation from the index-to-world map.
+fn world(path: &Path, header: &NiftiHeader) -> Result<([f64; 3], Orientation), IoError> {
+    let (linear, _) = index_to_world(header);
+    Orientation::from_linear(linear).ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field(
+                if header.sform_code > 0 {
+                    "srow"
+                } else {
+                    "pixdim"
+                }
+                .into(),
+            ),
+            "the index-to-world map is singular or not finite",
+        )
+    })
+}
+
 /// The grid and orientation of a NIfTI object the checks above let through.
 fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), IoError> {
     let fail = |reason: String| IoError::format(path, Position::File, reason);
@@ -261,21 +338,8 @@ fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), 
     // The array's axes are the file's (x fastest on disk); walking the transposed view visits
     // k, then j, then i, whatever the memory order.
     let values: Vec<f32> = array.t().iter().copied().collect();
-    let (linear, origin) = index_to_world(&header);
-    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
-        IoError::format(
-            path,
-            Position::Field(
-                if header.sform_code > 0 {
-                    "srow"
-                } else {
-                    "pixdim"
-                }
-                .into(),
-            ),
-            "the index-to-world map is singular or not finite",
-        )
-    })?;
+    let origin = index_to_world(&header).1;
+    let (spacing, orientation) = world(path, &header)?;
     let grid = Grid::new(dims, values)
         .and_then(|g| g.with_spacing(spacing))
         .and_then(|g| g.with_origin(origin))

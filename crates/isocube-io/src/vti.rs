@@ -10,6 +10,7 @@ use std::path::Path;
 use base64::Engine;
 use quick_xml::events::{BytesStart, Event};
 
+use super::mapped::Placement;
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{Budget, IoError, Position};
 use isocube::field::{Grid, Orientation};
@@ -35,16 +36,8 @@ pub(super) fn read_vti_bytes(
     let appended_tag = find(bytes, b"<AppendedData");
     let head = &bytes[..appended_tag.unwrap_or(bytes.len())];
     let doc = Document::parse(path, head)?;
-    let extent = doc.extent;
     let whole_extent = || Position::Field("WholeExtent".into());
-    let mut dims = [0usize; 3];
-    for (a, d) in dims.iter_mut().enumerate() {
-        *d = extent[2 * a + 1]
-            .checked_sub(extent[2 * a])
-            .and_then(|n| n.checked_add(1))
-            .and_then(|n| usize::try_from(n).ok())
-            .ok_or_else(|| IoError::format(path, whole_extent(), "the extent overflows"))?;
-    }
+    let dims = doc.dims(path)?;
     let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
     let array = doc.array.as_ref().ok_or_else(|| {
         IoError::format(
@@ -97,16 +90,7 @@ pub(super) fn read_vti_bytes(
                     "appended, but the file has no AppendedData",
                 )
             })?;
-            let tag_end = find(&bytes[start..], b">").map(|i| start + i + 1);
-            let underscore = tag_end.and_then(|e| find(&bytes[e..], b"_").map(|i| e + i + 1));
-            let base = underscore.ok_or_else(|| {
-                IoError::format(
-                    path,
-                    Position::Field("AppendedData".into()),
-                    "no '_' before the data",
-                )
-            })?;
-            let encoding = attribute_in(&bytes[start..tag_end.unwrap_or(start)], "encoding");
+            let (base, encoding) = appended_base(path, bytes, start)?;
             let from = base
                 .checked_add(array.offset)
                 .filter(|&f| f <= bytes.len())
@@ -141,6 +125,70 @@ pub(super) fn read_vti_bytes(
     finish(path, &doc, dims, values, count)
 }
 
+/// Where the appended data begin (after the `_`), and their encoding.
+fn appended_base(
+    path: &Path,
+    bytes: &[u8],
+    start: usize,
+) -> Result<(usize, Option<String>), IoError> {
+    let tag_end = find(&bytes[start..], b">").map(|i| start + i + 1);
+    let underscore = tag_end.and_then(|e| find(&bytes[e..], b"_").map(|i| e + i + 1));
+    let base = underscore.ok_or_else(|| {
+        IoError::format(
+            path,
+            Position::Field("AppendedData".into()),
+            "no '_' before the data",
+        )
+    })?;
+    Ok((
+        base,
+        attribute_in(&bytes[start..tag_end.unwrap_or(start)], "encoding"),
+    ))
+}
+
+/// Where a `.vti` keeps its values when they are raw appended data, uncompressed, one
+/// component (for [`super::MappedVolume`]), from the mapped file; `None` for every other
+/// encoding, which the reader decodes.
+pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
+    let Some(start) = find(bytes, b"<AppendedData") else {
+        return Ok(None);
+    };
+    let doc = Document::parse(path, &bytes[..start])?;
+    let Some(array) = doc.array.as_ref() else {
+        return Ok(None);
+    };
+    if array.format != "appended" || array.components != 1 || doc.compressed {
+        return Ok(None);
+    }
+    let (base, encoding) = appended_base(path, bytes, start)?;
+    if encoding.as_deref() == Some("base64") {
+        return Ok(None);
+    }
+    let dims = doc.dims(path)?;
+    let need = Grid::point_count(dims)
+        .ok()
+        .and_then(|n| n.checked_mul(array.scalar.size()));
+    let from = base.checked_add(array.offset);
+    let header = from.and_then(|f| bytes.get(f..f.checked_add(doc.header)?));
+    // A block whose byte count is not what the extent needs is the reader's to report.
+    match (header, need) {
+        (Some(h), Some(need)) if doc.int(h) == need => {}
+        _ => return Ok(None),
+    }
+    let (spacing, origin, orientation) = doc.world(path)?;
+    Ok(Some(Placement {
+        data_file: None,
+        offset: from.unwrap_or(0) + doc.header,
+        scalar: array.scalar,
+        endian: doc.endian,
+        dims,
+        spacing,
+        origin,
+        orientation,
+        scale: None,
+    }))
+}
+
 fn finish(
     path: &Path,
     doc: &Document,
@@ -155,21 +203,7 @@ fn finish(
             format!("{} values for {dims:?} points", values.len()),
         ));
     }
-    let d = doc.direction;
-    let linear: [[f64; 3]; 3] =
-        std::array::from_fn(|r| std::array::from_fn(|c| d[r][c] * doc.spacing[c]));
-    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
-        IoError::format(
-            path,
-            Position::Field("Direction".into()),
-            "singular or zero spacing",
-        )
-    })?;
-    // The first point is the extent's start, not index 0.
-    let start: [f64; 3] = std::array::from_fn(|a| doc.extent[2 * a] as f64);
-    let origin: [f64; 3] = std::array::from_fn(|r| {
-        doc.origin[r] + (0..3).map(|c| linear[r][c] * start[c]).sum::<f64>()
-    });
+    let (spacing, origin, orientation) = doc.world(path)?;
     let grid = Grid::new(dims, values)
         .and_then(|g| g.with_spacing(spacing))
         .and_then(|g| g.with_origin(origin))
@@ -211,6 +245,45 @@ struct Document {
 }
 
 impl Document {
+    /// Points per axis, from the extent.
+    fn dims(&self, path: &Path) -> Result<[usize; 3], IoError> {
+        let mut dims = [0usize; 3];
+        for (a, d) in dims.iter_mut().enumerate() {
+            *d = self.extent[2 * a + 1]
+                .checked_sub(self.extent[2 * a])
+                .and_then(|n| n.checked_add(1))
+                .and_then(|n| usize::try_from(n).ok())
+                .ok_or_else(|| {
+                    IoError::format(
+                        path,
+                        Position::Field("WholeExtent".into()),
+                        "the extent overflows",
+                    )
+                })?;
+        }
+        Ok(dims)
+    }
+
+    /// Spacing, origin (of the extent's first point) and orientation.
+    fn world(&self, path: &Path) -> Result<([f64; 3], [f64; 3], Orientation), IoError> {
+        let d = self.direction;
+        let linear: [[f64; 3]; 3] =
+            std::array::from_fn(|r| std::array::from_fn(|c| d[r][c] * self.spacing[c]));
+        let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
+            IoError::format(
+                path,
+                Position::Field("Direction".into()),
+                "singular or zero spacing",
+            )
+        })?;
+        // The first point is the extent's start, not index 0.
+        let start: [f64; 3] = std::array::from_fn(|a| self.extent[2 * a] as f64);
+        let origin: [f64; 3] = std::array::from_fn(|r| {
+            self.origin[r] + (0..3).map(|c| linear[r][c] * start[c]).sum::<f64>()
+        });
+        Ok((spacing, origin, orientation))
+    }
+
     fn parse(path: &Path, head: &[u8]) -> Result<Document, IoError> {
         let mut doc = Document {
             endian: Endian::Little,

@@ -91,7 +91,7 @@ pub(crate) struct Args {
     /// Write ASCII PLY.
     #[arg(long)]
     ascii: bool,
-    /// Extract slab by slab from the memory-mapped file (raw or .npy) straight into a binary PLY:
+    /// Extract slab by slab from the memory-mapped file (raw, .npy, .nii, .mha/.mhd or raw-appended .vti) straight into a binary PLY:
     /// memory stays at a few slabs whatever the volume's size. Chosen by itself for volumes whose
     /// values take more than 1 GiB as f32, when the options allow it (binary PLY output, `mc`,
     /// no relaxation). The mesh is the same, byte for byte.
@@ -134,25 +134,24 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(selection) = &args.labels {
         return run_labels(args, selection, quiet);
     }
-    if let Some(volume) = streamable(args)? {
-        return run_streamed(args, &volume, quiet);
+    // A file stored uncompressed is mapped, not read: `f32` values are meshed where they lie,
+    // in whatever order its axes are stored; other types are converted slab by slab.
+    let mapped = args.volume.try_map()?.map(|v| match args.index_space {
+        true => v.into_index_space(),
+        false => v,
+    });
+    if let Some(volume) = streamable(args, mapped.as_ref())? {
+        return run_streamed(args, volume, quiet);
     }
-    // A mapped `f32` file is meshed where it lies, in whatever order its axes are stored;
-    // anything else is read into a grid first.
-    let mapped = match args.volume.mappable() {
-        true => Some(args.volume.map()?),
-        false => None,
-    };
     let loaded;
     // The view carries the file's direction, and a built-in sample its exact function: the
     // library orients the mesh and relaxes on the right field.
-    let view = match mapped.as_ref().and_then(MappedVolume::view) {
-        Some(view) if args.index_space => view
-            .with_spacing([1.0; 3])
-            .and_then(|v| v.with_origin([0.0; 3]))
-            .map_err(Failure::input)?,
-        Some(view) => view,
-        None => {
+    let view = match mapped.as_ref().map(|v| (v, v.view())) {
+        Some((_, Some(view))) => view,
+        Some((volume, None)) if slab_obstacle(args).is_none() => {
+            return run_slabs_in_memory(args, volume, quiet);
+        }
+        _ => {
             loaded = in_frame(args, args.volume.load_oriented()?)?;
             loaded.0.view().with_orientation(loaded.1)
         }
@@ -196,14 +195,24 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         });
         return Err(non_finite_failure(args, &stats, &at));
     }
-    let elapsed = started.elapsed();
+    write_and_report(args, &mesh, &stats, started.elapsed(), quiet)
+}
+
+/// Writes the mesh (with `--values` when asked) and prints the summary.
+fn write_and_report(
+    args: &Args,
+    mesh: &Mesh,
+    stats: &ExtractStats,
+    elapsed: std::time::Duration,
+    quiet: bool,
+) -> Result<(), Failure> {
     let values = match &args.values {
-        Some(spec) => Some(sample_at_vertices(args, spec, &mesh)?),
+        Some(spec) => Some(sample_at_vertices(args, spec, mesh)?),
         None => None,
     };
     write_mesh_with_values(
         &args.output,
-        &mesh,
+        mesh,
         &crate::write_options(args.ascii, !args.no_normals),
         values
             .as_ref()
@@ -223,8 +232,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                 format!("{} boundary edges", r.boundary_edges)
             },
             elapsed.as_secs_f64() * 1e3,
-            cell_summary(&stats),
-            if let Method::Ternary(_) = options.method {
+            cell_summary(stats),
+            if let Method::Ternary(_) = options(args).method {
                 format!(
                     ", {} points snapped, {} kept off to keep the topology",
                     stats.snapped_points, stats.refused_points
@@ -235,6 +244,27 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// A mapped volume that is not `f32` (or is scaled): converted slab by slab as the streamed
+/// path does, the mesh gathered in memory and written in any format. The mesh is the one
+/// extraction of the whole converted grid gives, without that grid.
+fn run_slabs_in_memory(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), Failure> {
+    let started = Instant::now();
+    let mut mesh = Mesh::new();
+    let mut progress = Progress::new("extracting", quiet);
+    let stats = extract_streamed(volume, &options(args), &mut mesh, &mut |d, t| {
+        progress.update(d, t)
+    })
+    .map_err(|e| match e {
+        StreamError::Extract(e) => Failure::input(e),
+        StreamError::Sink(never) => match never {},
+    })?;
+    progress.finish();
+    if args.strict && stats.skipped_cells > 0 {
+        return Err(non_finite_failure(args, &stats, ""));
+    }
+    write_and_report(args, &mesh, &stats, started.elapsed(), quiet)
 }
 
 /// The volume as meshed: in index space (spacing 1, origin 0, no direction) with
@@ -399,37 +429,46 @@ fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, V
     Ok((name, values))
 }
 
-/// The mapped volume, when extraction goes slab by slab: asked for with --stream (an error if
-/// the options need the whole volume), or chosen for a large volume whose options allow it.
-fn streamable(args: &Args) -> Result<Option<MappedVolume>, Failure> {
-    let obstacle = if !args.volume.mappable() {
-        Some("the volume must be a raw or .npy file")
-    } else if MeshFormat::from_path(&args.output) != Some(MeshFormat::Ply) || args.ascii {
-        Some("the output must be a binary .ply")
-    } else if args.method != "mc" {
+/// Why the options need the whole volume in memory (`None`: slab by slab works).
+fn slab_obstacle(args: &Args) -> Option<&'static str> {
+    if args.method != "mc" {
         Some("ternary extraction needs the whole volume")
     } else if args.relax > 0 {
         Some("relaxation needs the whole mesh")
-    } else if args.values.is_some() {
-        Some("vertex values need the whole mesh")
     } else if args.labels.is_some() {
         Some("labels are meshed in memory")
     } else if args.chunk.is_some() {
         Some("--chunk meshes boxes in memory")
     } else {
         None
+    }
+}
+
+/// The mapped volume, when extraction goes slab by slab straight into the file: asked for with
+/// --stream (an error if the options need the whole volume), or chosen for a large volume
+/// whose options allow it.
+fn streamable<'a>(
+    args: &Args,
+    mapped: Option<&'a MappedVolume>,
+) -> Result<Option<&'a MappedVolume>, Failure> {
+    let obstacle = if mapped.is_none() {
+        Some("the volume must be stored uncompressed (raw, .npy, .nii, .mha/.mhd, raw-appended .vti)")
+    } else if MeshFormat::from_path(&args.output) != Some(MeshFormat::Ply) || args.ascii {
+        Some("the output must be a binary .ply")
+    } else if args.values.is_some() {
+        Some("vertex values need the whole mesh")
+    } else {
+        slab_obstacle(args)
     };
-    match (args.stream, obstacle) {
-        (true, Some(why)) => Err(Failure::input(anyhow::anyhow!(
+    match (args.stream, obstacle, mapped) {
+        (true, Some(why), _) => Err(Failure::input(anyhow::anyhow!(
             "--stream cannot be used here: {why}"
         ))),
-        (false, Some(_)) => Ok(None),
-        (stream, None) => {
-            let volume = args.volume.map()?;
-            let dims = PlaneSource::dims(&volume);
-            let by_default = streams_by_default(dims, &options(args));
+        (stream, None, Some(volume)) => {
+            let by_default = streams_by_default(PlaneSource::dims(volume), &options(args));
             Ok((stream || by_default).then_some(volume))
         }
+        _ => Ok(None),
     }
 }
 

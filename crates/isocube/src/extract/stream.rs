@@ -113,6 +113,7 @@ pub fn extract_streamed<S: MeshSink>(
     let dims = source.dims();
     Grid::point_count(dims).map_err(ExtractError::Grid)?;
     let (spacing, origin) = (source.spacing(), source.origin());
+    let orientation = source.orientation();
     let [nx, ny, nz] = dims;
     let boxes = slabs(dims);
     // Slabs in flight: enough to keep every core busy; memory is this many windows and meshes.
@@ -141,7 +142,14 @@ pub fn extract_streamed<S: MeshSink>(
             // As extraction in memory does; the vertices concerned are inside one cell, so the
             // part holds all their triangles.
             let filled = part.mesh.filled_normals();
-            let joined = joiner.push(&part, filled.as_deref())?;
+            let mut joined = joiner.push(&part, filled.as_deref())?;
+            // As extraction in memory does at the end: the mesh is made in the grid's frame.
+            orientation.orient_parts(
+                &mut joined.positions,
+                &mut joined.normals,
+                &mut joined.triangles,
+                origin,
+            );
             sink.vertices(&joined.positions, &joined.normals)
                 .map_err(StreamError::Sink)?;
             sink.triangles(&joined.triangles)

@@ -124,16 +124,32 @@ impl Orientation {
     /// coordinates: positions turned about the origin, normals by the inverse transpose (so
     /// they stay normal to the surface), and the winding reversed under a reflection.
     pub fn orient_mesh(&self, mesh: &mut Mesh, origin: [f64; 3]) {
+        self.orient_parts(
+            &mut mesh.positions,
+            &mut mesh.normals,
+            &mut mesh.triangles,
+            origin,
+        );
+    }
+
+    /// [`Orientation::orient_mesh`] on a mesh's parts: a streamed piece is turned as it goes.
+    pub fn orient_parts(
+        &self,
+        positions: &mut [[f32; 3]],
+        normals: &mut [[f32; 3]],
+        triangles: &mut [[u32; 3]],
+        origin: [f64; 3],
+    ) {
         if self.is_identity() {
             return;
         }
-        for p in &mut mesh.positions {
+        for p in positions {
             let d: [f64; 3] = std::array::from_fn(|a| f64::from(p[a]) - origin[a]);
             let w = self.apply(d);
             *p = std::array::from_fn(|a| (origin[a] + w[a]) as f32);
         }
         let inv = self.inverse();
-        for n in &mut mesh.normals {
+        for n in normals {
             let v: [f64; 3] =
                 std::array::from_fn(|c| (0..3).map(|r| inv[r][c] * f64::from(n[r])).sum());
             let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -142,7 +158,7 @@ impl Orientation {
             }
         }
         if self.determinant() < 0.0 {
-            for t in &mut mesh.triangles {
+            for t in triangles {
                 t.swap(1, 2);
             }
         }

@@ -1,6 +1,6 @@
 //! Volumes read plane by plane, for extraction from data larger than memory.
 
-use super::Grid;
+use super::{Grid, Orientation};
 
 /// A volume that hands out its values a few `z` planes at a time: a memory-mapped file
 /// (`io::MappedVolume`) or a [`Grid`]. Slab-wise extraction
@@ -16,6 +16,11 @@ pub trait PlaneSource: Sync {
     fn spacing(&self) -> [f64; 3];
     /// World position of point (0, 0, 0).
     fn origin(&self) -> [f64; 3];
+    /// How the grid's axes lie in the world (see [`Orientation`]); the mesh is made in the
+    /// grid's frame and turned into the world's.
+    fn orientation(&self) -> Orientation {
+        Orientation::IDENTITY
+    }
     /// Writes the values of planes `first, first + 1, …` into `out`, `x` fastest; `out.len()` is
     /// a whole number of planes, all within the volume.
     fn read_planes(&self, first: usize, out: &mut [f32]);
