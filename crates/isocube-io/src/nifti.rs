@@ -48,6 +48,9 @@ fn check_header(path: &Path, reader: impl Read, len: u64, budget: Budget) -> Res
         nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
             IoError::format(path, Position::File, "the file ends inside its header")
         }
+        nifti::NiftiError::Io(io) if gz => {
+            IoError::format(path, Position::File, format!("corrupt gzip data: {io}"))
+        }
         other => IoError::format(
             path,
             Position::File,
