@@ -10,7 +10,7 @@ use std::path::Path;
 use nifti::{InMemNiftiObject, IntoNdArray, NiftiHeader, NiftiObject, ReaderOptions};
 
 use super::mapped::Placement;
-use super::raw::{Endian, ScalarType};
+use super::raw::{decode_into, Endian, ScalarType};
 use super::{Budget, IoError, Position};
 use isocube::field::{Grid, Orientation};
 
@@ -38,7 +38,17 @@ fn gzipped(path: &Path) -> bool {
 
 /// [`check_size`] on the file's content (`len` bytes as stored, compressed or not).
 fn check_header(path: &Path, reader: impl Read, len: u64, budget: Budget) -> Result<(), IoError> {
-    let gz = gzipped(path);
+    check_stream(path, gzipped(path), reader, len, budget)
+}
+
+/// [`check_header`] on a stream that is gzip-compressed or not (`gz`), whatever the name says.
+fn check_stream(
+    path: &Path,
+    gz: bool,
+    reader: impl Read,
+    len: u64,
+    budget: Budget,
+) -> Result<(), IoError> {
     let mut reader: Box<dyn Read> = if gz {
         Box::new(flate2::read::MultiGzDecoder::new(reader))
     } else {
@@ -188,6 +198,16 @@ pub(super) fn read_nifti_within(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     check_size(path, budget)?;
+    let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
+    let file = std::io::BufReader::with_capacity(1 << 20, file);
+    let read = if gzipped(path) {
+        read_into_grid(path, flate2::read::MultiGzDecoder::new(file))?
+    } else {
+        read_into_grid(path, file)?
+    };
+    if let Some(read) = read {
+        return Ok(read);
+    }
     let object = ReaderOptions::new()
         .read_file(path)
         .map_err(|e| nifti_error(path, e))?;
@@ -202,6 +222,14 @@ pub(super) fn read_nifti_bytes(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     check_header(path, bytes, bytes.len() as u64, budget)?;
+    let read = if gzipped(path) {
+        read_into_grid(path, flate2::read::MultiGzDecoder::new(bytes))?
+    } else {
+        read_into_grid(path, bytes)?
+    };
+    if let Some(read) = read {
+        return Ok(read);
+    }
     let object = if gzipped(path) {
         InMemNiftiObject::from_reader(flate2::read::MultiGzDecoder::new(bytes))
     } else {
@@ -232,7 +260,12 @@ fn nifti_error(path: &Path, e: nifti::NiftiError) -> IoError {
 /// file; `None` for what the mapped path does not cover (more than one frame, a `.hdr`/`.img`
 /// pair): the reader handles those, or says why not.
 pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
-    check_header(path, bytes, bytes.len() as u64, Budget::UNLIMITED)?;
+    placement_within(path, bytes, bytes.len() as u64)
+}
+
+/// [`placement`] from the header's bytes (up to `vox_offset`) of a file holding `len` bytes.
+fn placement_within(path: &Path, bytes: &[u8], len: u64) -> Result<Option<Placement>, IoError> {
+    check_stream(path, false, bytes, len, Budget::UNLIMITED)?;
     let header = NiftiHeader::from_reader(bytes).map_err(|e| nifti_error(path, e))?;
     let dim = header.dim;
     let rank = usize::from(dim[0]);
@@ -282,6 +315,68 @@ pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, 
         orientation,
         scale,
     }))
+}
+
+/// A single-file NIfTI read once from `stream` (a `.nii`, or a `.nii.gz` inflating), straight
+/// into the grid's values (for `f32`, into the grid's own memory): `None` for what
+/// [`placement`] does not cover, which the crate's reader then handles or explains. Errors are
+/// the stream's (corrupt, or ending before the data do).
+fn read_into_grid(
+    path: &Path,
+    mut stream: impl Read,
+) -> Result<Option<(Grid, Orientation)>, IoError> {
+    let corrupt = |e: std::io::Error| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => {
+            IoError::format(path, Position::File, "the file ends inside its data")
+        }
+        _ => IoError::format(path, Position::File, format!("corrupt gzip data: {e}")),
+    };
+    let mut head = vec![0u8; 348];
+    stream.read_exact(&mut head).map_err(corrupt)?;
+    let vox_offset = f32::from_le_bytes([head[108], head[109], head[110], head[111]]);
+    let swapped = f32::from_be_bytes([head[108], head[109], head[110], head[111]]);
+    // The header's byte order is not known yet: take the offset that makes sense.
+    let offset = [vox_offset, swapped]
+        .into_iter()
+        .find(|o| o.is_finite() && (352.0..=(1u32 << 24) as f32).contains(o))
+        .unwrap_or(352.0) as usize;
+    head.resize(offset, 0);
+    stream.read_exact(&mut head[348..]).map_err(corrupt)?;
+    // The stream's length is not known: a short one fails below, when its data run out.
+    let Some(p) = placement_within(path, &head, u64::MAX)? else {
+        return Ok(None);
+    };
+    if p.offset != offset {
+        return Ok(None);
+    }
+    let count = Grid::point_count(p.dims).map_err(|e| IoError::grid(path, e))?;
+    let mut values = vec![0.0f32; count];
+    let native = match p.endian {
+        Endian::Little => cfg!(target_endian = "little"),
+        Endian::Big => cfg!(target_endian = "big"),
+    };
+    if p.scalar == ScalarType::F32 {
+        stream
+            .read_exact(bytemuck::cast_slice_mut(&mut values))
+            .map_err(corrupt)?;
+        if !native {
+            values
+                .iter_mut()
+                .for_each(|v| *v = f32::from_bits(v.to_bits().swap_bytes()));
+        }
+    } else {
+        let mut raw = vec![0u8; count * p.scalar.size()];
+        stream.read_exact(&mut raw).map_err(corrupt)?;
+        decode_into(&raw, p.scalar, p.endian, &mut values);
+    }
+    if let Some((slope, intercept)) = p.scale {
+        values.iter_mut().for_each(|v| *v = *v * slope + intercept);
+    }
+    let grid = Grid::new(p.dims, values)
+        .and_then(|g| g.with_spacing(p.spacing))
+        .and_then(|g| g.with_origin(p.origin))
+        .map_err(|e| IoError::grid(path, e))?;
+    Ok(Some((grid, p.orientation)))
 }
 
 /// Spacing and orientation from the index-to-world map.
