@@ -16,9 +16,11 @@ use isocube::field::{Grid, GridView, Orientation, PlaneSource};
 /// The file is checked when opened (header, size against the dimensions); the operating system
 /// pages its bytes in as slabs read them, and [`PlaneSource::release_before`] lets it drop the
 /// planes already meshed, so resident memory stays at a few slabs whatever the file's size.
-/// Files whose `z` planes are contiguous (raw files; `.npy` arrays in C order read as `zyx`, or
-/// in Fortran order read as `xyz`) are read in one sweep; other `.npy` layouts are gathered
-/// value by value, which is correct but touches the whole file for every slab.
+/// The grid walks the file in its memory order, whatever the axis convention (a `.npy` saved
+/// `a[x, y, z]` in C order has `x` slowest: the grid's first axis is then the file's `z`), and
+/// its orientation ([`PlaneSource::orientation`]) puts each axis back where the convention says,
+/// so the file is read in one sweep and the mesh lands in the right coordinates.
+/// [`MappedVolume::file_point`] names a grid point as the file does.
 ///
 /// As with any mapped file, the file must not be truncated while it is mapped.
 ///
@@ -49,6 +51,8 @@ pub struct MappedVolume {
     /// Element strides of x, y and z.
     strides: [usize; 3],
     data_offset: usize,
+    /// The file's axis (x, y, z) that each grid axis walks, fastest first.
+    axes: [usize; 3],
 }
 
 /// Where a format keeps its values uncompressed (x fastest, then y, then z), and how its grid
@@ -184,19 +188,37 @@ impl MappedVolume {
             .and_then(|g| g.with_spacing(spacing))
             .and_then(|g| g.with_origin(origin))
             .map_err(|e| IoError::grid(path, e))?;
+        // The grid is walked in the file's memory order, whatever the axis convention: its
+        // axes are the array's from the fastest to the slowest, and the orientation puts each
+        // back on its world axis (the surface is the same; only the order of vertices and
+        // triangles follows the walk).
+        let mut axes = [0, 1, 2];
+        axes.sort_by_key(|&a| strides[a]);
+        let orientation = Orientation::axes(axes).expect("a permutation of the axes");
         Ok(MappedVolume {
             path: path.to_path_buf(),
             map,
             scalar,
             endian,
-            dims,
-            spacing,
+            dims: axes.map(|a| dims[a]),
+            spacing: axes.map(|a| spacing[a]),
             origin,
-            orientation: Orientation::IDENTITY,
+            orientation,
             scale: None,
-            strides,
+            strides: axes.map(|a| strides[a]),
             data_offset,
+            axes,
         })
+    }
+
+    /// Where grid point `p` (in the order the volume is walked) lies in the file's own indices
+    /// (x, y, z as the axis convention names them).
+    pub fn file_point(&self, p: [usize; 3]) -> [usize; 3] {
+        let mut out = [0; 3];
+        for (a, &world) in self.axes.iter().enumerate() {
+            out[world] = p[a];
+        }
+        out
     }
 
     /// A volume a header placed (in the header's own file or a data file beside it), its size
@@ -253,6 +275,7 @@ impl MappedVolume {
             scale: p.scale,
             strides: [1, nx, nx * ny],
             data_offset: p.offset,
+            axes: [0, 1, 2],
         })
     }
 
@@ -261,7 +284,8 @@ impl MappedVolume {
         MappedVolume {
             spacing: [1.0; 3],
             origin: [0.0; 3],
-            orientation: Orientation::IDENTITY,
+            // The file's point (i, j, k) at (i, j, k), whichever order the grid walks.
+            orientation: Orientation::axes(self.axes).expect("a permutation of the axes"),
             ..self
         }
     }
@@ -486,6 +510,15 @@ mod tests {
                 true,
             ),
             (
+                "zyx-plain.npy",
+                npy([dims[2], dims[1], dims[0]], false, &v),
+                VolumeOptions {
+                    npy_axes: NpyAxes::Zyx,
+                    ..VolumeOptions::default()
+                },
+                true,
+            ),
+            (
                 "fortran.npy",
                 npy(dims, true, &v),
                 VolumeOptions::default(),
@@ -495,7 +528,7 @@ mod tests {
                 "c.npy",
                 npy(dims, false, &xyz),
                 VolumeOptions::default(),
-                false,
+                true,
             ),
         ];
         let extract_options = ExtractOptions::default().with_level(1000.0);
@@ -504,13 +537,40 @@ mod tests {
             let input = dir.path().join(name);
             std::fs::write(&input, bytes).unwrap();
             let grid = read_volume(&input, &options).unwrap();
-            let mesh = extract(&grid, &extract_options).unwrap().0;
+            let volume = MappedVolume::open(&input, &options).unwrap();
+            assert_eq!(volume.planes_contiguous(), contiguous, "{name}");
+            // The mapped volume walks the file in memory order: its grid axis `a` is the file's
+            // axis `axes[a]`. The reader's grid seen in that order is the reference.
+            let axes: [usize; 3] = std::array::from_fn(|a| {
+                let mut p = [0; 3];
+                p[a] = 1;
+                volume.file_point(p).iter().position(|&c| c == 1).unwrap()
+            });
+            let g = grid.dims();
+            let strides = [1, g[0], g[0] * g[1]];
+            let walked =
+                GridView::strided(grid.values(), axes.map(|a| g[a]), axes.map(|a| strides[a]))
+                    .and_then(|v| v.with_spacing(axes.map(|a| grid.spacing()[a])))
+                    .and_then(|v| v.with_origin(grid.origin()))
+                    .unwrap()
+                    .with_orientation(PlaneSource::orientation(&volume));
+            assert_eq!(PlaneSource::dims(&volume), walked.dims());
+            let mesh = extract(walked, &extract_options).unwrap().0;
             assert!(mesh.triangle_count() > 1000);
             let memory = dir.path().join("memory.ply");
             write_mesh(&memory, &mesh, &MeshWriteOptions::default()).unwrap();
-            let volume = MappedVolume::open(&input, &options).unwrap();
-            assert_eq!(volume.planes_contiguous(), contiguous, "{name}");
-            assert_eq!(PlaneSource::dims(&volume), grid.dims());
+            if axes != [0, 1, 2] {
+                // The same surface as the reader's grid gives: the same vertices; the cells'
+                // polygons are cut into triangles in the walk's frame.
+                let direct = extract(&grid, &extract_options).unwrap().0;
+                let mut a = direct.positions.clone();
+                let mut b = mesh.positions.clone();
+                let key = |p: &[f32; 3]| p.map(f32::to_bits);
+                a.sort_by_key(key);
+                b.sort_by_key(key);
+                assert_eq!(a, b, "{name}");
+                assert_eq!(direct.triangle_count(), mesh.triangle_count(), "{name}");
+            }
             let out = dir.path().join("streamed.ply");
             let mut ply = PlyWriter::create(&out, true).unwrap();
             extract_streamed(
@@ -524,7 +584,7 @@ mod tests {
             let streamed = std::fs::read(&out).unwrap();
             assert_eq!(streamed, std::fs::read(&memory).unwrap(), "{name}");
             // Same field, same mesh, whatever the layout (geometry aside).
-            if name.ends_with(".npy") && options.spacing.is_none() {
+            if name.ends_with(".npy") && options.spacing.is_none() && axes == [0, 1, 2] {
                 match &reference {
                     Some(r) => assert_eq!(&streamed, r, "{name}"),
                     None => reference = Some(streamed),

@@ -186,12 +186,10 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             !view.value(i, j, k).is_finite()
         });
         let at = first.map_or_else(String::new, |p| {
-            format!(
-                ", the first at point ({}, {}, {})",
-                p % nx,
-                p / nx % ny,
-                p / (nx * ny)
-            )
+            let point = [p % nx, p / nx % ny, p / (nx * ny)];
+            // A mapped file is walked in its memory order: name the point as the file does.
+            let [i, j, k] = mapped.as_ref().map_or(point, |m| m.file_point(point));
+            format!(", the first at point ({i}, {j}, {k})")
         });
         return Err(non_finite_failure(args, &stats, &at));
     }

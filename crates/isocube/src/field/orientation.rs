@@ -57,6 +57,29 @@ impl Orientation {
         (o.determinant().abs() > 1e-9).then_some(o)
     }
 
+    /// Grid axis `a` along world axis `axes[a]`: a grid whose axes are the world's in another
+    /// order (a permutation of 0, 1, 2; `None` otherwise). Meshing an array in its memory
+    /// order and writing world coordinates uses this.
+    ///
+    /// ```
+    /// use isocube::field::Orientation;
+    /// let o = Orientation::axes([2, 1, 0]).unwrap();
+    /// assert_eq!(o.direction(), [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]);
+    /// assert!(o.determinant() < 0.0);
+    /// ```
+    pub fn axes(axes: [usize; 3]) -> Option<Orientation> {
+        if axes.iter().any(|&a| a > 2)
+            || axes[0] == axes[1]
+            || axes[1] == axes[2]
+            || axes[0] == axes[2]
+        {
+            return None;
+        }
+        let direction =
+            std::array::from_fn(|r| std::array::from_fn(|a| f64::from(u8::from(axes[a] == r))));
+        Some(Orientation { direction })
+    }
+
     /// Splits an index-to-world linear map (rows of a 3 × 3 matrix, columns the axis steps) into
     /// its spacing (column lengths) and orientation.
     pub fn from_linear(linear: [[f64; 3]; 3]) -> Option<([f64; 3], Orientation)> {
