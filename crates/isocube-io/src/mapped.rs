@@ -1,5 +1,6 @@
-//! Memory-mapped volumes: raw and `.npy` files read plane by plane, for extraction slab by slab
-//! ([`isocube::extract::extract_streamed`]) from volumes larger than memory.
+//! Memory-mapped volumes: files stored uncompressed, meshed where they lie or read plane by
+//! plane, for extraction slab by slab ([`isocube::extract::extract_streamed`]) from volumes
+//! larger than memory.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -11,7 +12,9 @@ use super::raw::{check_raw_size, decode_into, Endian, ScalarType};
 use super::{IoError, Position, VolumeOptions};
 use isocube::field::{Grid, GridView, Orientation, PlaneSource};
 
-/// A raw or `.npy` volume mapped into memory, decoded to `f32` a few planes at a time.
+/// A volume stored uncompressed (raw, `.npy`, `.nii`, MetaImage, raw-appended `.vti`) mapped
+/// into memory: meshed where it lies when its values are native `f32` ([`MappedVolume::view`]),
+/// else decoded to `f32` a few planes at a time.
 ///
 /// The file is checked when opened (header, size against the dimensions); the operating system
 /// pages its bytes in as slabs read them, and [`PlaneSource::release_before`] lets it drop the
