@@ -28,6 +28,8 @@ use std::fmt;
 use std::str::FromStr;
 use std::sync::OnceLock;
 
+use rayon::prelude::*;
+
 use super::config::{ClassTable, ConfigKind, Group};
 use super::polygons::{
     ambiguous_faces, decision_patterns, derive_polygons, pack, transform_polygons, unpack, Corner,
@@ -108,6 +110,30 @@ struct Variant {
     classic: Triangulation,
     mc33: Triangulation,
     tunnels: (u32, u32),
+}
+
+/// The tube a tunnel puts between two loops.
+enum Tube {
+    /// Rungs between the loops.
+    Band(Vec<[Corner; 3]>),
+    /// Rungs across negative ambiguous faces are not admissible (see `may_join`); when they are
+    /// needed, the tunnel passes through one interior point (the loops' centroid)…
+    Interior(Vec<[Corner; 3]>),
+    /// …or failing that through a ring of three, with their supports.
+    Ring(Vec<[Corner; 3]>, Vec<Vec<Corner>>),
+}
+
+impl Tube {
+    fn between(l1: &[Corner], l2: &[Corner]) -> Tube {
+        if let Some(tube) = band(l1, l2) {
+            Tube::Band(tube)
+        } else if let Some(tube) = band_with_interior(l1, l2) {
+            Tube::Interior(tube)
+        } else {
+            let (tube, supports) = band_through_ring(l1, l2);
+            Tube::Ring(tube, supports)
+        }
+    }
 }
 
 /// One representative's patches under one decision pattern: loops, and for each possible tunnel
@@ -194,25 +220,67 @@ impl CaseTable {
             interiors: Vec::new(),
             support: Vec::new(),
         };
-        for config in 0..256usize {
-            let entry = classes.entry(config);
-            let t = entry.transform;
-            let rep = entry.representative as u8;
-            let amb = ambiguous_faces(config as u8);
-            table.ambiguous[config] = amb;
+        // Each configuration's variants: the representative case and the transform that maps
+        // it onto the configuration.
+        let variants: Vec<Vec<(&RepresentativeCase, Transform)>> = (0..256usize)
+            .map(|config| {
+                let entry = classes.entry(config);
+                let t = entry.transform;
+                let rep = entry.representative as u8;
+                let amb = ambiguous_faces(config as u8);
+                let face_map = t.face_map();
+                (0..(1u32 << amb.count_ones()))
+                    .map(|packed| {
+                        let decisions = unpack(amb, packed);
+                        // Decision on the representative's face f is the configuration's
+                        // decision on face g(f), inverted under flip (joined above ↔ joined
+                        // below).
+                        let mut rep_decisions = 0u8;
+                        for (f, &image) in face_map.iter().enumerate() {
+                            let bit = decisions >> image & 1;
+                            rep_decisions |= (bit ^ u8::from(t.flip)) << f;
+                        }
+                        let case =
+                            &representative_cases[&(rep, rep_decisions & ambiguous_faces(rep))];
+                        (case, t)
+                    })
+                    .collect()
+            })
+            .collect();
+        // The tunnels' tubes are nearly all of the work (a search per pair of loops). The same
+        // pair comes back in many variants: each distinct pair is searched once, on every core,
+        // then the table is laid out in order, so it is the same table.
+        let mut pairs: HashMap<(Vec<Corner>, Vec<Corner>), usize> = HashMap::new();
+        let mut order: Vec<(Vec<Corner>, Vec<Corner>)> = Vec::new();
+        let wanted: Vec<Vec<Vec<usize>>> = variants
+            .iter()
+            .map(|list| {
+                list.iter()
+                    .map(|&(case, t)| {
+                        let loops = transform_polygons(&case.loops, t);
+                        case.tunnels
+                            .iter()
+                            .map(|&(_, i, j)| {
+                                let key = (loops[i].clone(), loops[j].clone());
+                                *pairs.entry(key.clone()).or_insert_with(|| {
+                                    order.push(key);
+                                    order.len() - 1
+                                })
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect();
+        let tubes: Vec<Tube> = order
+            .par_iter()
+            .map(|(l1, l2)| Tube::between(l1, l2))
+            .collect();
+        for (config, (list, wanted)) in variants.iter().zip(wanted).enumerate() {
+            table.ambiguous[config] = ambiguous_faces(config as u8);
             table.first_variant[config] = table.variants.len() as u32;
-            let face_map = t.face_map();
-            for packed in 0..(1u32 << amb.count_ones()) {
-                let decisions = unpack(amb, packed);
-                // Decision on the representative's face f is the configuration's decision on
-                // face g(f), inverted under flip (joined above ↔ joined below).
-                let mut rep_decisions = 0u8;
-                for (f, &image) in face_map.iter().enumerate() {
-                    let bit = decisions >> image & 1;
-                    rep_decisions |= (bit ^ u8::from(t.flip)) << f;
-                }
-                let case = &representative_cases[&(rep, rep_decisions & ambiguous_faces(rep))];
-                table.push_variant(case, t);
+            for (&(case, t), wanted) in list.iter().zip(wanted) {
+                table.push_variant(case, t, wanted.iter().map(|&k| &tubes[k]));
             }
         }
         table.first_variant[256] = table.variants.len() as u32;
@@ -275,7 +343,12 @@ impl CaseTable {
         self.interiors.push((s0, self.support.len() as u32));
     }
 
-    fn push_variant(&mut self, case: &RepresentativeCase, t: Transform) {
+    fn push_variant<'t>(
+        &mut self,
+        case: &RepresentativeCase,
+        t: Transform,
+        tubes: impl Iterator<Item = &'t Tube>,
+    ) {
         let loops = transform_polygons(&case.loops, t);
         let range = self.push_loops(&loops);
         let classic = self.push_disks(range, &[], usize::MAX);
@@ -287,28 +360,28 @@ impl CaseTable {
                 .fold(0u8, |acc, v| acc | 1 << map[v])
         };
         let k0 = self.tunnels.len() as u32;
-        for &(regions, i, j) in &case.tunnels {
+        for (&(regions, i, j), tube) in case.tunnels.iter().zip(tubes) {
             let (li, lj) = (range.0 + i as u32, range.0 + j as u32);
             let mut triangulation = self.push_disks(range, &[li, lj], Self::MC33_STAR_CORNERS);
-            // Rungs across negative ambiguous faces are not admissible (see `may_join`); when
-            // they are needed, the tunnel passes through one interior point, or failing that
-            // through a ring of three.
-            if let Some(tube) = band(&loops[i], &loops[j]) {
-                self.triangles.extend(tube);
-            } else {
-                assert_eq!(
-                    triangulation.interiors.0, triangulation.interiors.1,
-                    "disks beside a tunnel need no interior point"
-                );
-                if let Some(tube) = band_with_interior(&loops[i], &loops[j]) {
+            match tube {
+                Tube::Band(tube) => self.triangles.extend_from_slice(tube),
+                Tube::Interior(tube) => {
+                    assert_eq!(
+                        triangulation.interiors.0, triangulation.interiors.1,
+                        "disks beside a tunnel need no interior point"
+                    );
                     self.push_support(&[&loops[i], &loops[j]]);
-                    self.triangles.extend(tube);
-                } else {
-                    let (tube, supports) = band_through_ring(&loops[i], &loops[j]);
-                    for support in &supports {
+                    self.triangles.extend_from_slice(tube);
+                }
+                Tube::Ring(tube, supports) => {
+                    assert_eq!(
+                        triangulation.interiors.0, triangulation.interiors.1,
+                        "disks beside a tunnel need no interior point"
+                    );
+                    for support in supports {
                         self.push_support(&[support]);
                     }
-                    self.triangles.extend(tube);
+                    self.triangles.extend_from_slice(tube);
                 }
             }
             triangulation.triangles.1 = self.triangles.len() as u32;
