@@ -80,6 +80,11 @@ impl Corner {
         self.0
     }
 
+    /// The corner with this [`Corner::code`], if there is one.
+    pub(crate) fn from_code(code: u8) -> Option<Corner> {
+        (usize::from(code) < 20 + Corner::MAX_INTERIOR).then_some(Corner(code))
+    }
+
     /// The corner's image under a transform's geometric part.
     pub fn transformed(self, t: Transform) -> Corner {
         if let Some(e) = self.as_edge() {

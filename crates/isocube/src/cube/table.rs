@@ -136,6 +136,14 @@ impl Tube {
     }
 }
 
+/// What [`CaseTable::to_bytes`] writes first: a table of another layout is not read.
+const STORED_MAGIC: &[u8] = b"isocube binary case table 1\n";
+
+/// The binary case table as its derivation gives it (see [`CaseTable::binary`]); the test
+/// `stored_binary_table_is_the_derived_one` fails when the derivation changes and rewrites the
+/// file when run with `ISOCUBE_WRITE_TABLE=1`.
+static STORED_BINARY: &[u8] = include_bytes!("mc33.table");
+
 /// One representative's patches under one decision pattern: loops, and for each possible tunnel
 /// the regions it joins and the two loops it connects.
 struct RepresentativeCase {
@@ -193,10 +201,180 @@ impl CaseTable {
     /// Loops of this many corners or more get an interior vertex under [`Topology::Mc33`].
     pub const MC33_STAR_CORNERS: usize = 7;
 
-    /// The shared binary table, built once (about a millisecond).
+    /// The shared binary table. Its derivation (below) takes some ten milliseconds of search,
+    /// so the table ships as the bytes that derivation gives (`mc33.table`, checked against it
+    /// by the tests) and is only unpacked here; a build from source is the fallback should
+    /// those bytes not unpack.
     pub fn binary() -> &'static CaseTable {
         static TABLE: OnceLock<CaseTable> = OnceLock::new();
-        TABLE.get_or_init(CaseTable::build_binary)
+        TABLE.get_or_init(|| {
+            CaseTable::from_bytes(STORED_BINARY).unwrap_or_else(CaseTable::build_binary)
+        })
+    }
+
+    /// The table as bytes: every field in order, lengths and numbers little-endian `u32`,
+    /// corners as their codes (what the tests compare with, and write, `mc33.table`).
+    #[cfg(test)]
+    fn to_bytes(&self) -> Vec<u8> {
+        let mut out = STORED_MAGIC.to_vec();
+        let u32s = |out: &mut Vec<u8>, xs: &[u32]| {
+            out.extend_from_slice(&(xs.len() as u32).to_le_bytes());
+            xs.iter()
+                .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+        };
+        let t = |t: &Triangulation| [t.triangles.0, t.triangles.1, t.interiors.0, t.interiors.1];
+        let pairs = |v: &[(u32, u32)]| v.iter().flat_map(|&(a, b)| [a, b]).collect::<Vec<u32>>();
+        let codes = |v: &[Corner]| v.iter().map(|c| u32::from(c.code())).collect::<Vec<u32>>();
+        u32s(&mut out, &self.ambiguous.map(u32::from));
+        u32s(&mut out, &self.first_variant);
+        let variants: Vec<u32> = self
+            .variants
+            .iter()
+            .flat_map(|v| {
+                let (p, k) = (v.polygons, v.tunnels);
+                [[p.0, p.1], [k.0, k.1]]
+                    .into_iter()
+                    .flatten()
+                    .chain(t(&v.classic))
+                    .chain(t(&v.mc33))
+            })
+            .collect();
+        u32s(&mut out, &variants);
+        let tunnels: Vec<u32> = self
+            .tunnels
+            .iter()
+            .flat_map(|k| {
+                let r = k.regions;
+                [
+                    u32::from(r.first),
+                    u32::from(r.second),
+                    k.loops.0,
+                    k.loops.1,
+                ]
+                .into_iter()
+                .chain(t(&k.triangulation))
+            })
+            .collect();
+        u32s(&mut out, &tunnels);
+        u32s(&mut out, &pairs(&self.polygon_ranges));
+        u32s(&mut out, &codes(&self.corners));
+        u32s(&mut out, &codes(self.triangles.as_flattened()));
+        u32s(&mut out, &pairs(&self.interiors));
+        u32s(&mut out, &codes(&self.support));
+        out
+    }
+
+    /// [`CaseTable::to_bytes`] read back, every range checked against what it points into
+    /// (`None` for bytes that are not such a table).
+    fn from_bytes(bytes: &[u8]) -> Option<CaseTable> {
+        let mut rest = bytes.strip_prefix(STORED_MAGIC)?;
+        let mut u32s = || -> Option<Vec<u32>> {
+            let (len, tail) = rest.split_first_chunk::<4>()?;
+            let len = u32::from_le_bytes(*len) as usize;
+            let (body, tail) = tail.split_at_checked(len.checked_mul(4)?)?;
+            rest = tail;
+            Some(
+                body.chunks_exact(4)
+                    .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
+                    .collect(),
+            )
+        };
+        let ambiguous: Vec<u32> = u32s()?;
+        let first_variant = u32s()?;
+        let variants = u32s()?;
+        let tunnels = u32s()?;
+        let polygon_ranges = u32s()?;
+        let corners = u32s()?;
+        let triangles = u32s()?;
+        let interiors = u32s()?;
+        let support = u32s()?;
+        if !rest.is_empty() || variants.len() % 12 != 0 || tunnels.len() % 8 != 0 {
+            return None;
+        }
+        let corner = |c: &u32| u8::try_from(*c).ok().and_then(Corner::from_code);
+        let pairs = |v: &[u32]| -> Option<Vec<(u32, u32)>> {
+            (v.len() % 2 == 0).then(|| v.chunks_exact(2).map(|p| (p[0], p[1])).collect())
+        };
+        let triangulation = |v: &[u32]| Triangulation {
+            triangles: (v[0], v[1]),
+            interiors: (v[2], v[3]),
+        };
+        let corners: Vec<Corner> = corners.iter().map(corner).collect::<Option<_>>()?;
+        let flat: Vec<Corner> = triangles.iter().map(corner).collect::<Option<_>>()?;
+        if flat.len() % 3 != 0 {
+            return None;
+        }
+        let table = CaseTable {
+            ambiguous: ambiguous
+                .iter()
+                .map(|&a| u8::try_from(a).ok())
+                .collect::<Option<Vec<u8>>>()?
+                .try_into()
+                .ok()?,
+            first_variant: first_variant.try_into().ok()?,
+            variants: variants
+                .chunks_exact(12)
+                .map(|v| Variant {
+                    polygons: (v[0], v[1]),
+                    tunnels: (v[2], v[3]),
+                    classic: triangulation(&v[4..8]),
+                    mc33: triangulation(&v[8..12]),
+                })
+                .collect(),
+            tunnels: tunnels
+                .chunks_exact(8)
+                .map(|k| {
+                    Some(Tunnel {
+                        regions: TunnelRegions {
+                            first: u8::try_from(k[0]).ok()?,
+                            second: u8::try_from(k[1]).ok()?,
+                        },
+                        loops: (k[2], k[3]),
+                        triangulation: triangulation(&k[4..8]),
+                    })
+                })
+                .collect::<Option<_>>()?,
+            polygon_ranges: pairs(&polygon_ranges)?,
+            corners,
+            triangles: flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            interiors: pairs(&interiors)?,
+            support: support.iter().map(corner).collect::<Option<_>>()?,
+        };
+        table.ranges_hold().then_some(table)
+    }
+
+    /// Whether every range in the table lies within what it indexes (look-ups index without
+    /// checks of their own).
+    fn ranges_hold(&self) -> bool {
+        let within = |(a, b): (u32, u32), len: usize| a <= b && b as usize <= len;
+        let triangulation = |t: &Triangulation| {
+            within(t.triangles, self.triangles.len()) && within(t.interiors, self.interiors.len())
+        };
+        self.first_variant.windows(2).all(|w| w[0] <= w[1])
+            && self.first_variant[256] as usize == self.variants.len()
+            && (0..256).all(|c| {
+                let count = 1u32 << self.ambiguous[c].count_ones();
+                self.first_variant[c] + count == self.first_variant[c + 1]
+            })
+            && self.variants.iter().all(|v| {
+                within(v.polygons, self.polygon_ranges.len())
+                    && within(v.tunnels, self.tunnels.len())
+                    && triangulation(&v.classic)
+                    && triangulation(&v.mc33)
+            })
+            && self.tunnels.iter().all(|k| {
+                (k.loops.0 as usize) < self.polygon_ranges.len()
+                    && (k.loops.1 as usize) < self.polygon_ranges.len()
+                    && triangulation(&k.triangulation)
+            })
+            && self
+                .polygon_ranges
+                .iter()
+                .all(|&r| within(r, self.corners.len()))
+            && self
+                .interiors
+                .iter()
+                .all(|&r| within(r, self.support.len()))
     }
 
     fn build_binary() -> CaseTable {
@@ -544,6 +722,31 @@ fn representative_case(rep: u8, decisions: FaceDecisions) -> RepresentativeCase 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shipped table is the derivation's, byte for byte, and reads back to it; bytes that
+    /// are cut short or point out of range are refused.
+    #[test]
+    fn stored_binary_table_is_the_derived_one() {
+        let derived = CaseTable::build_binary().to_bytes();
+        if std::env::var_os("ISOCUBE_WRITE_TABLE").is_some() {
+            let path = concat!(env!("CARGO_MANIFEST_DIR"), "/src/cube/mc33.table");
+            std::fs::write(path, &derived).unwrap();
+        }
+        assert!(
+            derived == STORED_BINARY,
+            "src/cube/mc33.table is not what the derivation gives: rewrite it with \
+             ISOCUBE_WRITE_TABLE=1 cargo test -p isocube --lib stored_binary_table"
+        );
+        let read = CaseTable::from_bytes(STORED_BINARY).expect("the stored table reads");
+        assert_eq!(read.to_bytes(), derived);
+        assert!(CaseTable::from_bytes(&derived[..derived.len() - 1]).is_none());
+        // The last field is the support of interior points: a range past its end is refused.
+        let mut table = read.clone();
+        if let Some(last) = table.interiors.last_mut() {
+            last.1 = table.support.len() as u32 + 1;
+        }
+        assert!(CaseTable::from_bytes(&table.to_bytes()).is_none());
+    }
     use crate::cube::polygons::canonical;
 
     #[test]
