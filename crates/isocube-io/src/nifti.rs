@@ -199,13 +199,7 @@ pub(super) fn read_nifti_within(
 ) -> Result<(Grid, Orientation), IoError> {
     check_size(path, budget)?;
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
-    let file = std::io::BufReader::with_capacity(1 << 20, file);
-    let read = if gzipped(path) {
-        read_into_grid(path, flate2::read::MultiGzDecoder::new(file))?
-    } else {
-        read_into_grid(path, file)?
-    };
-    if let Some(read) = read {
+    if let Some(read) = read_stored(path, std::io::BufReader::with_capacity(1 << 20, file))? {
         return Ok(read);
     }
     let object = ReaderOptions::new()
@@ -222,12 +216,7 @@ pub(super) fn read_nifti_bytes(
     budget: Budget,
 ) -> Result<(Grid, Orientation), IoError> {
     check_header(path, bytes, bytes.len() as u64, budget)?;
-    let read = if gzipped(path) {
-        read_into_grid(path, flate2::read::MultiGzDecoder::new(bytes))?
-    } else {
-        read_into_grid(path, bytes)?
-    };
-    if let Some(read) = read {
+    if let Some(read) = read_stored(path, bytes)? {
         return Ok(read);
     }
     let object = if gzipped(path) {
@@ -315,6 +304,16 @@ fn placement_within(path: &Path, bytes: &[u8], len: u64) -> Result<Option<Placem
         orientation,
         scale,
     }))
+}
+
+/// [`read_into_grid`] on a file's bytes as stored: inflated on the way when `path` names a
+/// gzip file.
+fn read_stored(path: &Path, stored: impl Read) -> Result<Option<(Grid, Orientation)>, IoError> {
+    if gzipped(path) {
+        read_into_grid(path, flate2::read::MultiGzDecoder::new(stored))
+    } else {
+        read_into_grid(path, stored)
+    }
 }
 
 /// A single-file NIfTI read once from `stream` (a `.nii`, or a `.nii.gz` inflating), straight
