@@ -168,7 +168,7 @@ impl VolumeArgs {
     }
 
     /// The volume file memory-mapped, when it is stored uncompressed (raw, `.npy`, `.nii`,
-    /// MetaImage, raw-appended `.vti`): `None` for samples and for files that must be read.
+    /// MetaImage, raw NRRD, raw-appended `.vti`): `None` for samples and for files that must be read.
     pub(crate) fn try_map(&self) -> Result<Option<MappedVolume>, Failure> {
         if SampleSpec::is_sample(&self.volume) {
             return Ok(None);

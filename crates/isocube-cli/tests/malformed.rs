@@ -95,7 +95,7 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         ("nomagic.nrrd", b"NRD0004\ntype: uchar\n\n".to_vec(), vec![], "NRRD"),
         ("type.nrrd", b"NRRD0004\ntype: quaternion\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n".to_vec(), vec![], "type 'quaternion'"),
         ("nosizes.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nencoding: raw\n\n\0\0\0\0\0\0\0\0".to_vec(), vec![], "sizes"),
-        ("short.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n\0\0\0".to_vec(), vec![], "the data has 3"),
+        ("short.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n\0\0\0".to_vec(), vec![], "values need 8 bytes"),
         ("badgz.nrrd", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: gzip\n\nnot gzip at all".to_vec(), vec![], "gzip"),
         ("detached.nhdr", b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\ndata file: gone.raw\n\n".to_vec(), vec![], "gone.raw"),
         ("fourd.nrrd", b"NRRD0004\ntype: uchar\ndimension: 4\nsizes: 2 2 2 2\nencoding: raw\n\n".to_vec(), vec![], "4 axes"),

@@ -12,7 +12,7 @@ use super::raw::{check_raw_size, decode_into, Endian, ScalarType};
 use super::{IoError, Position, VolumeOptions};
 use isocube::field::{Grid, GridView, Orientation, PlaneSource};
 
-/// A volume stored uncompressed (raw, `.npy`, `.nii`, MetaImage, raw-appended `.vti`) mapped
+/// A volume stored uncompressed (raw, `.npy`, `.nii`, MetaImage, raw NRRD, raw-appended `.vti`) mapped
 /// into memory: meshed where it lies when its values are native `f32` ([`MappedVolume::view`]),
 /// else decoded to `f32` a few planes at a time.
 ///
@@ -81,6 +81,7 @@ enum Kind {
     Nifti,
     MetaImage,
     Vti,
+    Nrrd,
     Other,
 }
 
@@ -95,6 +96,7 @@ fn kind(path: &Path) -> Kind {
         "nii" => Kind::Nifti,
         "mha" | "mhd" => Kind::MetaImage,
         "vti" => Kind::Vti,
+        "nrrd" | "nhdr" => Kind::Nrrd,
         _ => Kind::Other,
     }
 }
@@ -102,15 +104,15 @@ fn kind(path: &Path) -> Kind {
 impl MappedVolume {
     /// Maps a volume whose values are stored uncompressed: `.npy`, a raw file laid out as
     /// [`VolumeOptions::raw`] says, NIfTI `.nii` (with the `nifti` feature), MetaImage
-    /// (`.mha`, `.mhd`) and VTK ImageData (`.vti` with raw appended data). Compressed files
-    /// are refused (read them with [`super::read_volume`]); [`MappedVolume::try_open`] tells
-    /// them apart without an error.
+    /// (`.mha`, `.mhd`), raw NRRD (`.nrrd`, `.nhdr`) and VTK ImageData (`.vti` with raw
+    /// appended data). Compressed files are refused (read them with [`super::read_volume`]);
+    /// [`MappedVolume::try_open`] tells them apart without an error.
     pub fn open(path: &Path, options: &VolumeOptions) -> Result<MappedVolume, IoError> {
         MappedVolume::try_open(path, options)?.ok_or_else(|| {
             IoError::unsupported(
                 path,
                 Position::File,
-                "only uncompressed raw, .npy, .nii, .mha/.mhd and raw-appended .vti volumes can be mapped",
+                "only uncompressed raw, .npy, .nii, .mha/.mhd, raw .nrrd/.nhdr and raw-appended .vti volumes can be mapped",
             )
         })
     }
@@ -133,6 +135,7 @@ impl MappedVolume {
             (Kind::Nifti, None) => super::nifti::placement(path, &map)?,
             (Kind::MetaImage, None) => super::metaimage::placement(path, &map)?,
             (Kind::Vti, None) => super::vti::placement(path, &map)?,
+            (Kind::Nrrd, None) => super::nrrd::placement(path, &map)?,
             _ => return Ok(None),
         };
         let volume = match placement {
@@ -629,6 +632,30 @@ mod tests {
         mha.extend(values(dims).iter().flat_map(|v| v.to_le_bytes()));
         let rotated = dir.path().join("rotated-raw.mha");
         std::fs::write(&rotated, mha).unwrap();
+        // A raw NRRD with oblique axes, attached; and a detached one whose values end its
+        // data file (`byte skip: -1`).
+        let nrrd_head = format!(
+            "NRRD0004\ntype: uint16\ndimension: 3\nspace: left-posterior-superior\n\
+             sizes: {} {} {}\nspace directions: (0,0.5,0) (0.75,0,0) (0,0,-1.25)\n\
+             space origin: (1,2,3)\nendian: little\n",
+            dims[0], dims[1], dims[2]
+        );
+        let stored: Vec<u8> = values(dims).iter().flat_map(|v| v.to_le_bytes()).collect();
+        let attached = dir.path().join("oblique-raw.nrrd");
+        let mut bytes = format!("{nrrd_head}encoding: raw\n\n").into_bytes();
+        bytes.extend_from_slice(&stored);
+        std::fs::write(&attached, bytes).unwrap();
+        let detached = dir.path().join("detached.nhdr");
+        std::fs::write(
+            &detached,
+            format!("{nrrd_head}encoding: raw\nbyte skip: -1\ndata file: detached.raw\n"),
+        )
+        .unwrap();
+        std::fs::write(
+            dir.path().join("detached.raw"),
+            [&[7u8; 13][..], &stored].concat(),
+        )
+        .unwrap();
         let options = VolumeOptions::default();
         for (path, level, in_place) in [
             (data.join("flipped.nii"), 455.5, true),
@@ -636,6 +663,8 @@ mod tests {
             (rotated, 1200.0, false),
             (data.join("plain.mhd"), 455.5, false),
             (data.join("appended-raw.vti"), 455.5, false),
+            (attached, 1200.0, false),
+            (detached, 1200.0, false),
         ] {
             let (grid, orientation) = crate::read_volume_oriented(&path, &options).unwrap();
             let extract_options = ExtractOptions::default().with_level(level);

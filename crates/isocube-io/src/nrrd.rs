@@ -8,6 +8,7 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use super::mapped::Placement;
 use super::raw::{decode_all, Endian, ScalarType};
 use super::{Budget, IoError, Position};
 use isocube::field::{Grid, Orientation};
@@ -41,6 +42,50 @@ pub(super) fn read_nrrd_bytes(
     let header = Header::parse(path, bytes)?;
     let grid = read_data(path, bytes, &header, budget)?;
     Ok((grid, header.orientation))
+}
+
+/// Where a raw-encoded NRRD keeps its values (for [`super::MappedVolume`]), attached or in a
+/// detached data file, from the mapped header file; `None` for gzip and ASCII data and for
+/// `line skip`, which the reader handles.
+pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
+    let header = Header::parse(path, bytes)?;
+    if header.encoding != Encoding::Raw || header.line_skip > 0 {
+        return Ok(None);
+    }
+    let (data_file, start, len) = match &header.data_file {
+        None => (None, header.data_offset, bytes.len()),
+        Some(name) => {
+            let file = path
+                .parent()
+                .map(|d| d.join(name))
+                .unwrap_or_else(|| PathBuf::from(name));
+            let len = std::fs::metadata(&file)
+                .map_err(|e| IoError::os(&file, e))?
+                .len() as usize;
+            (Some(file), 0, len)
+        }
+    };
+    let need = Grid::point_count(header.dims)
+        .ok()
+        .and_then(|n| n.checked_mul(header.scalar.size()));
+    let offset = match (header.byte_skip, need) {
+        // −1: the values are the data's last bytes.
+        (-1, Some(need)) if len >= start + need => len - need,
+        (skip, _) if skip >= 0 => start.saturating_add(skip as usize),
+        // Too short for its values: the reader says so.
+        _ => return Ok(None),
+    };
+    Ok(Some(Placement {
+        data_file,
+        offset,
+        scalar: header.scalar,
+        endian: header.endian,
+        dims: header.dims,
+        spacing: header.spacing,
+        origin: header.origin,
+        orientation: header.orientation,
+        scale: None,
+    }))
 }
 
 fn read_data(path: &Path, bytes: &[u8], header: &Header, budget: Budget) -> Result<Grid, IoError> {

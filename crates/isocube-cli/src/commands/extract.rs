@@ -91,8 +91,9 @@ pub(crate) struct Args {
     /// Write ASCII PLY.
     #[arg(long)]
     ascii: bool,
-    /// Extract slab by slab from the memory-mapped file (raw, .npy, .nii, .mha/.mhd or raw-appended .vti) straight into a binary PLY:
-    /// memory stays at a few slabs whatever the volume's size. Chosen by itself for volumes whose
+    /// Extract slab by slab from the memory-mapped file (raw, .npy, .nii, .mha/.mhd, raw .nrrd
+    /// or raw-appended .vti) straight into a binary PLY: memory stays at a few slabs whatever
+    /// the volume's size. Chosen by itself for volumes whose
     /// values take more than 1 GiB as f32, when the options allow it (binary PLY output, `mc`,
     /// no relaxation). The mesh is the same, byte for byte.
     #[arg(long)]
@@ -450,7 +451,7 @@ fn streamable<'a>(
     mapped: Option<&'a MappedVolume>,
 ) -> Result<Option<&'a MappedVolume>, Failure> {
     let obstacle = if mapped.is_none() {
-        Some("the volume must be stored uncompressed (raw, .npy, .nii, .mha/.mhd, raw-appended .vti)")
+        Some("the volume must be stored uncompressed (raw, .npy, .nii, .mha/.mhd, raw .nrrd, raw-appended .vti)")
     } else if MeshFormat::from_path(&args.output) != Some(MeshFormat::Ply) || args.ascii {
         Some("the output must be a binary .ply")
     } else if args.values.is_some() {
