@@ -331,11 +331,7 @@ impl MappedVolume {
     /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn view(&self) -> Option<GridView<'_>> {
-        let native = match self.endian {
-            Endian::Little => cfg!(target_endian = "little"),
-            Endian::Big => cfg!(target_endian = "big"),
-        };
-        if self.scalar != ScalarType::F32 || !native || self.scale.is_some() {
+        if self.scalar != ScalarType::F32 || !self.endian.is_native() || self.scale.is_some() {
             return None;
         }
         // The map starts on a page; the data is aligned when its offset is.
@@ -354,35 +350,16 @@ impl MappedVolume {
 impl MappedVolume {
     /// The stored values of planes `first, …` as `f32`, before any scale.
     fn read_stored_planes(&self, first: usize, out: &mut [f32]) {
+        // Every layout is walked in memory order (`npy_or_raw`, `placed`): a plane is one run.
+        debug_assert!(self.planes_contiguous());
         let size = self.scalar.size();
-        let [nx, ny, _] = self.dims;
-        let [sx, sy, sz] = self.strides;
-        let data = self.data();
-        if self.planes_contiguous() {
-            let at = first * sz * size;
-            decode_into(
-                &data[at..at + out.len() * size],
-                self.scalar,
-                self.endian,
-                out,
-            );
-            return;
-        }
-        for (p, plane) in out.chunks_exact_mut(nx * ny).enumerate() {
-            let k = first + p;
-            for (j, row) in plane.chunks_exact_mut(nx).enumerate() {
-                let base = j * sy + k * sz;
-                if sx == 1 {
-                    let at = base * size;
-                    decode_into(&data[at..at + nx * size], self.scalar, self.endian, row);
-                } else {
-                    for (i, o) in row.iter_mut().enumerate() {
-                        let at = (base + i * sx) * size;
-                        *o = self.scalar.decode(&data[at..at + size], self.endian) as f32;
-                    }
-                }
-            }
-        }
+        let at = first * self.strides[2] * size;
+        decode_into(
+            &self.data()[at..at + out.len() * size],
+            self.scalar,
+            self.endian,
+            out,
+        );
     }
 }
 

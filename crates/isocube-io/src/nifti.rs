@@ -328,7 +328,10 @@ fn read_into_grid(
         std::io::ErrorKind::UnexpectedEof => {
             IoError::format(path, Position::File, "the file ends inside its data")
         }
-        _ => IoError::format(path, Position::File, format!("corrupt gzip data: {e}")),
+        _ if gzipped(path) => {
+            IoError::format(path, Position::File, format!("corrupt gzip data: {e}"))
+        }
+        _ => IoError::os(path, e),
     };
     let mut head = vec![0u8; 348];
     stream.read_exact(&mut head).map_err(corrupt)?;
@@ -350,15 +353,11 @@ fn read_into_grid(
     }
     let count = Grid::point_count(p.dims).map_err(|e| IoError::grid(path, e))?;
     let mut values = vec![0.0f32; count];
-    let native = match p.endian {
-        Endian::Little => cfg!(target_endian = "little"),
-        Endian::Big => cfg!(target_endian = "big"),
-    };
     if p.scalar == ScalarType::F32 {
         stream
             .read_exact(bytemuck::cast_slice_mut(&mut values))
             .map_err(corrupt)?;
-        if !native {
+        if !p.endian.is_native() {
             values
                 .iter_mut()
                 .for_each(|v| *v = f32::from_bits(v.to_bits().swap_bytes()));

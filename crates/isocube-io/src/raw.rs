@@ -135,6 +135,16 @@ pub enum Endian {
     Big,
 }
 
+impl Endian {
+    /// Whether values in this order can be read as they lie on this machine.
+    pub(crate) fn is_native(self) -> bool {
+        match self {
+            Endian::Little => cfg!(target_endian = "little"),
+            Endian::Big => cfg!(target_endian = "big"),
+        }
+    }
+}
+
 impl FromStr for Endian {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
