@@ -210,19 +210,7 @@ fn band_search(
             cost.fill(inf);
             step.fill(u8::MAX);
             cost[at(0, 0, 0)] = 0.0;
-            // Rungs have no negative length, so every path to the end passes a state of each
-            // row with a cost at most its total: once a row holds nothing cheaper than the best
-            // band so far, this start cannot win (ties keep the earlier band).
-            let bound = best.as_ref().map_or(inf, |(b, _)| *b);
-            let mut beaten = false;
             for i in 0..=n1 {
-                if i > 0 {
-                    let row = (0..phases).flat_map(|p| (0..=n2).map(move |m| (p, m)));
-                    if row.map(|(p, m)| cost[at(p, i - 1, m)]).all(|c| c >= bound) {
-                        beaten = true;
-                        break;
-                    }
-                }
                 for m in 0..=n2 {
                     let final_state = (i, m) == (n1, n2);
                     let k = ai(i) * n2 + ci(m);
@@ -268,7 +256,7 @@ fn band_search(
                 }
             }
             let total = cost[at(last, n1, n2)];
-            if beaten || total == inf || best.as_ref().is_some_and(|(b, _)| *b <= total) {
+            if total == inf || best.as_ref().is_some_and(|(b, _)| *b <= total) {
                 continue;
             }
             let mut triangles = Vec::with_capacity(n1 + n2 + 2);

@@ -532,9 +532,6 @@ impl<'a> Extractor<'a> {
             return Err(ExtractError::Level(options.level));
         }
         Grid::point_count(grid.dims())?;
-        // Built here, on the caller's thread, rather than by the first box on a worker: the
-        // build then has every core (a worker's siblings would wait on it instead of helping).
-        CaseTable::binary();
         let mut extractor = Extractor {
             grid,
             options: *options,
