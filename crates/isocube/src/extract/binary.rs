@@ -94,6 +94,18 @@ impl Masks {
         self.row(&self.above, j, k, ny)
     }
 
+    /// Whether every point is finite (no non-finite mask was needed).
+    pub(super) fn all_finite(&self) -> bool {
+        self.invalid.is_none()
+    }
+
+    /// The above bits of points `i..i + 3` of row `(j, k)`, as the low three bits (`i + 3` at
+    /// most the row's length).
+    #[inline]
+    pub(super) fn above3(&self, i: usize, j: usize, k: usize, ny: usize) -> u64 {
+        bits3(&self.above, (k * ny + j) * self.words * 64 + i)
+    }
+
     /// Marks point `(i, j, k)` above the level (`k` counted from the masks' first plane).
     pub(super) fn set_above(&mut self, [i, j, k]: [usize; 3], ny: usize) {
         self.above[(k * ny + j) * self.words + i / 64] |= 1 << (i % 64);
@@ -141,6 +153,15 @@ impl Masks {
             *slot = v;
         }
     }
+}
+
+/// Bits `at..at + 3` of a bit array (bit `b` of word `w` is `64 w + b`), as the low three bits.
+#[inline]
+pub(super) fn bits3(words: &[u64], at: usize) -> u64 {
+    let (w, b) = (at / 64, at % 64);
+    let low = words[w] >> b;
+    let high = if b > 61 { words[w + 1] << (64 - b) } else { 0 };
+    (low | high) & 7
 }
 
 /// Packs the above bits of one row of values into `out` (whole words); returns whether some

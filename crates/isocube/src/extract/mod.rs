@@ -80,6 +80,7 @@ mod labels;
 mod place;
 
 pub(crate) use classify::{cell_config, face_decisions};
+mod patch_check;
 mod stream;
 mod ternary;
 mod weld;

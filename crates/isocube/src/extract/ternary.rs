@@ -181,6 +181,9 @@ fn tag(k: Key) -> u64 {
 struct Patch {
     triangles: Vec<[Key; 3]>,
     interiors: Vec<Interior>,
+    /// Scratch space for the checks.
+    keys: Vec<Key>,
+    scratch: super::patch_check::Scratch,
 }
 
 struct Interior {
@@ -354,41 +357,83 @@ impl<'a> Ternary<'a> {
         // two points of one parity class are two steps apart along some axis: within a
         // (round, class) group the checks are independent, so each group is checked in
         // parallel and then applied — the same choices as one point after the other.
-        let (mut snapped, mut refused) = (0, 0);
         let neighbourhoods = Neighbourhoods::default();
-        let mut start = 0;
-        while start < order.len() {
-            let group = (order[start].0, order[start].1);
-            let len = if grouped {
-                order[start..]
-                    .iter()
-                    .take_while(|e| (e.0, e.1) == group)
-                    .count()
-            } else {
-                1
-            };
-            let members = &order[start..start + len];
-            let verdicts: Vec<bool> = members
-                .par_iter()
-                .with_min_len(64)
-                .map_init(
-                    || (Patch::default(), Patch::default()),
-                    |(before, after), &(_, _, p)| {
-                        self.snap_is_safe(p, before, after, &neighbourhoods)
-                    },
-                )
-                .collect();
-            for (&(_, _, p), ok) in members.iter().zip(verdicts) {
-                if ok {
-                    self.zero[p / 64] |= 1 << (p % 64);
-                    let ny = self.grid.dims()[1];
-                    self.masks.set_above(self.coords(p), ny);
-                    snapped += 1;
-                } else {
-                    refused += 1;
-                }
+        if !grouped {
+            let (mut snapped, mut refused) = (0, 0);
+            for member in order.chunks(1) {
+                let (s, r) = self.snap_batch(member, &neighbourhoods);
+                snapped += s;
+                refused += r;
             }
-            start += len;
+            return (snapped, refused);
+        }
+        let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
+        for (i, e) in order.iter().enumerate() {
+            match groups.last_mut() {
+                Some(g) if (order[g.start].0, order[g.start].1) == (e.0, e.1) => g.end = i + 1,
+                _ => groups.push(i..i + 1),
+            }
+        }
+        // Group after group, each sweeping the whole grid, the checks would fetch the same
+        // neighbourhoods from memory once per group. Instead the groups advance together,
+        // plane by plane, each a plane behind the one before: group `g` takes the planes up to
+        // `pass · SLAB − g` in pass `pass`. When a point of plane `z` is checked, every earlier
+        // group has passed `z + 1` and no later group has reached `z − 1`, so it sees exactly
+        // the choices it would see group after group — and the neighbourhoods are still in
+        // cache from the groups before.
+        const SLAB: usize = 32;
+        let plane = nx * ny;
+        let plane_of = move |p: usize| p / plane;
+        let (mut snapped, mut refused) = (0, 0);
+        for pass in 1.. {
+            let mut left = false;
+            for (g, range) in groups.iter_mut().enumerate() {
+                let Some(limit) = (pass * SLAB).checked_sub(g) else {
+                    left |= range.start < range.end;
+                    continue;
+                };
+                let members = &order[range.clone()];
+                let take = members.partition_point(|e| plane_of(e.2) <= limit);
+                if take > 0 {
+                    let (s, r) = self.snap_batch(&members[..take], &neighbourhoods);
+                    snapped += s;
+                    refused += r;
+                    range.start += take;
+                }
+                left |= range.start < range.end;
+            }
+            if !left {
+                break;
+            }
+        }
+        (snapped, refused)
+    }
+
+    /// Checks independent candidates `members` (see [`Ternary::choose_zeros_in_groups`]) in
+    /// parallel and makes the safe ones zero points. Returns (snapped, refused) counts.
+    fn snap_batch(
+        &mut self,
+        members: &[(u8, u8, usize)],
+        neighbourhoods: &Neighbourhoods,
+    ) -> (usize, usize) {
+        let verdicts: Vec<bool> = members
+            .par_iter()
+            .with_min_len(8)
+            .map_init(
+                || (Patch::default(), Patch::default()),
+                |(before, after), &(_, _, p)| self.snap_is_safe(p, before, after, neighbourhoods),
+            )
+            .collect();
+        let (mut snapped, mut refused) = (0, 0);
+        let ny = self.grid.dims()[1];
+        for (&(_, _, p), ok) in members.iter().zip(verdicts) {
+            if ok {
+                self.zero[p / 64] |= 1 << (p % 64);
+                self.masks.set_above(self.coords(p), ny);
+                snapped += 1;
+            } else {
+                refused += 1;
+            }
         }
         (snapped, refused)
     }
@@ -770,6 +815,30 @@ impl<'a> Ternary<'a> {
         if (0..3).any(|a| c[a] < 2 || c[a] + 3 > dims[a]) {
             return None;
         }
+        if !self.masks.all_finite() {
+            return self.pattern_of_values(p);
+        }
+        // From the bit arrays (a few cache lines) rather than the values (nine rows of the
+        // volume): the points are visited in sweeps over the whole grid, and the values' rows
+        // would come from memory each time. A point is zero, or above as the masks say.
+        let spread = |x: u64| (x & 1) | (x & 2) << 1 | (x & 4) << 2;
+        let [sx, sy, sz] = self.strides;
+        let ny = dims[1];
+        let mut pattern = 0u64;
+        for k in 0..3 {
+            for j in 0..3 {
+                let first = p - sx - sy - sz + j * sy + k * sz;
+                let zero = super::binary::bits3(&self.zero, first);
+                let above = self.masks.above3(c[0] - 1, c[1] + j - 1, c[2] + k - 1, ny) & !zero;
+                pattern |= (spread(above) | spread(zero) << 1) << (6 * (j + 3 * k));
+            }
+        }
+        debug_assert_eq!(Some(pattern), self.pattern_of_values(p));
+        Some(pattern)
+    }
+
+    /// [`Ternary::pattern`] from the values, for grids with points that are not finite.
+    fn pattern_of_values(&self, p: usize) -> Option<u64> {
         let [sx, sy, sz] = self.strides;
         let start = p - sx - sy - sz;
         let mut pattern = 0u64;
@@ -916,40 +985,73 @@ impl<'a> Ternary<'a> {
                 }
             }
         }
-        // Which boundary planes each key lies on, as bit masks (frozen, open), found once.
-        let mut planes: Vec<(Key, u8, u8)> = before
-            .triangles
+        // The patches' keys, numbered in their order: the check then works on small numbers
+        // that compare as the keys do, and a key's planes are an array lookup away.
+        let keys = &mut before.keys;
+        keys.clear();
+        keys.extend(before.triangles.iter().chain(&after.triangles).flatten());
+        keys.sort_unstable();
+        keys.dedup();
+        if keys.len() > usize::from(u8::MAX) {
+            return self.topology_kept_on_keys(&frozen, &open, before, after);
+        }
+        // Which boundary planes each key lies on, as bit masks (frozen, open).
+        let plane_mask = |c: [usize; 3], list: &[(usize, usize)]| {
+            list.iter()
+                .enumerate()
+                .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
+        };
+        let planes: Vec<(u8, u8)> = keys
             .iter()
-            .chain(&after.triangles)
-            .flatten()
             .map(|&k| {
                 let c = self.key_coords(k);
-                let mask = |list: &[(usize, usize)]| {
-                    list.iter()
-                        .enumerate()
-                        .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
-                };
-                (k, mask(&frozen), mask(&open))
+                (plane_mask(c, &frozen), plane_mask(c, &open))
             })
             .collect();
-        planes.sort_unstable();
-        planes.dedup();
-        let lookup = |k: Key| {
-            let i = planes
-                .binary_search_by_key(&k, |e| e.0)
-                .expect("every key of the patches is listed");
-            (planes[i].1, planes[i].2)
+        let id = |k: &Key| keys.binary_search(k).expect("every key is numbered") as u8;
+        let old: Vec<[u8; 3]> = before
+            .triangles
+            .iter()
+            .map(|t| t.each_ref().map(id))
+            .collect();
+        let new: Vec<[u8; 3]> = after
+            .triangles
+            .iter()
+            .map(|t| t.each_ref().map(id))
+            .collect();
+        let n = keys.len();
+        let Some(kept) = super::patch_check::accepts(n, &planes, &old, &new, &mut before.scratch)
+        else {
+            return self.topology_kept_on_keys(&frozen, &open, before, after);
         };
-        let on = |keys: &[Key], open: bool| {
-            let common = keys.iter().fold(u8::MAX, |m, &k| {
-                let (f, o) = lookup(k);
-                m & if open { o } else { f }
-            });
-            common != 0
+        debug_assert_eq!(
+            kept,
+            self.topology_kept_on_keys(&frozen, &open, before, after)
+        );
+        kept
+    }
+
+    /// [`Ternary::topology_kept`]'s check on the keys themselves (the reference the numbered
+    /// check must agree with, and the way for patches with more than 255 keys).
+    fn topology_kept_on_keys(
+        &self,
+        frozen: &[(usize, usize)],
+        open: &[(usize, usize)],
+        before: &Patch,
+        after: &Patch,
+    ) -> bool {
+        let on = |keys: &[Key], list: &[(usize, usize)]| {
+            keys.iter().fold(u8::MAX, |m, &k| {
+                let c = self.key_coords(k);
+                m & list
+                    .iter()
+                    .enumerate()
+                    .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
+            }) != 0
         };
         let check = Check {
-            frozen: &|keys: &[Key]| on(keys, false),
-            open: &|keys: &[Key]| on(keys, true),
+            frozen: &|keys: &[Key]| on(keys, frozen),
+            open: &|keys: &[Key]| on(keys, open),
         };
         check.accepts(&before.triangles, &after.triangles)
     }
@@ -1224,34 +1326,35 @@ impl Neighbourhoods {
 }
 
 /// Rotates a triangle to start at its smallest key (orientation kept).
-fn canonical(t: [Key; 3]) -> [Key; 3] {
+fn canonical<T: Copy + Ord>(t: [T; 3]) -> [T; 3] {
     let i = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
     [t[i], t[(i + 1) % 3], t[(i + 2) % 3]]
 }
 
-fn canonical_triangles(ts: &[[Key; 3]]) -> Vec<[Key; 3]> {
-    let mut v: Vec<[Key; 3]> = ts.iter().map(|&t| canonical(t)).collect();
+fn canonical_triangles<T: Copy + Ord>(ts: &[[T; 3]]) -> Vec<[T; 3]> {
+    let mut v: Vec<[T; 3]> = ts.iter().map(|&t| canonical(t)).collect();
     v.sort_unstable();
     v
 }
 
 /// The acceptance test for replacing a block's patch `before` by `after` (see the module docs).
-struct Check<'c> {
+/// Vertices are keys, or numbers that order as the keys do: the verdict is the same.
+struct Check<'c, T> {
     /// Whether all the keys lie on one boundary face of the block with cells beyond it.
-    frozen: &'c dyn Fn(&[Key]) -> bool,
+    frozen: &'c dyn Fn(&[T]) -> bool,
     /// Whether all the keys lie on one face of the grid's boundary.
-    open: &'c dyn Fn(&[Key]) -> bool,
+    open: &'c dyn Fn(&[T]) -> bool,
 }
 
-impl Check<'_> {
-    fn accepts(&self, before: &[[Key; 3]], after: &[[Key; 3]]) -> bool {
+impl<T: Copy + Ord> Check<'_, T> {
+    fn accepts(&self, before: &[[T; 3]], after: &[[T; 3]]) -> bool {
         let old = canonical_triangles(before);
         let new = canonical_triangles(after);
         if old == new {
             return true;
         }
         // No triangle twice, in either orientation.
-        let mut sets: Vec<[Key; 3]> = after
+        let mut sets: Vec<[T; 3]> = after
             .iter()
             .map(|t| {
                 let mut s = *t;
@@ -1266,9 +1369,9 @@ impl Check<'_> {
         self.edges_fit(&old, &new) && self.fans_fit(&old, &new) && self.components_fit(&old, &new)
     }
 
-    fn edges_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
+    fn edges_fit(&self, old: &[[T; 3]], new: &[[T; 3]]) -> bool {
         // (low, high, forward, in_new)
-        let mut uses: Vec<(Key, Key, bool, bool)> = Vec::with_capacity(3 * (old.len() + new.len()));
+        let mut uses: Vec<(T, T, bool, bool)> = Vec::with_capacity(3 * (old.len() + new.len()));
         for (list, is_new) in [(old, false), (new, true)] {
             for t in list {
                 for i in 0..3 {
@@ -1305,10 +1408,10 @@ impl Check<'_> {
         true
     }
 
-    fn fans_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
+    fn fans_fit(&self, old: &[[T; 3]], new: &[[T; 3]]) -> bool {
         // Only vertices of triangles that appear or disappear can change their fans (both lists
         // are sorted canonical triangles).
-        let mut vertices: Vec<Key> = Vec::new();
+        let mut vertices: Vec<T> = Vec::new();
         let (mut i, mut j) = (0, 0);
         while i < old.len() || j < new.len() {
             match (old.get(i), new.get(j)) {
@@ -1338,10 +1441,10 @@ impl Check<'_> {
             if (self.frozen)(&[u]) {
                 // Path ends on frozen edges are where the fan continues outside the block and
                 // must stay; ends on the grid boundary may move along it.
-                let ends = |f: Option<(Vec<(Key, Key)>, usize)>| {
+                let ends = |f: Option<(Vec<(T, T)>, usize)>| {
                     f.map(|(paths, cycles)| {
-                        let end = |x: Key| if (self.frozen)(&[u, x]) { x } else { Key::MAX };
-                        let mut p: Vec<(Key, Key)> =
+                        let end = |x: T| (self.frozen)(&[u, x]).then_some(x);
+                        let mut p: Vec<(Option<T>, Option<T>)> =
                             paths.into_iter().map(|(a, b)| (end(a), end(b))).collect();
                         p.sort_unstable();
                         (p, cycles)
@@ -1367,13 +1470,13 @@ impl Check<'_> {
         true
     }
 
-    fn components_fit(&self, old: &[[Key; 3]], new: &[[Key; 3]]) -> bool {
+    fn components_fit(&self, old: &[[T; 3]], new: &[[T; 3]]) -> bool {
         self.component_signatures(old) == self.component_signatures(new)
     }
 
     /// Per edge-connected component: its Euler characteristic and its interface edges.
     #[allow(clippy::type_complexity)]
-    fn component_signatures(&self, ts: &[[Key; 3]]) -> Vec<(i64, Vec<(Key, Key)>)> {
+    fn component_signatures(&self, ts: &[[T; 3]]) -> Vec<(i64, Vec<(T, T)>)> {
         fn find(parent: &mut [usize], mut x: usize) -> usize {
             while parent[x] != x {
                 parent[x] = parent[parent[x]];
@@ -1382,7 +1485,7 @@ impl Check<'_> {
             x
         }
         let mut parent: Vec<usize> = (0..ts.len()).collect();
-        let mut edges: Vec<(Key, Key, usize)> = Vec::with_capacity(3 * ts.len());
+        let mut edges: Vec<(T, T, usize)> = Vec::with_capacity(3 * ts.len());
         for (i, t) in ts.iter().enumerate() {
             for j in 0..3 {
                 let (a, b) = (t[j], t[(j + 1) % 3]);
@@ -1398,8 +1501,8 @@ impl Check<'_> {
         }
         // Components by their root; all triangles of an edge's group share one.
         let mut roots: Vec<usize> = (0..ts.len()).map(|i| find(&mut parent, i)).collect();
-        let mut out: Vec<(usize, i64, Vec<(Key, Key)>)> = Vec::new();
-        let slot = |root: usize, out: &mut Vec<(usize, i64, Vec<(Key, Key)>)>| match out
+        let mut out: Vec<(usize, i64, Vec<(T, T)>)> = Vec::new();
+        let slot = |root: usize, out: &mut Vec<(usize, i64, Vec<(T, T)>)>| match out
             .iter()
             .position(|c| c.0 == root)
         {
@@ -1424,7 +1527,7 @@ impl Check<'_> {
             }
         }
         // … then vertices, each once per component.
-        let mut verts: Vec<(usize, Key)> = ts
+        let mut verts: Vec<(usize, T)> = ts
             .iter()
             .zip(&roots)
             .flat_map(|(t, &r)| t.map(|k| (r, k)))
@@ -1436,7 +1539,7 @@ impl Check<'_> {
             out[i].1 += 1;
         }
         roots.clear();
-        let mut out: Vec<(i64, Vec<(Key, Key)>)> = out
+        let mut out: Vec<(i64, Vec<(T, T)>)> = out
             .into_iter()
             .map(|(_, euler, mut interface)| {
                 interface.sort_unstable();
@@ -1451,8 +1554,8 @@ impl Check<'_> {
 /// The fan of triangles around `u`: its link's paths (start, end) and number of cycles, or `None`
 /// when the link branches (a non-manifold vertex).
 #[allow(clippy::type_complexity)]
-fn fan(ts: &[[Key; 3]], u: Key) -> Option<(Vec<(Key, Key)>, usize)> {
-    let mut link: Vec<(Key, Key)> = Vec::new();
+fn fan<T: Copy + Ord>(ts: &[[T; 3]], u: T) -> Option<(Vec<(T, T)>, usize)> {
+    let mut link: Vec<(T, T)> = Vec::new();
     for t in ts {
         if let Some(i) = t.iter().position(|&k| k == u) {
             link.push((t[(i + 1) % 3], t[(i + 2) % 3]));
@@ -1465,12 +1568,12 @@ fn fan(ts: &[[Key; 3]], u: Key) -> Option<(Vec<(Key, Key)>, usize)> {
     if link.windows(2).any(|w| w[0].0 == w[1].0) {
         return None;
     }
-    let mut targets: Vec<Key> = link.iter().map(|l| l.1).collect();
+    let mut targets: Vec<T> = link.iter().map(|l| l.1).collect();
     targets.sort_unstable();
     if targets.windows(2).any(|w| w[0] == w[1]) {
         return None;
     }
-    let successor = |b: Key| link.binary_search_by_key(&b, |l| l.0).ok();
+    let successor = |b: T| link.binary_search_by_key(&b, |l| l.0).ok();
     let mut seen = vec![false; link.len()];
     let mut paths = Vec::new();
     for (i, &(a, _)) in link.iter().enumerate() {
