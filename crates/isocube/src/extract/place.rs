@@ -15,6 +15,11 @@ pub(super) struct Placer<'a> {
 }
 
 impl<'a> Placer<'a> {
+    /// Whether vertices get normals.
+    pub(super) fn normals(&self) -> bool {
+        self.normals
+    }
+
     pub(super) fn new(grid: Window<'a>, options: &ExtractOptions) -> Placer<'a> {
         Placer {
             grid,

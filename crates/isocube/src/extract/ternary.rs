@@ -418,10 +418,18 @@ impl<'a> Ternary<'a> {
     ) -> (usize, usize) {
         let verdicts: Vec<bool> = members
             .par_iter()
+            .enumerate()
             .with_min_len(8)
             .map_init(
                 || (Patch::default(), Patch::default()),
-                |(before, after), &(_, _, p)| self.snap_is_safe(p, before, after, neighbourhoods),
+                |(before, after), (i, &(_, _, p))| {
+                    // The values around the next points are fetched while this one is checked:
+                    // one point after another, the check waits on memory more than it computes.
+                    if let Some(&(_, _, q)) = members.get(i + 2) {
+                        self.prefetch_around(q);
+                    }
+                    self.snap_is_safe(p, before, after, neighbourhoods)
+                },
             )
             .collect();
         let (mut snapped, mut refused) = (0, 0);
@@ -436,6 +444,49 @@ impl<'a> Ternary<'a> {
             }
         }
         (snapped, refused)
+    }
+
+    /// Asks the processor to fetch the values around `p` (the nine rows through its 3 × 3
+    /// neighbourhood, and the rows two steps away along `y` and `z`): what a check of `p` reads.
+    #[inline]
+    fn prefetch_around(&self, p: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            let [_, sy, sz] = self.strides;
+            let p = p as isize;
+            let (sy, sz) = (sy as isize, sz as isize);
+            let rows = [
+                -sy - sz,
+                -sz,
+                sy - sz,
+                -sy,
+                0,
+                sy,
+                -sy + sz,
+                sz,
+                sy + sz,
+                -2 * sy,
+                2 * sy,
+                -2 * sz,
+                2 * sz,
+            ];
+            for d in rows {
+                if let Some(v) = usize::try_from(p + d - 1)
+                    .ok()
+                    .and_then(|q| self.values.get(q))
+                {
+                    // SAFETY: a prefetch is a hint: it reads nothing and cannot fault, and the
+                    // pointer is to an element of the slice.
+                    unsafe {
+                        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                            (v as *const f32).cast(),
+                        )
+                    };
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = p;
     }
 
     /// Whether `p` was chosen as a zero point.
@@ -1158,7 +1209,7 @@ impl<'a> Ternary<'a> {
         cells: CellBox,
     ) -> Result<ChunkMesh, ExtractError> {
         let [nx, ny, _] = self.grid.dims();
-        let mut ids: HashMap<Key, u32, BuildHasherDefault<KeyHasher>> = HashMap::default();
+        let mut ids = Ids::default();
         let mut patch = Patch::default();
         let mut out = ChunkMesh::new(cells);
         // Zero points hold the level, which counts as above (the masks say so): cells whose
@@ -1167,16 +1218,32 @@ impl<'a> Ternary<'a> {
         let mut visit = vec![0u64; masks.words];
         let [x0, y0, z0] = cells.min;
         let [x1, y1, z1] = cells.max;
+        fn in_box(visit: &[u64], x0: usize, x1: usize) -> impl Iterator<Item = usize> + '_ {
+            super::binary::set_bits(visit)
+                .skip_while(move |&i| i < x0)
+                .take_while(move |&i| i < x1)
+        }
+        // Counted first to size the arrays (about one vertex and two triangles per cell
+        // visited), so that they are not copied as they grow.
+        let mut candidates = 0;
         for k in z0..z1 {
             for j in y0..y1 {
                 masks.visit(j, k, ny, nx - 1, &mut visit);
-                for i in super::binary::set_bits(&visit) {
-                    if i < x0 {
-                        continue;
-                    }
-                    if i >= x1 {
-                        break;
-                    }
+                candidates += in_box(&visit, x0, x1).count();
+            }
+        }
+        let mesh = &mut out.mesh;
+        mesh.positions.reserve(candidates + candidates / 8);
+        out.keys.reserve(candidates + candidates / 8);
+        mesh.triangles.reserve(2 * candidates + candidates / 4);
+        if placer.normals() {
+            mesh.normals.reserve(candidates + candidates / 8);
+        }
+        for k in z0..z1 {
+            ids.next_plane();
+            for j in y0..y1 {
+                masks.visit(j, k, ny, nx - 1, &mut visit);
+                for i in in_box(&visit, x0, x1) {
                     let base = self.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
                     if pts.iter().any(|&p| !self.values[p].is_finite()) {
@@ -1212,10 +1279,10 @@ impl<'a> Ternary<'a> {
         key: Key,
         patch: &Patch,
         placer: &Placer,
-        ids: &mut HashMap<Key, u32, BuildHasherDefault<KeyHasher>>,
+        ids: &mut Ids,
         out: &mut ChunkMesh,
     ) -> Result<u32, ExtractError> {
-        if let Some(&id) = ids.get(&key) {
+        if let Some(id) = ids.get(key) {
             return Ok(id);
         }
         let payload = (key & PAYLOAD) as usize;
@@ -1248,6 +1315,33 @@ impl<'a> Ternary<'a> {
         out.keys.push(VertexKey::from_bits(key));
         ids.insert(key, id);
         Ok(id)
+    }
+}
+
+/// The ids of the vertices made for the cells of the current plane and the plane before: a
+/// cell's vertices lie on its own two point planes (or inside it), so no later cell can meet a
+/// vertex made two planes back, and the maps stay the size of a plane.
+#[derive(Default)]
+struct Ids {
+    below: HashMap<Key, u32, BuildHasherDefault<KeyHasher>>,
+    here: HashMap<Key, u32, BuildHasherDefault<KeyHasher>>,
+}
+
+impl Ids {
+    fn next_plane(&mut self) {
+        std::mem::swap(&mut self.below, &mut self.here);
+        self.here.clear();
+    }
+
+    fn get(&self, key: Key) -> Option<u32> {
+        self.here
+            .get(&key)
+            .or_else(|| self.below.get(&key))
+            .copied()
+    }
+
+    fn insert(&mut self, key: Key, id: u32) {
+        self.here.insert(key, id);
     }
 }
 
