@@ -144,18 +144,21 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(volume) = streamable(args, mapped.as_ref())? {
         return run_streamed(args, volume, quiet);
     }
-    let loaded;
+    if mapped.as_ref().is_some_and(|v| v.view().is_none()) && slab_obstacle(args).is_none() {
+        let volume = mapped.expect("a mapped volume");
+        return run_slabs_in_memory(args, volume, quiet);
+    }
     // The view carries the file's direction, and a built-in sample its exact function: the
     // library orients the mesh and relaxes on the right field.
-    let view = match mapped.as_ref().map(|v| (v, v.view())) {
-        Some((_, Some(view))) => view,
-        Some((volume, None)) if slab_obstacle(args).is_none() => {
-            return run_slabs_in_memory(args, volume, quiet);
-        }
-        _ => {
-            loaded = in_frame(args, args.volume.load_oriented()?)?;
-            loaded.0.view().with_orientation(loaded.1)
-        }
+    let mapped_view = mapped.as_ref().and_then(|v| v.view());
+    let loaded = match mapped_view {
+        Some(_) => None,
+        None => Some(in_frame(args, args.volume.load_oriented()?)?),
+    };
+    let view = match (mapped_view, &loaded) {
+        (Some(view), _) => view,
+        (None, Some((grid, orientation))) => grid.view().with_orientation(*orientation),
+        (None, None) => return Err(Failure::input(anyhow::anyhow!("no volume was read"))),
     };
     // The mesh may use what the volume leaves of --max-memory (the machine's memory by default).
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
@@ -170,7 +173,23 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                 progress.update(d, t)
             })
         }),
-        None => extract_into(view, &options, &mut mesh, &mut |d, t| progress.update(d, t)),
+        None => {
+            // Slabs of whole layers are meshed in order, so a mapped file's pages behind the
+            // last finished layer (less the plane the next layer's normals read) are not read
+            // again: dropping them keeps the input's share of memory to the layers in work.
+            // Relaxation reads the whole grid after the join, so it keeps them.
+            let [nx, ny, _] = view.dims();
+            let layer = (nx - 1) * (ny - 1);
+            let release = mapped
+                .as_ref()
+                .filter(|_| mapped_view.is_some() && args.relax == 0);
+            extract_into(view, &options, &mut mesh, &mut |d, t| {
+                if let Some(volume) = release {
+                    volume.release_before((d / layer.max(1)).saturating_sub(1));
+                }
+                progress.update(d, t)
+            })
+        }
     }
     .map_err(|e| match e {
         ExtractError::MeshMemory { .. } => Failure::input(anyhow::anyhow!(
@@ -194,6 +213,9 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         });
         return Err(non_finite_failure(args, &stats, &at));
     }
+    // The input's pages count in the process's memory while it is mapped; the mesh is made,
+    // so unmapping it before the writer runs keeps the peak to the larger of the two phases.
+    drop((mapped, loaded));
     write_and_report(args, &mesh, &stats, started.elapsed(), quiet)
 }
 
@@ -248,11 +270,11 @@ fn write_and_report(
 /// A mapped volume that is not `f32` (or is scaled): converted slab by slab as the streamed
 /// path does, the mesh gathered in memory and written in any format. The mesh is the one
 /// extraction of the whole converted grid gives, without that grid.
-fn run_slabs_in_memory(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), Failure> {
+fn run_slabs_in_memory(args: &Args, volume: MappedVolume, quiet: bool) -> Result<(), Failure> {
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
-    let stats = extract_streamed(volume, &options(args), &mut mesh, &mut |d, t| {
+    let stats = extract_streamed(&volume, &options(args), &mut mesh, &mut |d, t| {
         progress.update(d, t)
     })
     .map_err(|e| match e {
@@ -263,6 +285,8 @@ fn run_slabs_in_memory(args: &Args, volume: &MappedVolume, quiet: bool) -> Resul
     if args.strict && stats.skipped_cells > 0 {
         return Err(non_finite_failure(args, &stats, ""));
     }
+    // As in `run`: the input is unmapped before the mesh is written.
+    drop(volume);
     write_and_report(args, &mesh, &stats, started.elapsed(), quiet)
 }
 

@@ -569,13 +569,13 @@ pub(super) fn join_tagged(
             global[c][v as usize] = global[oc as usize][ov as usize];
         }
     }
-    mesh.positions.resize(nv, [0.0; 3]);
+    sized(&mut mesh.positions, nv);
     if normals {
-        mesh.normals.resize(nv, [0.0; 3]);
+        sized(&mut mesh.normals, nv);
     }
-    mesh.triangles.resize(nt, [0; 3]);
+    sized(&mut mesh.triangles, nt);
     if tagged {
-        tags.resize(nt, 0);
+        sized(tags, nt);
     }
     // Each run's output ranges, handed to the chunk that fills them.
     type Out<'a> = (
@@ -607,8 +607,16 @@ pub(super) fn join_tagged(
             outputs[run.chunk as usize].push((s, p, n, tri, g));
         }
     }
+    // Each chunk is dropped as soon as it is copied: the joined mesh's memory is touched only
+    // as it is filled (see `sized`), so the two are not both whole at any moment.
+    let mut stats = ExtractStats::default();
+    for c in &chunks {
+        stats.add(&c.stats);
+    }
+    let cells: Vec<CellBox> = chunks.iter().map(|c| c.cells).collect();
+    let count = chunks.len();
     let fits = chunks
-        .par_iter()
+        .into_par_iter()
         .zip(outputs)
         .zip(&aliases)
         .zip(&global)
@@ -652,16 +660,24 @@ pub(super) fn join_tagged(
     if let Some(c) = fits.iter().position(|&f| !f) {
         mesh.clear();
         tags.clear();
-        return Err(ExtractError::MalformedChunk {
-            cells: chunks[c].cells,
-        });
+        return Err(ExtractError::MalformedChunk { cells: cells[c] });
     }
-    let mut stats = ExtractStats::default();
-    for (done, c) in chunks.iter().enumerate() {
-        stats.add(&c.stats);
+    for done in 0..count {
         progress(done + 1);
     }
     Ok(stats)
+}
+
+/// `v` with `n` elements, all to be overwritten. Grown as a fresh zeroed allocation when it
+/// must grow: the allocator hands out untouched pages, which become resident only as they are
+/// written, where growing by `resize` would write every element first.
+fn sized<T: Clone + Default>(v: &mut Vec<T>, n: usize) {
+    if v.capacity() < n {
+        *v = vec![T::default(); n];
+    } else {
+        v.clear();
+        v.resize(n, T::default());
+    }
 }
 
 /// Rows of one chunk that follow one another in the canonical order.
