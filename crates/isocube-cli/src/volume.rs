@@ -5,8 +5,8 @@ use std::path::Path;
 use clap::Args;
 use isocube::field::{Grid, Orientation, SampleSpec};
 use isocube_io::{
-    read_volume_oriented, Endian, IoError, MappedVolume, NpyAxes, RawOptions, ScalarType,
-    VolumeOptions,
+    read_volume_oriented, Endian, InflatingVolume, IoError, MappedVolume, NpyAxes, RawOptions,
+    ScalarType, VolumeOptions,
 };
 
 use crate::Failure;
@@ -169,6 +169,20 @@ impl VolumeArgs {
 
     /// The volume file memory-mapped, when it is stored uncompressed (raw, `.npy`, `.nii`,
     /// MetaImage, raw NRRD, raw-appended `.vti`): `None` for samples and for files that must be read.
+    /// The volume as an [`InflatingVolume`] when it is a gzipped NIfTI that can be read plane
+    /// by plane, else `None`.
+    pub(crate) fn try_inflating(&self) -> Result<Option<InflatingVolume>, Failure> {
+        if SampleSpec::is_sample(&self.volume) {
+            return Ok(None);
+        }
+        InflatingVolume::try_open(Path::new(&self.volume), &self.file_options()?)
+            .map_err(|e| crate::io_failure(e, true))
+            .map_err(|f| Failure {
+                error: f.error.context("cannot read the volume"),
+                ..f
+            })
+    }
+
     pub(crate) fn try_map(&self) -> Result<Option<MappedVolume>, Failure> {
         if SampleSpec::is_sample(&self.volume) {
             return Ok(None);

@@ -48,6 +48,8 @@ mod contours;
 #[cfg(feature = "dicom")]
 mod dicom;
 mod export;
+#[cfg(feature = "nifti")]
+mod inflating;
 mod mapped;
 mod mesh_io;
 mod metaimage;
@@ -73,6 +75,8 @@ pub use contours::{parse_contours_csv, parse_contours_json, read_contours, read_
 #[cfg_attr(docsrs, doc(cfg(feature = "dicom")))]
 pub use dicom::read_dicom_series;
 pub use export::VertexValues;
+#[cfg(feature = "nifti")]
+pub use inflating::InflatingVolume;
 pub use mapped::MappedVolume;
 pub use mesh_io::{
     read_mesh, read_mesh_bytes, write_file_atomic, write_mesh, write_mesh_data_to, write_mesh_to,

@@ -23,7 +23,7 @@ pub fn read_nifti(path: &Path) -> Result<(Grid, Orientation), IoError> {
 /// Reads the header on its own (from a `.nii.gz`, only the bytes it takes are unpacked) and
 /// refuses a volume that the file cannot hold or that passes the budget, before the crate
 /// reserves the space its header asks for.
-fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
+pub(super) fn check_size(path: &Path, budget: Budget) -> Result<(), IoError> {
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
     let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
     check_header(path, std::io::BufReader::new(file), len, budget)
@@ -324,33 +324,10 @@ fn read_into_grid(
     path: &Path,
     mut stream: impl Read,
 ) -> Result<Option<(Grid, Orientation)>, IoError> {
-    let corrupt = |e: std::io::Error| match e.kind() {
-        std::io::ErrorKind::UnexpectedEof => {
-            IoError::format(path, Position::File, "the file ends inside its data")
-        }
-        _ if gzipped(path) => {
-            IoError::format(path, Position::File, format!("corrupt gzip data: {e}"))
-        }
-        _ => IoError::os(path, e),
-    };
-    let mut head = vec![0u8; 348];
-    stream.read_exact(&mut head).map_err(corrupt)?;
-    let vox_offset = f32::from_le_bytes([head[108], head[109], head[110], head[111]]);
-    let swapped = f32::from_be_bytes([head[108], head[109], head[110], head[111]]);
-    // The header's byte order is not known yet: take the offset that makes sense.
-    let offset = [vox_offset, swapped]
-        .into_iter()
-        .find(|o| o.is_finite() && (352.0..=(1u32 << 24) as f32).contains(o))
-        .unwrap_or(352.0) as usize;
-    head.resize(offset, 0);
-    stream.read_exact(&mut head[348..]).map_err(corrupt)?;
-    // The stream's length is not known: a short one fails below, when its data run out.
-    let Some(p) = placement_within(path, &head, u64::MAX)? else {
+    let corrupt = |e| stream_error(path, e);
+    let Some(p) = read_head(path, &mut stream)? else {
         return Ok(None);
     };
-    if p.offset != offset {
-        return Ok(None);
-    }
     let count = Grid::point_count(p.dims).map_err(|e| IoError::grid(path, e))?;
     let mut values = vec![0.0f32; count];
     if p.scalar == ScalarType::F32 {
@@ -375,6 +352,38 @@ fn read_into_grid(
         .and_then(|g| g.with_origin(p.origin))
         .map_err(|e| IoError::grid(path, e))?;
     Ok(Some((grid, p.orientation)))
+}
+
+/// A read error of a NIfTI stream, as a typed error naming the file.
+pub(super) fn stream_error(path: &Path, e: std::io::Error) -> IoError {
+    match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => {
+            IoError::format(path, Position::File, "the file ends inside its data")
+        }
+        _ if gzipped(path) => {
+            IoError::format(path, Position::File, format!("corrupt gzip data: {e}"))
+        }
+        _ => IoError::os(path, e),
+    }
+}
+
+/// Reads a single-file NIfTI header from `stream`, up to the first value: where the values
+/// are and how to read them, or `None` for what [`placement`] does not cover.
+pub(super) fn read_head(path: &Path, stream: &mut impl Read) -> Result<Option<Placement>, IoError> {
+    let corrupt = |e| stream_error(path, e);
+    let mut head = vec![0u8; 348];
+    stream.read_exact(&mut head).map_err(corrupt)?;
+    let vox_offset = f32::from_le_bytes([head[108], head[109], head[110], head[111]]);
+    let swapped = f32::from_be_bytes([head[108], head[109], head[110], head[111]]);
+    // The header's byte order is not known yet: take the offset that makes sense.
+    let offset = [vox_offset, swapped]
+        .into_iter()
+        .find(|o| o.is_finite() && (352.0..=(1u32 << 24) as f32).contains(o))
+        .unwrap_or(352.0) as usize;
+    head.resize(offset, 0);
+    stream.read_exact(&mut head[348..]).map_err(corrupt)?;
+    // The stream's length is not known: a short one fails later, when its data run out.
+    Ok(placement_within(path, &head, u64::MAX)?.filter(|p| p.offset == offset))
 }
 
 /// Spacing and orientation from the index-to-world map.

@@ -14,7 +14,9 @@ use isocube::field::SampleSpec;
 use isocube::field::{Grid, Orientation, PlaneSource};
 use isocube::mesh::Mesh;
 use isocube::quality::{Field, Strategy, Trilinear};
-use isocube_io::{write_mesh_with_values, MappedVolume, MeshFormat, PlyWriter, VertexValues};
+use isocube_io::{
+    write_mesh_with_values, InflatingVolume, MappedVolume, MeshFormat, PlyWriter, VertexValues,
+};
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;
@@ -144,9 +146,23 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(volume) = streamable(args, mapped.as_ref())? {
         return run_streamed(args, volume, quiet);
     }
-    if mapped.as_ref().is_some_and(|v| v.view().is_none()) && slab_obstacle(args).is_none() {
-        let volume = mapped.expect("a mapped volume");
-        return run_slabs_in_memory(args, volume, quiet);
+    if slab_obstacle(args).is_none() {
+        match mapped {
+            Some(volume) if volume.view().is_none() => {
+                return run_slabs_in_memory(args, volume, quiet);
+            }
+            Some(_) => {}
+            // A gzipped NIfTI is inflated plane by plane as the slabs need them: never whole.
+            None => {
+                if let Some(volume) = args.volume.try_inflating()? {
+                    let volume = match args.index_space {
+                        true => volume.into_index_space(),
+                        false => volume,
+                    };
+                    return run_slabs_in_memory(args, volume, quiet);
+                }
+            }
+        }
     }
     // The view carries the file's direction, and a built-in sample its exact function: the
     // library orients the mesh and relaxes on the right field.
@@ -270,7 +286,23 @@ fn write_and_report(
 /// A mapped volume that is not `f32` (or is scaled): converted slab by slab as the streamed
 /// path does, the mesh gathered in memory and written in any format. The mesh is the one
 /// extraction of the whole converted grid gives, without that grid.
-fn run_slabs_in_memory(args: &Args, volume: MappedVolume, quiet: bool) -> Result<(), Failure> {
+/// A volume meshed slab by slab in memory: a mapped file whose values need converting, or a
+/// compressed one inflated as it goes (whose read errors surface once the slabs are done).
+trait SlabInput: PlaneSource {
+    fn failure(&self) -> Option<isocube_io::IoError> {
+        None
+    }
+}
+
+impl SlabInput for MappedVolume {}
+
+impl SlabInput for InflatingVolume {
+    fn failure(&self) -> Option<isocube_io::IoError> {
+        self.take_error()
+    }
+}
+
+fn run_slabs_in_memory(args: &Args, volume: impl SlabInput, quiet: bool) -> Result<(), Failure> {
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
@@ -282,6 +314,9 @@ fn run_slabs_in_memory(args: &Args, volume: MappedVolume, quiet: bool) -> Result
         StreamError::Sink(never) => match never {},
     })?;
     progress.finish();
+    if let Some(e) = volume.failure() {
+        return Err(crate::io_failure(e, true));
+    }
     if args.strict && stats.skipped_cells > 0 {
         return Err(non_finite_failure(args, &stats, ""));
     }
