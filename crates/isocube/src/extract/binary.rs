@@ -106,6 +106,11 @@ impl Masks {
         bits3(&self.above, (k * ny + j) * self.words * 64 + i)
     }
 
+    /// The word holding point `(i, j, k)`'s above bit, if the masks hold that point.
+    pub(super) fn word(&self, i: usize, j: usize, k: usize, ny: usize) -> Option<&u64> {
+        self.above.get((k * ny + j) * self.words + i / 64)
+    }
+
     /// Marks point `(i, j, k)` above the level (`k` counted from the masks' first plane).
     pub(super) fn set_above(&mut self, [i, j, k]: [usize; 3], ny: usize) {
         self.above[(k * ny + j) * self.words + i / 64] |= 1 << (i % 64);

@@ -357,11 +357,11 @@ impl<'a> Ternary<'a> {
         // two points of one parity class are two steps apart along some axis: within a
         // (round, class) group the checks are independent, so each group is checked in
         // parallel and then applied — the same choices as one point after the other.
-        let neighbourhoods = Neighbourhoods::default();
+        let mut neighbourhoods = Neighbourhoods::default();
         if !grouped {
             let (mut snapped, mut refused) = (0, 0);
             for member in order.chunks(1) {
-                let (s, r) = self.snap_batch(member, &neighbourhoods);
+                let (s, r) = self.snap_batch(member, &mut neighbourhoods);
                 snapped += s;
                 refused += r;
             }
@@ -395,7 +395,7 @@ impl<'a> Ternary<'a> {
                 let members = &order[range.clone()];
                 let take = members.partition_point(|e| plane_of(e.2) <= limit);
                 if take > 0 {
-                    let (s, r) = self.snap_batch(&members[..take], &neighbourhoods);
+                    let (s, r) = self.snap_batch(&members[..take], &mut neighbourhoods);
                     snapped += s;
                     refused += r;
                     range.start += take;
@@ -414,9 +414,12 @@ impl<'a> Ternary<'a> {
     fn snap_batch(
         &mut self,
         members: &[(u8, u8, usize)],
-        neighbourhoods: &Neighbourhoods,
+        neighbourhoods: &mut Neighbourhoods,
     ) -> (usize, usize) {
-        let verdicts: Vec<bool> = members
+        // The memo is read by all threads without a lock and grows between batches: a pattern
+        // first met twice in one batch is checked twice, with the same result.
+        let known: &Neighbourhoods = neighbourhoods;
+        let verdicts: Vec<(bool, Option<(u64, Known)>)> = members
             .par_iter()
             .enumerate()
             .with_min_len(8)
@@ -428,13 +431,16 @@ impl<'a> Ternary<'a> {
                     if let Some(&(_, _, q)) = members.get(i + 2) {
                         self.prefetch_around(q);
                     }
-                    self.snap_is_safe(p, before, after, neighbourhoods)
+                    self.snap_is_safe(p, before, after, known)
                 },
             )
             .collect();
         let (mut snapped, mut refused) = (0, 0);
         let ny = self.grid.dims()[1];
-        for (&(_, _, p), ok) in members.iter().zip(verdicts) {
+        for (&(_, _, p), (ok, learned)) in members.iter().zip(verdicts) {
+            if let Some((pattern, what)) = learned {
+                neighbourhoods.entry(pattern).or_insert(what);
+            }
             if ok {
                 self.zero[p / 64] |= 1 << (p % 64);
                 self.masks.set_above(self.coords(p), ny);
@@ -446,43 +452,56 @@ impl<'a> Ternary<'a> {
         (snapped, refused)
     }
 
-    /// Asks the processor to fetch the values around `p` (the nine rows through its 3 × 3
-    /// neighbourhood, and the rows two steps away along `y` and `z`): what a check of `p` reads.
+    /// Asks the processor to fetch what a check of `p` reads first: the values of the nine rows
+    /// through its 3 × 3 neighbourhood and of the rows two steps away along `y` and `z`, and
+    /// the sign and zero bits of the nine rows.
     #[inline]
     fn prefetch_around(&self, p: usize) {
         #[cfg(target_arch = "x86_64")]
         {
-            let [_, sy, sz] = self.strides;
-            let p = p as isize;
-            let (sy, sz) = (sy as isize, sz as isize);
-            let rows = [
-                -sy - sz,
-                -sz,
-                sy - sz,
-                -sy,
-                0,
-                sy,
-                -sy + sz,
-                sz,
-                sy + sz,
-                -2 * sy,
-                2 * sy,
-                -2 * sz,
-                2 * sz,
-            ];
-            for d in rows {
-                if let Some(v) = usize::try_from(p + d - 1)
-                    .ok()
-                    .and_then(|q| self.values.get(q))
-                {
+            fn fetch<T>(x: Option<&T>) {
+                if let Some(x) = x {
                     // SAFETY: a prefetch is a hint: it reads nothing and cannot fault, and the
-                    // pointer is to an element of the slice.
+                    // pointer is to an element of a slice.
                     unsafe {
                         std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                            (v as *const f32).cast(),
+                            (x as *const T).cast(),
                         )
                     };
                 }
+            }
+            let [_, sy, sz] = self.strides;
+            let [i, j, k] = self.coords(p);
+            let ny = self.grid.dims()[1];
+            for (dy, dz) in [
+                (-1, -1),
+                (0, -1),
+                (1, -1),
+                (-1, 0),
+                (0, 0),
+                (1, 0),
+                (-1, 1),
+                (0, 1),
+                (1, 1),
+            ] {
+                let (Some(jj), Some(kk)) = (j.checked_add_signed(dy), k.checked_add_signed(dz))
+                else {
+                    continue;
+                };
+                let Some(q) = (p + jj * sy + kk * sz).checked_sub(j * sy + k * sz + 1) else {
+                    continue;
+                };
+                fetch(self.values.get(q));
+                fetch(self.zero.get(q / 64));
+                fetch(self.masks.word(i.saturating_sub(1), jj, kk, ny));
+            }
+            for q in [
+                p.checked_sub(2 * sy),
+                Some(p + 2 * sy),
+                p.checked_sub(2 * sz),
+                Some(p + 2 * sz),
+            ] {
+                fetch(q.and_then(|q| self.values.get(q)));
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -820,19 +839,21 @@ impl<'a> Ternary<'a> {
     /// zero-area triangle: [`Ternary::zero_keeps_topology`], answered from the memo of `p`'s
     /// neighbourhood when an identical one (same below / above / zero pattern of the 27 points)
     /// was checked before and its cells are unambiguous.
+    /// Also returns what the full check learnt about `p`'s pattern, when it ran and the
+    /// pattern was not known.
     fn snap_is_safe(
         &self,
         p: usize,
         before: &mut Patch,
         after: &mut Patch,
         neighbourhoods: &Neighbourhoods,
-    ) -> bool {
+    ) -> (bool, Option<(u64, Known)>) {
         let Some(pattern) = self.pattern(p) else {
-            return self.zero_keeps_topology(p, before, after);
+            return (self.zero_keeps_topology(p, before, after), None);
         };
-        if let Some(known) = neighbourhoods.get(pattern) {
+        if let Some(&known) = neighbourhoods.get(&pattern) {
             let safe = match known {
-                Known::Values => return self.zero_keeps_topology(p, before, after),
+                Known::Values => return (self.zero_keeps_topology(p, before, after), None),
                 Known::Refused => false,
                 Known::Accepted(new) => {
                     // Each corner is placed once: most new triangles share the snapped point.
@@ -850,11 +871,14 @@ impl<'a> Ternary<'a> {
             };
             // Tests (debug assertions) check every reuse against the full check.
             debug_assert_eq!(safe, self.zero_keeps_topology(p, before, after));
-            return safe;
+            return (safe, None);
         }
         let kept = self.topology_kept(p, before, after);
-        neighbourhoods.insert(pattern, self.known(p, pattern, before, after, kept));
-        kept && self.no_zero_area(before, after)
+        let learned = self.known(p, pattern, before, after, kept);
+        (
+            kept && self.no_zero_area(before, after),
+            Some((pattern, learned)),
+        )
     }
 
     /// The below (0) / above (1) / zero (2) pattern of the 27 points around an interior point
@@ -1397,27 +1421,9 @@ enum Known {
     Accepted(NewTriangles),
 }
 
-/// Known patterns, shared by the threads: what a pattern says does not depend on who found it
-/// first, so neither does the mesh.
-#[derive(Default)]
-struct Neighbourhoods(std::sync::RwLock<rustc_hash::FxHashMap<u64, Known>>);
-
-impl Neighbourhoods {
-    fn get(&self, pattern: u64) -> Option<Known> {
-        self.0
-            .read()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(&pattern)
-            .copied()
-    }
-
-    fn insert(&self, pattern: u64, known: Known) {
-        self.0
-            .write()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(pattern, known);
-    }
-}
+/// Known patterns: what a pattern says does not depend on who found it first, so neither does
+/// the mesh.
+type Neighbourhoods = rustc_hash::FxHashMap<u64, Known>;
 
 /// Rotates a triangle to start at its smallest key (orientation kept).
 fn canonical<T: Copy + Ord>(t: [T; 3]) -> [T; 3] {
