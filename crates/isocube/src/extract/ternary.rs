@@ -357,11 +357,11 @@ impl<'a> Ternary<'a> {
         // two points of one parity class are two steps apart along some axis: within a
         // (round, class) group the checks are independent, so each group is checked in
         // parallel and then applied — the same choices as one point after the other.
-        let mut neighbourhoods = Neighbourhoods::default();
+        let neighbourhoods = Neighbourhoods::default();
         if !grouped {
             let (mut snapped, mut refused) = (0, 0);
             for member in order.chunks(1) {
-                let (s, r) = self.snap_batch(member, &mut neighbourhoods);
+                let (s, r) = self.snap_batch(member, &neighbourhoods);
                 snapped += s;
                 refused += r;
             }
@@ -395,7 +395,7 @@ impl<'a> Ternary<'a> {
                 let members = &order[range.clone()];
                 let take = members.partition_point(|e| plane_of(e.2) <= limit);
                 if take > 0 {
-                    let (s, r) = self.snap_batch(&members[..take], &mut neighbourhoods);
+                    let (s, r) = self.snap_batch(&members[..take], &neighbourhoods);
                     snapped += s;
                     refused += r;
                     range.start += take;
@@ -414,12 +414,9 @@ impl<'a> Ternary<'a> {
     fn snap_batch(
         &mut self,
         members: &[(u8, u8, usize)],
-        neighbourhoods: &mut Neighbourhoods,
+        neighbourhoods: &Neighbourhoods,
     ) -> (usize, usize) {
-        // The memo is read by all threads without a lock and grows between batches: a pattern
-        // first met twice in one batch is checked twice, with the same result.
-        let known: &Neighbourhoods = neighbourhoods;
-        let verdicts: Vec<(bool, Option<(u64, Known)>)> = members
+        let verdicts: Vec<bool> = members
             .par_iter()
             .enumerate()
             .with_min_len(8)
@@ -431,16 +428,13 @@ impl<'a> Ternary<'a> {
                     if let Some(&(_, _, q)) = members.get(i + 2) {
                         self.prefetch_around(q);
                     }
-                    self.snap_is_safe(p, before, after, known)
+                    self.snap_is_safe(p, before, after, neighbourhoods)
                 },
             )
             .collect();
         let (mut snapped, mut refused) = (0, 0);
         let ny = self.grid.dims()[1];
-        for (&(_, _, p), (ok, learned)) in members.iter().zip(verdicts) {
-            if let Some((pattern, what)) = learned {
-                neighbourhoods.entry(pattern).or_insert(what);
-            }
+        for (&(_, _, p), ok) in members.iter().zip(verdicts) {
             if ok {
                 self.zero[p / 64] |= 1 << (p % 64);
                 self.masks.set_above(self.coords(p), ny);
@@ -839,21 +833,19 @@ impl<'a> Ternary<'a> {
     /// zero-area triangle: [`Ternary::zero_keeps_topology`], answered from the memo of `p`'s
     /// neighbourhood when an identical one (same below / above / zero pattern of the 27 points)
     /// was checked before and its cells are unambiguous.
-    /// Also returns what the full check learnt about `p`'s pattern, when it ran and the
-    /// pattern was not known.
     fn snap_is_safe(
         &self,
         p: usize,
         before: &mut Patch,
         after: &mut Patch,
         neighbourhoods: &Neighbourhoods,
-    ) -> (bool, Option<(u64, Known)>) {
+    ) -> bool {
         let Some(pattern) = self.pattern(p) else {
-            return (self.zero_keeps_topology(p, before, after), None);
+            return self.zero_keeps_topology(p, before, after);
         };
-        if let Some(&known) = neighbourhoods.get(&pattern) {
+        if let Some(known) = neighbourhoods.get(pattern) {
             let safe = match known {
-                Known::Values => return (self.zero_keeps_topology(p, before, after), None),
+                Known::Values => return self.zero_keeps_topology(p, before, after),
                 Known::Refused => false,
                 Known::Accepted(new) => {
                     // Each corner is placed once: most new triangles share the snapped point.
@@ -871,14 +863,11 @@ impl<'a> Ternary<'a> {
             };
             // Tests (debug assertions) check every reuse against the full check.
             debug_assert_eq!(safe, self.zero_keeps_topology(p, before, after));
-            return (safe, None);
+            return safe;
         }
         let kept = self.topology_kept(p, before, after);
-        let learned = self.known(p, pattern, before, after, kept);
-        (
-            kept && self.no_zero_area(before, after),
-            Some((pattern, learned)),
-        )
+        neighbourhoods.insert(pattern, self.known(p, pattern, before, after, kept));
+        kept && self.no_zero_area(before, after)
     }
 
     /// The below (0) / above (1) / zero (2) pattern of the 27 points around an interior point
@@ -1421,9 +1410,27 @@ enum Known {
     Accepted(NewTriangles),
 }
 
-/// Known patterns: what a pattern says does not depend on who found it first, so neither does
-/// the mesh.
-type Neighbourhoods = rustc_hash::FxHashMap<u64, Known>;
+/// Known patterns, shared by the threads: what a pattern says does not depend on who found it
+/// first, so neither does the mesh.
+#[derive(Default)]
+struct Neighbourhoods(std::sync::RwLock<rustc_hash::FxHashMap<u64, Known>>);
+
+impl Neighbourhoods {
+    fn get(&self, pattern: u64) -> Option<Known> {
+        self.0
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&pattern)
+            .copied()
+    }
+
+    fn insert(&self, pattern: u64, known: Known) {
+        self.0
+            .write()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(pattern, known);
+    }
+}
 
 /// Rotates a triangle to start at its smallest key (orientation kept).
 fn canonical<T: Copy + Ord>(t: [T; 3]) -> [T; 3] {
