@@ -169,25 +169,26 @@ impl VolumeArgs {
 
     /// The volume file memory-mapped, when it is stored uncompressed (raw, `.npy`, `.nii`,
     /// MetaImage, raw NRRD, raw-appended `.vti`): `None` for samples and for files that must be read.
+    pub(crate) fn try_map(&self) -> Result<Option<MappedVolume>, Failure> {
+        self.try_open_with(MappedVolume::try_open)
+    }
+
     /// The volume as an [`InflatingVolume`] when it is a gzipped NIfTI that can be read plane
     /// by plane, else `None`.
     pub(crate) fn try_inflating(&self) -> Result<Option<InflatingVolume>, Failure> {
-        if SampleSpec::is_sample(&self.volume) {
-            return Ok(None);
-        }
-        InflatingVolume::try_open(Path::new(&self.volume), &self.file_options()?)
-            .map_err(|e| crate::io_failure(e, true))
-            .map_err(|f| Failure {
-                error: f.error.context("cannot read the volume"),
-                ..f
-            })
+        self.try_open_with(InflatingVolume::try_open)
     }
 
-    pub(crate) fn try_map(&self) -> Result<Option<MappedVolume>, Failure> {
+    /// The file opened by `open` (which answers `None` for what it does not take); `None` for
+    /// a sample.
+    fn try_open_with<T>(
+        &self,
+        open: impl FnOnce(&Path, &VolumeOptions) -> Result<Option<T>, IoError>,
+    ) -> Result<Option<T>, Failure> {
         if SampleSpec::is_sample(&self.volume) {
             return Ok(None);
         }
-        MappedVolume::try_open(Path::new(&self.volume), &self.file_options()?)
+        open(Path::new(&self.volume), &self.file_options()?)
             .map_err(|e| crate::io_failure(e, true))
             .map_err(|f| Failure {
                 error: f.error.context("cannot read the volume"),

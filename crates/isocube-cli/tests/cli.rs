@@ -265,6 +265,81 @@ fn streamed_extraction_matches_in_memory() {
 }
 
 #[test]
+fn a_large_gzipped_nifti_inflated_plane_by_plane_matches_the_whole_read() {
+    use std::io::Write;
+    // 256 × 128 × 132 u8 points (past the size from which a .nii.gz is inflated as the slabs
+    // go), a scale, a shear-free direction; meshed as it inflates by default, and read whole
+    // with --chunk (which meshes boxes in memory): the same bytes, and as much as written.
+    let [nx, ny, nz] = [256usize, 128, 132];
+    let mut head = vec![0u8; 352];
+    head[0..4].copy_from_slice(&348i32.to_le_bytes());
+    for (i, d) in [3u16, nx as u16, ny as u16, nz as u16, 1, 1, 1, 1]
+        .iter()
+        .enumerate()
+    {
+        head[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
+    }
+    head[70..72].copy_from_slice(&2i16.to_le_bytes()); // uint8
+    head[72..74].copy_from_slice(&8i16.to_le_bytes());
+    for (i, v) in [-1.0f32, 0.5, 0.75, 1.25].iter().enumerate() {
+        head[76 + 4 * i..80 + 4 * i].copy_from_slice(&v.to_le_bytes()); // qfac, pixdim
+    }
+    head[108..112].copy_from_slice(&352f32.to_le_bytes());
+    head[112..116].copy_from_slice(&2f32.to_le_bytes()); // scl_slope
+    head[116..120].copy_from_slice(&(-10f32).to_le_bytes()); // scl_inter
+    head[344..348].copy_from_slice(b"n+1\0");
+    let mut values = Vec::with_capacity(nx * ny * nz);
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = [
+                    i as f64 / nx as f64,
+                    j as f64 / ny as f64,
+                    k as f64 / nz as f64,
+                ];
+                let r = p.iter().map(|x| (x - 0.5) * (x - 0.5)).sum::<f64>().sqrt();
+                values.push((255.0 * (1.0 - 2.0 * r).clamp(0.0, 1.0)) as u8);
+            }
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(&head).unwrap();
+    gz.write_all(&values).unwrap();
+    std::fs::write(dir.path().join("ball.nii.gz"), gz.finish().unwrap()).unwrap();
+    let mesh = |out: &str, extra: &[&str]| {
+        let mut args = vec!["extract", "ball.nii.gz", "--level", "200", "-o", out];
+        args.extend_from_slice(extra);
+        ok(dir.path(), &args);
+        std::fs::read(dir.path().join(out)).unwrap()
+    };
+    let inflated = mesh("inflated.ply", &[]);
+    let whole = mesh("whole.ply", &["--chunk", "255,127,131"]);
+    assert_eq!(inflated, whole);
+    let r = info(dir.path(), "inflated.ply");
+    assert_eq!(r["watertight"], true);
+    assert!(r["triangles"].as_u64().unwrap() > 10000);
+    // Cut short: a typed error naming the file, and nothing written.
+    let bytes = std::fs::read(dir.path().join("ball.nii.gz")).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(&head).unwrap();
+    gz.write_all(&values[..values.len() - 1000]).unwrap();
+    std::fs::write(dir.path().join("short.nii.gz"), gz.finish().unwrap()).unwrap();
+    assert!(bytes.len() > 1000);
+    let out = isocube(
+        dir.path(),
+        &["extract", "short.nii.gz", "--level", "200", "-o", "s.ply"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("short.nii.gz") && err.contains("ends inside its data"),
+        "{err}"
+    );
+    assert!(!dir.path().join("s.ply").exists());
+}
+
+#[test]
 fn bad_input_exits_2_without_output() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("short.raw"), [0u8; 10]).unwrap();

@@ -70,9 +70,31 @@ impl InflatingVolume {
     /// file whole instead. `--spacing` and `--origin` in `options` override the header's.
     /// Errors are those of reading the file whole: a malformed header, or a volume past
     /// `options.max_memory`.
+    ///
+    /// Volumes under [`InflatingVolume::MIN_POINTS`] points are `None` too: read whole, they
+    /// take little memory and start faster (no thread to start).
     pub fn try_open(
         path: &Path,
         options: &VolumeOptions,
+    ) -> Result<Option<InflatingVolume>, IoError> {
+        Self::open_from(path, options, Self::MIN_POINTS)
+    }
+
+    /// [`InflatingVolume::try_open`] whatever the volume's size.
+    pub fn open_any_size(
+        path: &Path,
+        options: &VolumeOptions,
+    ) -> Result<Option<InflatingVolume>, IoError> {
+        Self::open_from(path, options, 0)
+    }
+
+    /// Points below which a volume is better read whole (16 MiB of `f32`).
+    pub const MIN_POINTS: usize = 1 << 22;
+
+    fn open_from(
+        path: &Path,
+        options: &VolumeOptions,
+        min_points: usize,
     ) -> Result<Option<InflatingVolume>, IoError> {
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
         if options.raw.is_some() || !name.to_ascii_lowercase().ends_with(".nii.gz") {
@@ -86,7 +108,11 @@ impl InflatingVolume {
         let Some(mut placement) = super::nifti::read_head(path, &mut stream)? else {
             return Ok(None);
         };
-        isocube::field::Grid::point_count(placement.dims).map_err(|e| IoError::grid(path, e))?;
+        let points = isocube::field::Grid::point_count(placement.dims)
+            .map_err(|e| IoError::grid(path, e))?;
+        if points < min_points {
+            return Ok(None);
+        }
         placement.spacing = options.spacing.unwrap_or(placement.spacing);
         placement.origin = options.origin.unwrap_or(placement.origin);
         // The same checks as a grid's.
@@ -273,7 +299,15 @@ mod tests {
             let path = data(name);
             let options = VolumeOptions::default();
             let (grid, orientation) = read_volume_oriented(&path, &options).unwrap();
-            let volume = InflatingVolume::try_open(&path, &options).unwrap().unwrap();
+            assert!(
+                InflatingVolume::try_open(&path, &options)
+                    .unwrap()
+                    .is_none(),
+                "small"
+            );
+            let volume = InflatingVolume::open_any_size(&path, &options)
+                .unwrap()
+                .unwrap();
             assert_eq!(volume.dims(), grid.dims(), "{name}");
             assert_eq!(volume.spacing(), grid.spacing(), "{name}");
             assert_eq!(volume.origin(), grid.origin(), "{name}");
@@ -284,7 +318,9 @@ mod tests {
             assert_eq!(all, grid.values(), "{name}");
             assert!(volume.take_error().is_none());
             // A fresh stream meshed slab by slab gives the mesh of the whole grid.
-            let volume = InflatingVolume::try_open(&path, &options).unwrap().unwrap();
+            let volume = InflatingVolume::open_any_size(&path, &options)
+                .unwrap()
+                .unwrap();
             let (min, max) = all
                 .iter()
                 .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
@@ -311,7 +347,7 @@ mod tests {
         let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         std::io::Write::write_all(&mut gz, &inflated[..inflated.len() - 10]).unwrap();
         std::fs::write(&path, gz.finish().unwrap()).unwrap();
-        let volume = InflatingVolume::try_open(&path, &VolumeOptions::default())
+        let volume = InflatingVolume::open_any_size(&path, &VolumeOptions::default())
             .unwrap()
             .unwrap();
         let [nx, ny, nz] = volume.dims();
@@ -329,7 +365,7 @@ mod tests {
     fn other_files_are_not_taken() {
         let options = VolumeOptions::default();
         for name in ["flipped.nii", "plain.mhd", "rotated.mha"] {
-            assert!(InflatingVolume::try_open(&data(name), &options)
+            assert!(InflatingVolume::open_any_size(&data(name), &options)
                 .unwrap()
                 .is_none());
         }
