@@ -167,14 +167,13 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     // The view carries the file's direction, and a built-in sample its exact function: the
     // library orients the mesh and relaxes on the right field.
     let mapped_view = mapped.as_ref().and_then(|v| v.view());
-    let loaded = match mapped_view {
-        Some(_) => None,
-        None => Some(in_frame(args, args.volume.load_oriented()?)?),
-    };
-    let view = match (mapped_view, &loaded) {
-        (Some(view), _) => view,
-        (None, Some((grid, orientation))) => grid.view().with_orientation(*orientation),
-        (None, None) => return Err(Failure::input(anyhow::anyhow!("no volume was read"))),
+    let mut loaded = None;
+    let view = match mapped_view {
+        Some(view) => view,
+        None => {
+            let (grid, orientation) = loaded.insert(in_frame(args, args.volume.load_oriented()?)?);
+            grid.view().with_orientation(*orientation)
+        }
     };
     // The mesh may use what the volume leaves of --max-memory (the machine's memory by default).
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
@@ -283,9 +282,6 @@ fn write_and_report(
     Ok(())
 }
 
-/// A mapped volume that is not `f32` (or is scaled): converted slab by slab as the streamed
-/// path does, the mesh gathered in memory and written in any format. The mesh is the one
-/// extraction of the whole converted grid gives, without that grid.
 /// A volume meshed slab by slab in memory: a mapped file whose values need converting, or a
 /// compressed one inflated as it goes (whose read errors surface once the slabs are done).
 trait SlabInput: PlaneSource {
@@ -302,6 +298,9 @@ impl SlabInput for InflatingVolume {
     }
 }
 
+/// A volume converted or inflated slab by slab as the streamed path does, the mesh gathered in
+/// memory and written in any format. The mesh is the one extraction of the whole grid gives,
+/// without that grid.
 fn run_slabs_in_memory(args: &Args, volume: impl SlabInput, quiet: bool) -> Result<(), Failure> {
     let started = Instant::now();
     let mut mesh = Mesh::new();

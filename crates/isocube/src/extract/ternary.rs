@@ -1060,11 +1060,6 @@ impl<'a> Ternary<'a> {
             return self.topology_kept_on_keys(&frozen, &open, before, after);
         }
         // Which boundary planes each key lies on, as bit masks (frozen, open).
-        let plane_mask = |c: [usize; 3], list: &[(usize, usize)]| {
-            list.iter()
-                .enumerate()
-                .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
-        };
         let planes: Vec<(u8, u8)> = keys
             .iter()
             .map(|&k| {
@@ -1105,13 +1100,9 @@ impl<'a> Ternary<'a> {
         after: &Patch,
     ) -> bool {
         let on = |keys: &[Key], list: &[(usize, usize)]| {
-            keys.iter().fold(u8::MAX, |m, &k| {
-                let c = self.key_coords(k);
-                m & list
-                    .iter()
-                    .enumerate()
-                    .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
-            }) != 0
+            keys.iter()
+                .fold(u8::MAX, |m, &k| m & plane_mask(self.key_coords(k), list))
+                != 0
         };
         let check = Check {
             frozen: &|keys: &[Key]| on(keys, frozen),
@@ -1228,7 +1219,6 @@ impl<'a> Ternary<'a> {
         // Zero points hold the level, which counts as above (the masks say so): cells whose
         // eight values are all above or all below make nothing, and are ruled out 64 at a time.
         let masks = &self.masks;
-        let mut visit = vec![0u64; masks.words];
         let [x0, y0, z0] = cells.min;
         let [x1, y1, z1] = cells.max;
         fn in_box(visit: &[u64], x0: usize, x1: usize) -> impl Iterator<Item = usize> + '_ {
@@ -1236,15 +1226,22 @@ impl<'a> Ternary<'a> {
                 .skip_while(move |&i| i < x0)
                 .take_while(move |&i| i < x1)
         }
-        // Counted first to size the arrays (about one vertex and two triangles per cell
-        // visited), so that they are not copied as they grow.
-        let mut candidates = 0;
+        // The cells to visit, row by row, found once: counted first to size the arrays (about
+        // one vertex and two triangles per cell visited, so they are not copied as they grow),
+        // then walked.
+        let words = masks.words;
+        let mut visits = vec![0u64; (y1 - y0) * (z1 - z0) * words];
+        let mut rows = visits.chunks_exact_mut(words);
         for k in z0..z1 {
             for j in y0..y1 {
-                masks.visit(j, k, ny, nx - 1, &mut visit);
-                candidates += in_box(&visit, x0, x1).count();
+                let row = rows.next().expect("a row of visits per row of cells");
+                masks.visit(j, k, ny, nx - 1, row);
             }
         }
+        let candidates: usize = visits
+            .chunks_exact(words)
+            .map(|row| in_box(row, x0, x1).count())
+            .sum();
         let mesh = &mut out.mesh;
         mesh.positions.reserve(candidates + candidates / 8);
         out.keys.reserve(candidates + candidates / 8);
@@ -1252,11 +1249,12 @@ impl<'a> Ternary<'a> {
         if placer.normals() {
             mesh.normals.reserve(candidates + candidates / 8);
         }
+        let mut visit_rows = visits.chunks_exact(words);
         for k in z0..z1 {
             ids.next_plane();
             for j in y0..y1 {
-                masks.visit(j, k, ny, nx - 1, &mut visit);
-                for i in in_box(&visit, x0, x1) {
+                let visit = visit_rows.next().expect("a row of visits per row of cells");
+                for i in in_box(visit, x0, x1) {
                     let base = self.index(i, j, k);
                     let pts = self.offsets.map(|o| base + o);
                     if pts.iter().any(|&p| !self.values[p].is_finite()) {
@@ -1356,6 +1354,13 @@ impl Ids {
     fn insert(&mut self, key: Key, id: u32) {
         self.here.insert(key, id);
     }
+}
+
+/// Bit `i` set when doubled coordinates `c` lie on plane `list[i]` (axis, coordinate).
+fn plane_mask(c: [usize; 3], list: &[(usize, usize)]) -> u8 {
+    list.iter()
+        .enumerate()
+        .fold(0u8, |m, (i, &(a, x))| m | u8::from(c[a] == x) << i)
 }
 
 /// A multiplicative hash: keys are already well spread integers.
