@@ -7,7 +7,7 @@
 
 mod report;
 
-pub use report::MeshReport;
+pub use report::{EdgeReport, MeshReport};
 
 /// Why a mesh's parts do not fit together ([`Mesh::validate`]).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -191,6 +191,11 @@ impl Mesh {
     /// The topology and quality report.
     pub fn report(&self) -> MeshReport {
         MeshReport::of(self)
+    }
+
+    /// Whether the mesh is closed and oriented, without the rest of [`Mesh::report`].
+    pub fn edge_report(&self) -> EdgeReport {
+        EdgeReport::of(self)
     }
 }
 

@@ -62,43 +62,19 @@ impl MeshReport {
     /// Measures a mesh. `O(F log F)`.
     pub fn of(mesh: &Mesh) -> MeshReport {
         let nv = mesh.positions.len();
-        // Directed edges keyed by their undirected pair; the low bit says which way round.
-        let mut keys: Vec<u64> = Vec::with_capacity(mesh.triangles.len() * 3);
         let mut used = vec![false; nv];
         for t in &mesh.triangles {
-            for i in 0..3 {
-                let (a, b) = (t[i], t[(i + 1) % 3]);
-                used[a as usize] = true;
-                if a == b {
-                    continue;
-                }
-                let (lo, hi, dir) = if a < b { (a, b, 0) } else { (b, a, 1) };
-                keys.push((u64::from(lo) << 33) | (u64::from(hi) << 1) | dir);
+            for &v in t {
+                used[v as usize] = true;
             }
         }
-        keys.sort_unstable();
-        let (mut edges, mut boundary, mut nonmanifold) = (0, 0, 0);
-        let mut oriented = true;
-        let mut i = 0;
-        while i < keys.len() {
-            let pair = keys[i] >> 1;
-            let mut j = i;
-            while j < keys.len() && keys[j] >> 1 == pair {
-                j += 1;
-            }
-            let count = j - i;
-            let forward = keys[i..j].iter().filter(|k| *k & 1 == 0).count();
-            edges += 1;
-            match count {
-                1 => boundary += 1,
-                2 => oriented &= forward == 1,
-                _ => nonmanifold += 1,
-            }
-            if forward > 1 || count - forward > 1 {
-                oriented = false;
-            }
-            i = j;
-        }
+        let EdgeReport {
+            edges,
+            boundary_edges: boundary,
+            nonmanifold_edges: nonmanifold,
+            oriented,
+            ..
+        } = EdgeReport::of(mesh);
 
         let mut uf = UnionFind::new(nv);
         for t in &mesh.triangles {
@@ -165,6 +141,127 @@ impl MeshReport {
     /// Watertight and consistently oriented: a closed orientable surface.
     pub fn is_closed_manifold(&self) -> bool {
         self.watertight && self.oriented
+    }
+}
+
+/// The edge part of [`MeshReport`]: whether a mesh is closed and consistently oriented, without
+/// the angles, area, volume and components. Linear in the mesh's size and parallel, so a command
+/// can say "watertight" about every mesh it writes at a small fraction of the meshing's cost.
+///
+/// ```
+/// use isocube::mesh::Mesh;
+/// let mut mesh = Mesh {
+///     positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+///     normals: vec![],
+///     triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+/// };
+/// let e = mesh.edge_report();
+/// assert!(e.watertight && e.oriented && e.edges == 6);
+/// mesh.triangles.pop();
+/// assert_eq!(mesh.edge_report().boundary_edges, 3);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EdgeReport {
+    /// Distinct undirected edges.
+    pub edges: usize,
+    /// Edges with exactly one triangle.
+    pub boundary_edges: usize,
+    /// Edges with three or more triangles.
+    pub nonmanifold_edges: usize,
+    /// No boundary and no non-manifold edges (and at least one triangle).
+    pub watertight: bool,
+    /// Neighbouring triangles agree on orientation everywhere.
+    pub oriented: bool,
+}
+
+impl EdgeReport {
+    /// Counts a mesh's edges. `O(F)` plus a sort of each vertex's few edges.
+    pub fn of(mesh: &Mesh) -> EdgeReport {
+        use rayon::prelude::*;
+        let nv = mesh.positions.len();
+        // Each directed edge is filed under its lower vertex (a counting sort), as the higher
+        // vertex with the direction in the low bit; a vertex's edges are then few and local.
+        let mut start = vec![0usize; nv + 1];
+        for t in &mesh.triangles {
+            for i in 0..3 {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                if a != b {
+                    start[a.min(b) as usize + 1] += 1;
+                }
+            }
+        }
+        for v in 0..nv {
+            start[v + 1] += start[v];
+        }
+        let mut next = start.clone();
+        let mut filed = vec![0u64; start[nv]];
+        for t in &mesh.triangles {
+            for i in 0..3 {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                if a != b {
+                    let (lo, hi, dir) = if a < b { (a, b, 0) } else { (b, a, 1) };
+                    filed[next[lo as usize]] = (u64::from(hi) << 1) | dir;
+                    next[lo as usize] += 1;
+                }
+            }
+        }
+        drop(next);
+        #[derive(Clone, Copy)]
+        struct Counts {
+            edges: usize,
+            boundary: usize,
+            nonmanifold: usize,
+            oriented: bool,
+        }
+        let none = Counts {
+            edges: 0,
+            boundary: 0,
+            nonmanifold: 0,
+            oriented: true,
+        };
+        let counts = (0..nv)
+            .into_par_iter()
+            .with_min_len(1 << 12)
+            .fold(
+                || (none, Vec::new()),
+                |(mut c, mut keys): (Counts, Vec<u64>), v| {
+                    keys.clear();
+                    keys.extend_from_slice(&filed[start[v]..start[v + 1]]);
+                    keys.sort_unstable();
+                    for group in keys.chunk_by(|x, y| x >> 1 == y >> 1) {
+                        let forward = group.iter().filter(|k| *k & 1 == 0).count();
+                        c.edges += 1;
+                        match group.len() {
+                            1 => c.boundary += 1,
+                            2 => c.oriented &= forward == 1,
+                            _ => c.nonmanifold += 1,
+                        }
+                        if forward > 1 || group.len() - forward > 1 {
+                            c.oriented = false;
+                        }
+                    }
+                    (c, keys)
+                },
+            )
+            .map(|(c, _)| c)
+            .reduce(
+                || none,
+                |a, b| Counts {
+                    edges: a.edges + b.edges,
+                    boundary: a.boundary + b.boundary,
+                    nonmanifold: a.nonmanifold + b.nonmanifold,
+                    oriented: a.oriented && b.oriented,
+                },
+            );
+        EdgeReport {
+            edges: counts.edges,
+            boundary_edges: counts.boundary,
+            nonmanifold_edges: counts.nonmanifold,
+            watertight: !mesh.triangles.is_empty()
+                && counts.boundary == 0
+                && counts.nonmanifold == 0,
+            oriented: counts.oriented,
+        }
     }
 }
 
@@ -261,5 +358,49 @@ mod tests {
             .extend(tetra().triangles.iter().map(|t| t.map(|v| v + off)));
         let r = m.report();
         assert_eq!((r.components, r.euler, r.genus), (2, 4, Some(0)));
+    }
+
+    proptest::proptest! {
+        /// The counting-sort edge report agrees with sorting every directed edge at once, on
+        /// triangle soups with repeated, reversed, degenerate and shared edges.
+        #[test]
+        fn edge_report_matches_a_global_sort(
+            nv in 1usize..12,
+            raw in proptest::collection::vec((0u32..12, 0u32..12, 0u32..12), 0..40),
+        ) {
+            let triangles: Vec<[u32; 3]> = raw
+                .iter()
+                .map(|&(a, b, c)| [a, b, c].map(|v| v % nv as u32))
+                .collect();
+            let m = Mesh { positions: vec![[0.0; 3]; nv], normals: vec![], triangles };
+            let mut keys: Vec<(u32, u32, bool)> = Vec::new();
+            for t in &m.triangles {
+                for i in 0..3 {
+                    let (a, b) = (t[i], t[(i + 1) % 3]);
+                    if a != b {
+                        keys.push((a.min(b), a.max(b), a < b));
+                    }
+                }
+            }
+            keys.sort_unstable();
+            let (mut edges, mut boundary, mut nonmanifold, mut oriented) = (0, 0, 0, true);
+            for g in keys.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+                let forward = g.iter().filter(|k| k.2).count();
+                let backward = g.len() - forward;
+                edges += 1;
+                boundary += usize::from(g.len() == 1);
+                nonmanifold += usize::from(g.len() > 2);
+                oriented &= forward <= 1 && backward <= 1;
+            }
+            let e = m.edge_report();
+            proptest::prop_assert_eq!(
+                (e.edges, e.boundary_edges, e.nonmanifold_edges, e.oriented),
+                (edges, boundary, nonmanifold, oriented)
+            );
+            proptest::prop_assert_eq!(
+                e.watertight,
+                !m.triangles.is_empty() && boundary == 0 && nonmanifold == 0
+            );
+        }
     }
 }
