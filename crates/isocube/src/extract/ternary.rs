@@ -183,6 +183,10 @@ struct Patch {
     interiors: Vec<Interior>,
     /// Scratch space for the checks.
     keys: Vec<Key>,
+    /// Scratch space for [`Ternary::improve_cell`]: the cell's vertices placed, and the
+    /// triangles' measures.
+    placed: Vec<(Key, [f64; 3])>,
+    measured: Vec<Option<(f64, [f64; 3])>>,
     scratch: super::patch_check::Scratch,
 }
 
@@ -725,7 +729,8 @@ impl<'a> Ternary<'a> {
             mask
         };
         // Each vertex placed once: the sweeps below look at every triangle pair several times.
-        let mut placed: Vec<(Key, [f64; 3])> = Vec::with_capacity(3 * n);
+        let mut placed = std::mem::take(&mut patch.placed);
+        placed.clear();
         for t in &patch.triangles[first..] {
             for &k in t {
                 if !placed.iter().any(|e| e.0 == k) {
@@ -753,6 +758,11 @@ impl<'a> Ternary<'a> {
             }
             (worst, n)
         };
+        // Each triangle's measure is kept until a flip replaces the triangle: the sweeps meet
+        // every pair again, and most triangles are never flipped.
+        let mut measured = std::mem::take(&mut patch.measured);
+        measured.clear();
+        measured.resize(n, None);
         // A few sweeps settle every cell met in practice; the bound keeps the cost fixed.
         for _ in 0..3 {
             let mut flipped = false;
@@ -779,8 +789,8 @@ impl<'a> Ternary<'a> {
                     if exists {
                         continue;
                     }
-                    let (o1, n1) = max_cos(t1);
-                    let (o2, n2) = max_cos(t2);
+                    let (o1, n1) = *measured[i - first].get_or_insert_with(|| max_cos(t1));
+                    let (o2, n2) = *measured[j - first].get_or_insert_with(|| max_cos(t2));
                     let (new1, new2) = ([c, a, d], [d, b, c]);
                     let (m1, q1) = max_cos(new1);
                     let (m2, q2) = max_cos(new2);
@@ -791,6 +801,8 @@ impl<'a> Ternary<'a> {
                     {
                         patch.triangles[i] = new1;
                         patch.triangles[j] = new2;
+                        measured[i - first] = Some((m1, q1));
+                        measured[j - first] = Some((m2, q2));
                         flipped = true;
                     }
                 }
@@ -799,6 +811,8 @@ impl<'a> Ternary<'a> {
                 break;
             }
         }
+        patch.placed = placed;
+        patch.measured = measured;
     }
 
     /// The cells around grid point `p`, by their first grid point.
