@@ -275,14 +275,18 @@ impl<'a> Ternary<'a> {
         let values: &[f32] = &self.values;
         let level = f64::from(self.level);
         let dims = self.grid.dims();
-        // (point, nearest crossing as a fraction of an edge), from one pass over the grid edges,
-        // a plane at a time in parallel (the list is sorted next, so its order does not matter).
+        // Candidates from one pass over the grid edges, a plane at a time in parallel (the list
+        // is sorted next, so its order does not matter). Points are taken closest crossing
+        // first, in rounds of 1/20 of an edge: a point's round is that of its nearest crossing,
+        // the smallest round of its crossings. Each is packed `point << 4 | round` so that
+        // sorting integers groups a point's entries, smallest round first.
         let threshold = f64::from(snapping.zero_threshold);
         let snap = f64::from(snapping.snap);
         let [nx, ny, nz] = dims;
         let strides = self.strides;
         let masks = &self.masks;
-        let planes: Vec<Vec<(usize, f64)>> = (0..nz)
+        let round = |t: f64| (t * 20.0).floor().min(10.0) as u64;
+        let planes: Vec<Vec<u64>> = (0..nz)
             .into_par_iter()
             .map(|k| {
                 let mut near = Vec::new();
@@ -291,7 +295,7 @@ impl<'a> Ternary<'a> {
                     if threshold > 0.0 || values[row..row + nx].contains(&self.level) {
                         for (i, &v) in values[row..row + nx].iter().enumerate() {
                             if (f64::from(v) - level).abs() <= threshold {
-                                near.push((row + i, 0.0));
+                                near.push(((row + i) as u64) << 4);
                             }
                         }
                     }
@@ -328,10 +332,10 @@ impl<'a> Ternary<'a> {
                                 }
                                 let t = (level - a) / (b - a);
                                 if t <= snap {
-                                    near.push((p, t));
+                                    near.push((p as u64) << 4 | round(t));
                                 }
                                 if 1.0 - t <= snap {
-                                    near.push((q, 1.0 - t));
+                                    near.push((q as u64) << 4 | round(1.0 - t));
                                 }
                             }
                         }
@@ -340,20 +344,19 @@ impl<'a> Ternary<'a> {
                 near
             })
             .collect();
-        let mut near: Vec<(usize, f64)> = planes.concat();
-        near.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
-        near.dedup_by_key(|e| e.0);
-        // Closest crossings first, in rounds of 1/20 of an edge, then by parity class.
-        let mut order: Vec<(u8, u8, usize)> = near
+        let mut near: Vec<u64> = planes.concat();
+        near.par_sort_unstable();
+        near.dedup_by_key(|e| *e >> 4);
+        // Then by round, by parity class, and by point: `round << 59 | class << 56 | point`
+        // (points number fewer than 2^56: no grid that large fits in memory).
+        let mut order: Vec<u64> = near
             .into_iter()
-            .map(|(p, t)| {
+            .map(|e| {
+                let p = (e >> 4) as usize;
+                debug_assert!(p < 1 << 56);
                 let c = self.coords(p);
-                let round = (t * 20.0).floor().min(10.0) as u8;
-                (
-                    round,
-                    (c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2) as u8,
-                    p,
-                )
+                let class = (c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2) as u64;
+                (e & 15) << 59 | class << 56 | p as u64
             })
             .collect();
         order.par_sort_unstable();
@@ -374,7 +377,7 @@ impl<'a> Ternary<'a> {
         let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
         for (i, e) in order.iter().enumerate() {
             match groups.last_mut() {
-                Some(g) if (order[g.start].0, order[g.start].1) == (e.0, e.1) => g.end = i + 1,
+                Some(g) if order[g.start] >> 56 == e >> 56 => g.end = i + 1,
                 _ => groups.push(i..i + 1),
             }
         }
@@ -397,7 +400,7 @@ impl<'a> Ternary<'a> {
                     continue;
                 };
                 let members = &order[range.clone()];
-                let take = members.partition_point(|e| plane_of(e.2) <= limit);
+                let take = members.partition_point(|&e| plane_of(point_of(e)) <= limit);
                 if take > 0 {
                     let (s, r) = self.snap_batch(&members[..take], &neighbourhoods);
                     snapped += s;
@@ -415,22 +418,19 @@ impl<'a> Ternary<'a> {
 
     /// Checks independent candidates `members` (see [`Ternary::choose_zeros_in_groups`]) in
     /// parallel and makes the safe ones zero points. Returns (snapped, refused) counts.
-    fn snap_batch(
-        &mut self,
-        members: &[(u8, u8, usize)],
-        neighbourhoods: &Neighbourhoods,
-    ) -> (usize, usize) {
+    fn snap_batch(&mut self, members: &[u64], neighbourhoods: &Neighbourhoods) -> (usize, usize) {
         let verdicts: Vec<bool> = members
             .par_iter()
             .enumerate()
             .with_min_len(8)
             .map_init(
                 || (Patch::default(), Patch::default()),
-                |(before, after), (i, &(_, _, p))| {
+                |(before, after), (i, &e)| {
+                    let p = point_of(e);
                     // The values around the next points are fetched while this one is checked:
                     // one point after another, the check waits on memory more than it computes.
-                    if let Some(&(_, _, q)) = members.get(i + 2) {
-                        self.prefetch_around(q);
+                    if let Some(&q) = members.get(i + 2) {
+                        self.prefetch_around(point_of(q));
                     }
                     self.snap_is_safe(p, before, after, neighbourhoods)
                 },
@@ -438,7 +438,8 @@ impl<'a> Ternary<'a> {
             .collect();
         let (mut snapped, mut refused) = (0, 0);
         let ny = self.grid.dims()[1];
-        for (&(_, _, p), ok) in members.iter().zip(verdicts) {
+        for (&e, ok) in members.iter().zip(verdicts) {
+            let p = point_of(e);
             if ok {
                 self.zero[p / 64] |= 1 << (p % 64);
                 self.masks.set_above(self.coords(p), ny);
@@ -728,26 +729,23 @@ impl<'a> Ternary<'a> {
             }
             mask
         };
-        // Each vertex placed once: the sweeps below look at every triangle pair several times.
+        // Each vertex placed once, when a measure first needs it: the sweeps below look at
+        // every triangle pair several times, and many cells have no pair that may flip.
         let mut placed = std::mem::take(&mut patch.placed);
         placed.clear();
-        for t in &patch.triangles[first..] {
-            for &k in t {
-                if !placed.iter().any(|e| e.0 == k) {
-                    placed.push((k, self.position(k, &patch.interiors).map(f64::from)));
-                }
+        let interiors = &patch.interiors;
+        let pos = |placed: &mut Vec<(Key, [f64; 3])>, k: Key| match placed.iter().find(|e| e.0 == k)
+        {
+            Some(e) => e.1,
+            None => {
+                let x = self.position(k, interiors).map(f64::from);
+                placed.push((k, x));
+                x
             }
-        }
-        let pos = |k: Key| {
-            placed
-                .iter()
-                .find(|e| e.0 == k)
-                .map(|e| e.1)
-                .expect("flips only reuse the cell's vertices")
         };
         // The largest cosine of a triangle's angles stands for its smallest angle.
-        let max_cos = |t: [Key; 3]| -> (f64, [f64; 3]) {
-            let p = t.map(pos);
+        let max_cos = |placed: &mut Vec<(Key, [f64; 3])>, t: [Key; 3]| -> (f64, [f64; 3]) {
+            let p = t.map(|k| pos(placed, k));
             let n = crate::mesh::cross(crate::mesh::sub(p[1], p[0]), crate::mesh::sub(p[2], p[0]));
             let mut worst = f64::NEG_INFINITY;
             for k in 0..3 {
@@ -789,11 +787,13 @@ impl<'a> Ternary<'a> {
                     if exists {
                         continue;
                     }
-                    let (o1, n1) = *measured[i - first].get_or_insert_with(|| max_cos(t1));
-                    let (o2, n2) = *measured[j - first].get_or_insert_with(|| max_cos(t2));
+                    let (o1, n1) =
+                        *measured[i - first].get_or_insert_with(|| max_cos(&mut placed, t1));
+                    let (o2, n2) =
+                        *measured[j - first].get_or_insert_with(|| max_cos(&mut placed, t2));
                     let (new1, new2) = ([c, a, d], [d, b, c]);
-                    let (m1, q1) = max_cos(new1);
-                    let (m2, q2) = max_cos(new2);
+                    let (m1, q1) = max_cos(&mut placed, new1);
+                    let (m2, q2) = max_cos(&mut placed, new2);
                     let normal = [0, 1, 2].map(|x| n1[x] + n2[x]);
                     if m1.max(m2) < o1.max(o2) - 1e-12
                         && crate::mesh::dot(q1, normal) > 0.0
@@ -1449,6 +1449,11 @@ impl Neighbourhoods {
             .unwrap_or_else(|e| e.into_inner())
             .insert(pattern, known);
     }
+}
+
+/// The point of a candidate packed as in [`Ternary::choose_zeros_in_groups`].
+fn point_of(candidate: u64) -> usize {
+    (candidate & ((1 << 56) - 1)) as usize
 }
 
 /// Rotates a triangle to start at its smallest key (orientation kept).
