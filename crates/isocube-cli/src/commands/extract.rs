@@ -246,18 +246,22 @@ fn write_and_report(
         Some(spec) => Some(sample_at_vertices(args, spec, mesh)?),
         None => None,
     };
-    write_mesh_with_values(
-        &args.output,
-        mesh,
-        &crate::write_options(args.ascii, !args.no_normals),
-        values
-            .as_ref()
-            .map(|(name, v)| VertexValues { name, values: v }),
-    )
-    .map_err(|e| crate::io_failure(e, false))?;
-    if !quiet {
-        // Only the edges: the angles and volume of the full report cost a tenth of the run.
-        let r = mesh.edge_report();
+    // The summary's edge count runs beside the writer: both only read the mesh.
+    let (written, edges) = std::thread::scope(|scope| {
+        let edges = (!quiet).then(|| scope.spawn(|| mesh.edge_report()));
+        let written = write_mesh_with_values(
+            &args.output,
+            mesh,
+            &crate::write_options(args.ascii, !args.no_normals),
+            values
+                .as_ref()
+                .map(|(name, v)| VertexValues { name, values: v }),
+        );
+        let edges = edges.map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+        (written, edges)
+    });
+    written.map_err(|e| crate::io_failure(e, false))?;
+    if let Some(r) = edges {
         eprintln!(
             "{}: {} vertices, {} triangles, {} in {:.1} ms ({}{})",
             args.output.display(),

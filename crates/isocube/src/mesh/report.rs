@@ -177,35 +177,49 @@ pub struct EdgeReport {
 impl EdgeReport {
     /// Counts a mesh's edges. `O(F)` plus a sort of each vertex's few edges.
     pub fn of(mesh: &Mesh) -> EdgeReport {
+        // Entries of 32 bits where the vertex numbers allow: half the memory to touch.
+        if mesh.positions.len() < 1 << 31 {
+            Self::filed::<u32>(mesh)
+        } else {
+            Self::filed::<u64>(mesh)
+        }
+    }
+
+    /// [`EdgeReport::of`] with each directed edge filed under its lower vertex (a counting
+    /// sort), as `higher << 1 | direction` in an `E`: a vertex's edges are then few and local.
+    fn filed<E>(mesh: &Mesh) -> EdgeReport
+    where
+        E: Copy + Ord + Default + Send + Sync + TryFrom<u64> + Into<u64>,
+    {
         use rayon::prelude::*;
         let nv = mesh.positions.len();
-        // Each directed edge is filed under its lower vertex (a counting sort), as the higher
-        // vertex with the direction in the low bit; a vertex's edges are then few and local.
-        let mut start = vec![0usize; nv + 1];
+        let directed = |t: &[u32; 3]| {
+            [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])]
+                .into_iter()
+                .filter(|(a, b)| a != b)
+        };
+        // `end[v]` counts the edges of vertices up to `v`, then (as the edges are filed) is
+        // where the next edge of `v` goes, and at last where `v`'s edges end.
+        let mut end = vec![0usize; nv];
         for t in &mesh.triangles {
-            for i in 0..3 {
-                let (a, b) = (t[i], t[(i + 1) % 3]);
-                if a != b {
-                    start[a.min(b) as usize + 1] += 1;
-                }
+            for (a, b) in directed(t) {
+                end[a.min(b) as usize] += 1;
             }
         }
-        for v in 0..nv {
-            start[v + 1] += start[v];
+        let mut total = 0;
+        for e in &mut end {
+            (total, *e) = (total + *e, total);
         }
-        let mut next = start.clone();
-        let mut filed = vec![0u64; start[nv]];
+        let mut filed = vec![E::default(); total];
         for t in &mesh.triangles {
-            for i in 0..3 {
-                let (a, b) = (t[i], t[(i + 1) % 3]);
-                if a != b {
-                    let (lo, hi, dir) = if a < b { (a, b, 0) } else { (b, a, 1) };
-                    filed[next[lo as usize]] = (u64::from(hi) << 1) | dir;
-                    next[lo as usize] += 1;
-                }
+            for (a, b) in directed(t) {
+                let (lo, hi, dir) = if a < b { (a, b, 0) } else { (b, a, 1) };
+                let slot = &mut end[lo as usize];
+                // The caller chose `E` wide enough for every vertex number.
+                filed[*slot] = E::try_from(u64::from(hi) << 1 | dir).unwrap_or_default();
+                *slot += 1;
             }
         }
-        drop(next);
         #[derive(Clone, Copy)]
         struct Counts {
             edges: usize,
@@ -224,12 +238,13 @@ impl EdgeReport {
             .with_min_len(1 << 12)
             .fold(
                 || (none, Vec::new()),
-                |(mut c, mut keys): (Counts, Vec<u64>), v| {
+                |(mut c, mut keys): (Counts, Vec<E>), v| {
+                    let begin = if v == 0 { 0 } else { end[v - 1] };
                     keys.clear();
-                    keys.extend_from_slice(&filed[start[v]..start[v + 1]]);
+                    keys.extend_from_slice(&filed[begin..end[v]]);
                     keys.sort_unstable();
-                    for group in keys.chunk_by(|x, y| x >> 1 == y >> 1) {
-                        let forward = group.iter().filter(|k| *k & 1 == 0).count();
+                    for group in keys.chunk_by(|x, y| (*x).into() >> 1 == (*y).into() >> 1) {
+                        let forward = group.iter().filter(|&&k| k.into() & 1 == 0).count();
                         c.edges += 1;
                         match group.len() {
                             1 => c.boundary += 1,
