@@ -18,6 +18,63 @@ pub(super) struct Scratch {
     first: Vec<u8>,
     old: Vec<u32>,
     new: Vec<u32>,
+    /// Triangles by vertex, of the old and the new patch.
+    old_fans: Incidence,
+    new_fans: Incidence,
+}
+
+/// The triangles of a list by vertex: `of(v)` are the places in the list of the triangles
+/// that use `v`, in list order. Built once per check, so that each vertex's fan reads its
+/// own few triangles rather than the whole list.
+#[derive(Default)]
+struct Incidence {
+    start: Vec<usize>,
+    triangles: Vec<u16>,
+}
+
+impl Incidence {
+    fn build(&mut self, n: usize, ts: &[u32]) {
+        // Patches have a few dozen triangles (eight cells' worth).
+        debug_assert!(ts.len() <= usize::from(u16::MAX));
+        let corners = |t: u32| {
+            let t = unpack(t);
+            // A vertex repeated in a triangle is listed once for it.
+            [
+                (t[0], true),
+                (t[1], t[1] != t[0]),
+                (t[2], t[2] != t[0] && t[2] != t[1]),
+            ]
+        };
+        self.start.clear();
+        self.start.resize(n + 1, 0);
+        for &t in ts {
+            for (v, listed) in corners(t) {
+                self.start[usize::from(v) + 1] += usize::from(listed);
+            }
+        }
+        for v in 0..n {
+            self.start[v + 1] += self.start[v];
+        }
+        self.triangles.clear();
+        self.triangles.resize(self.start[n], 0);
+        let mut next = std::mem::take(&mut self.start);
+        for (i, &t) in ts.iter().enumerate() {
+            for (v, listed) in corners(t) {
+                if listed {
+                    self.triangles[next[usize::from(v)]] = i as u16;
+                    next[usize::from(v)] += 1;
+                }
+            }
+        }
+        // `next[v]` is now where `v`'s list ends, which is where `v + 1`'s began.
+        next.rotate_right(1);
+        next[0] = 0;
+        self.start = next;
+    }
+
+    fn of(&self, v: u8) -> &[u16] {
+        &self.triangles[self.start[usize::from(v)]..self.start[usize::from(v) + 1]]
+    }
 }
 
 /// A vertex set of up to 256 vertices.
@@ -78,6 +135,8 @@ pub(super) fn accepts(
         first,
         old,
         new,
+        old_fans,
+        new_fans,
     } = scratch;
     old.clear();
     old.extend(before.iter().map(|&t| canonical(t)));
@@ -107,7 +166,7 @@ pub(super) fn accepts(
     }
     let edges = edges_fit(n, old, new, uses, touched, &frozen, &open);
     Some(
-        edges && fans_fit(n, old, new, &frozen, &open)? && {
+        edges && fans_fit(n, old, new, old_fans, new_fans, &frozen, &open)? && {
             let a = signatures(n, old, first, &frozen);
             let b = signatures(n, new, first, &frozen);
             a == b
@@ -171,11 +230,11 @@ struct Fan {
     cycles: usize,
 }
 
-fn fan(ts: &[u32], u: u8) -> Option<Result<Fan, ()>> {
+fn fan(ts: &[u32], of_u: &[u16], u: u8) -> Option<Result<Fan, ()>> {
     let mut link = [(0u8, 0u8); MAX_FAN];
     let mut len = 0;
-    for &t in ts {
-        let t = unpack(t);
+    for &i in of_u {
+        let t = unpack(ts[usize::from(i)]);
         if let Some(i) = t.iter().position(|&k| k == u) {
             if len == MAX_FAN {
                 return None;
@@ -247,6 +306,8 @@ fn fans_fit(
     n: usize,
     old: &[u32],
     new: &[u32],
+    old_fans: &mut Incidence,
+    new_fans: &mut Incidence,
     frozen: &dyn Fn(&[u8]) -> bool,
     open: &dyn Fn(&[u8]) -> bool,
 ) -> Option<bool> {
@@ -279,18 +340,24 @@ fn fans_fit(
             changed.insert(v);
         }
     }
+    new_fans.build(n, new);
+    let mut old_built = false;
     for u in 0..n as u8 {
         if changed.0[usize::from(u) / 64] >> (u % 64) & 1 == 0 {
             continue;
         }
-        let Ok(after) = fan(new, u)? else {
+        let Ok(after) = fan(new, new_fans.of(u), u)? else {
             return Some(false);
         };
         let paths = &after.paths[..after.path_count];
         if frozen(&[u]) {
             // Path ends on frozen edges are where the fan continues outside the block and must
             // stay; ends on the grid boundary may move along it.
-            let Ok(before) = fan(old, u)? else {
+            if !old_built {
+                old_fans.build(n, old);
+                old_built = true;
+            }
+            let Ok(before) = fan(old, old_fans.of(u), u)? else {
                 return Some(false);
             };
             let ends = |f: &Fan| {

@@ -864,11 +864,16 @@ impl<'a> Ternary<'a> {
                 Known::Accepted(new) => {
                     // Each corner is placed once: most new triangles share the snapped point.
                     let mut at = [[0.0f64; 3]; MAX_NEW_CORNERS];
+                    let c = self.coords(p);
                     for (x, &code) in at
                         .iter_mut()
                         .zip(&new.corners[..usize::from(new.corner_count)])
                     {
-                        *x = self.position(self.local_key(p, code), &[]).map(f64::from);
+                        *x = self.local_position(p, c, code).map(f64::from);
+                        debug_assert_eq!(
+                            self.local_position(p, c, code),
+                            self.position(self.local_key(p, code), &[])
+                        );
                     }
                     new.triangles[..usize::from(new.count)]
                         .iter()
@@ -1127,26 +1132,37 @@ impl<'a> Ternary<'a> {
 
     fn no_zero_area(&self, before: &Patch, after: &Patch) -> bool {
         let old: Vec<[Key; 3]> = canonical_triangles(&before.triangles);
+        // The new triangles share most corners (the snapped point above all): each is placed
+        // once.
+        let mut placed: Vec<(Key, [f64; 3])> = Vec::new();
+        let mut at = |k: Key| match placed.iter().find(|e| e.0 == k) {
+            Some(e) => e.1,
+            None => {
+                let x = self.position(k, &after.interiors).map(f64::from);
+                placed.push((k, x));
+                x
+            }
+        };
         after.triangles.iter().all(|t| {
             old.binary_search(&canonical(*t)).is_ok()
-                || positive_area(t.map(|k| self.position(k, &after.interiors).map(f64::from)))
+                || positive_area([at(t[0]), at(t[1]), at(t[2])])
         })
     }
 
-    /// Where the vertex of zero point `p` goes, as `(edge start, axis, fraction)`: `(p, 0, 0.0)`
-    /// for the grid point itself.
-    fn snapped_place(&self, p: usize) -> (usize, usize, f64) {
+    /// Where the vertex of zero point `p`, at coordinates `c`, goes: `(edge start, its
+    /// coordinates, axis, fraction)`, and `(p, c, 0, 0.0)` for the grid point itself. Callers
+    /// pass `c` so that the many who know it need no division to find it.
+    fn snapped_place_at(&self, p: usize, c: [usize; 3]) -> (usize, [usize; 3], usize, f64) {
         let values: &[f32] = &self.values;
         let level = f64::from(self.level);
         let v = f64::from(values[p]);
         if self.snapping.position == SnapPosition::GridPoint
             || (v - level).abs() <= f64::from(self.snapping.zero_threshold)
         {
-            return (p, 0, 0.0);
+            return (p, c, 0, 0.0);
         }
-        let c = self.coords(p);
         let dims = self.grid.dims();
-        let mut best = (p, 0, 0.0, f64::INFINITY);
+        let mut best = (p, c, 0, 0.0, f64::INFINITY);
         for (axis, &stride) in self.strides.iter().enumerate() {
             for forward in [false, true] {
                 let q = match forward {
@@ -1159,16 +1175,54 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
-                if t < best.3 {
+                if t < best.4 {
                     best = if forward {
-                        (p, axis, t, t)
+                        (p, c, axis, t, t)
                     } else {
-                        (q, axis, 1.0 - t, t)
+                        let mut cq = c;
+                        cq[axis] -= 1;
+                        (q, cq, axis, 1.0 - t, t)
                     };
                 }
             }
         }
-        (best.0, best.1, best.2)
+        (best.0, best.1, best.2, best.3)
+    }
+
+    /// Position of the vertex of zero point `p` at coordinates `c`.
+    fn point_position(&self, p: usize, c: [usize; 3]) -> [f32; 3] {
+        let (_, c0, axis, t) = self.snapped_place_at(p, c);
+        let mut x = self.grid.point(c0[0], c0[1], c0[2]);
+        x[axis] += t * self.grid.spacing()[axis];
+        x.map(|c| c as f32)
+    }
+
+    /// Position of the crossing on the edge from point `a` (at coordinates `c`) along `axis`.
+    fn edge_position(&self, a: usize, c: [usize; 3], axis: usize) -> [f32; 3] {
+        let t = self.edge_t(a, axis);
+        let mut x = self.grid.point(c[0], c[1], c[2]);
+        x[axis] += t * self.grid.spacing()[axis];
+        x.map(|c| c as f32)
+    }
+
+    /// Position of the vertex at local doubled coordinates `code` (see [`Known`]) around point
+    /// `p` at coordinates `c`: the position of [`Ternary::local_key`]'s key, found without
+    /// numbering it and dividing the number back into coordinates.
+    fn local_position(&self, p: usize, c: [usize; 3], code: u8) -> [f32; 3] {
+        let d = [code / 25, code / 5 % 5, code % 5].map(|x| isize::from(x) - 2);
+        let (mut q, mut cq, mut axis) = (p, c, None);
+        for a in 0..3 {
+            let step = d[a].div_euclid(2);
+            q = q.wrapping_add_signed(step * self.strides[a] as isize);
+            cq[a] = cq[a].wrapping_add_signed(step);
+            if d[a] % 2 != 0 {
+                axis = Some(a);
+            }
+        }
+        match axis {
+            None => self.point_position(q, cq),
+            Some(a) => self.edge_position(q, cq, a),
+        }
     }
 
     fn edge_t(&self, a: usize, axis: usize) -> f64 {
@@ -1180,22 +1234,10 @@ impl<'a> Ternary<'a> {
     fn position(&self, k: Key, interiors: &[Interior]) -> [f32; 3] {
         let payload = (k & PAYLOAD) as usize;
         match tag(k) {
-            POINT => {
-                let (p0, axis, t) = self.snapped_place(payload);
-                let c = self.coords(p0);
-                let mut x = self.grid.point(c[0], c[1], c[2]);
-                x[axis] += t * self.grid.spacing()[axis];
-                x.map(|c| c as f32)
-            }
+            POINT => self.point_position(payload, self.coords(payload)),
             EDGE => {
                 let (a, axis) = (payload / 3, payload % 3);
-                let t = self.edge_t(a, axis);
-                let mut x = {
-                    let c = self.coords(a);
-                    self.grid.point(c[0], c[1], c[2])
-                };
-                x[axis] += t * self.grid.spacing()[axis];
-                x.map(|c| c as f32)
+                self.edge_position(a, self.coords(a), axis)
             }
             _ => {
                 let interior = interiors
@@ -1312,9 +1354,9 @@ impl<'a> Ternary<'a> {
         }
         let payload = (key & PAYLOAD) as usize;
         let id = match tag(key) {
-            POINT => match self.snapped_place(payload) {
-                (p, _, 0.0) => placer.point_vertex(self.coords(p), &mut out.mesh)?,
-                (p0, axis, t) => placer.vertex_on_edge(self.coords(p0), axis, t, &mut out.mesh)?,
+            POINT => match self.snapped_place_at(payload, self.coords(payload)) {
+                (_, c0, _, 0.0) => placer.point_vertex(c0, &mut out.mesh)?,
+                (_, c0, axis, t) => placer.vertex_on_edge(c0, axis, t, &mut out.mesh)?,
             },
             EDGE => {
                 let (a, axis) = (payload / 3, payload % 3);
