@@ -13,6 +13,7 @@ use super::binary::{slabs, BinaryCells};
 use super::chunk::{ChunkMesh, LayerJoiner};
 use super::weld::EdgeCache;
 use super::window::Window;
+use super::CellBox;
 use super::{ExtractError, ExtractOptions, ExtractStats, Method};
 use std::ops::ControlFlow;
 
@@ -52,6 +53,12 @@ pub trait MeshSink {
         -> Result<(), Self::Error>;
     /// Triangles over the vertices given so far.
     fn triangles(&mut self, triangles: &[[u32; 3]]) -> Result<(), Self::Error>;
+    /// A hint that about this many more vertices and triangles will come (projected from the
+    /// slabs done so far). A sink that gathers the mesh in memory makes room, so that its
+    /// arrays are not copied again and again as they grow; the default does nothing.
+    fn reserve(&mut self, vertices: usize, triangles: usize) {
+        let _ = (vertices, triangles);
+    }
 }
 
 /// Collects the whole mesh in memory.
@@ -67,6 +74,16 @@ impl MeshSink for Mesh {
     fn triangles(&mut self, triangles: &[[u32; 3]]) -> Result<(), Infallible> {
         self.triangles.extend_from_slice(triangles);
         Ok(())
+    }
+
+    /// Room reserved is not memory used until it is written, so a projection that comes out
+    /// high costs address space only.
+    fn reserve(&mut self, vertices: usize, triangles: usize) {
+        self.positions.reserve_exact(vertices);
+        if !self.normals.is_empty() {
+            self.normals.reserve_exact(vertices);
+        }
+        self.triangles.reserve_exact(triangles);
     }
 }
 
@@ -123,8 +140,8 @@ pub fn extract_streamed<S: MeshSink>(
         .collect();
     let mut joiner = LayerJoiner::new(dims);
     let mut stats = ExtractStats::default();
-    for group in boxes.chunks(batch) {
-        let parts: Vec<Result<ChunkMesh, ExtractError>> = states[..group.len()]
+    let mesh_group = |states: &mut [(EdgeCache, Vec<f32>)], group: &[CellBox]| {
+        states[..group.len()]
             .par_iter_mut()
             .zip(group)
             .map(|((cache, buffer), &cells)| {
@@ -136,31 +153,60 @@ pub fn extract_streamed<S: MeshSink>(
                 let window = Window::new(dims, spacing, origin, p0, buffer);
                 BinaryCells::new(window, options).mesh_box(cache, cells)
             })
-            .collect();
-        for part in parts {
-            let part = part?;
-            // As extraction in memory does; the vertices concerned are inside one cell, so the
-            // part holds all their triangles.
-            let filled = part.mesh.filled_normals();
-            let mut joined = joiner.push(&part, filled.as_deref())?;
-            // As extraction in memory does at the end: the mesh is made in the grid's frame.
-            orientation.orient_parts(
-                &mut joined.positions,
-                &mut joined.normals,
-                &mut joined.triangles,
-                origin,
-            );
-            sink.vertices(&joined.positions, &joined.normals)
-                .map_err(StreamError::Sink)?;
-            sink.triangles(&joined.triangles)
-                .map_err(StreamError::Sink)?;
-            stats.add(&joined.chunk.stats);
-            if progress(part.cells.max[2], nz - 1).is_break() {
-                return Err(ExtractError::Cancelled.into());
-            }
+            .collect::<Vec<Result<ChunkMesh, ExtractError>>>()
+    };
+    // A batch's parts are joined and handed to the sink (in order, on this thread) while the
+    // next batch is meshed: the joining is serial, and would otherwise leave cores idle.
+    let (mut vertices, mut triangles) = (0usize, 0usize);
+    let mut groups = boxes.chunks(batch);
+    let mut meshed = groups.next().map(|group| mesh_group(&mut states, group));
+    while let Some(parts) = meshed.take() {
+        let next = groups.next();
+        if let Some(done) = parts.iter().flatten().map(|p| p.cells.max[2]).max() {
+            // The next batch reads from the plane below its cells, the last batch's top.
+            source.release_before(done.saturating_sub(1));
         }
-        let last = group.last().expect("a batch has boxes");
-        source.release_before(last.max[2].saturating_sub(1));
+        let mut pushed: Result<(), StreamError<S::Error>> = Ok(());
+        rayon::in_place_scope(|scope| {
+            if let Some(group) = next {
+                let (states, out) = (&mut states, &mut meshed);
+                scope.spawn(move |_| *out = Some(mesh_group(states, group)));
+            }
+            pushed = (|| {
+                for part in parts {
+                    let part = part?;
+                    // As extraction in memory does; the vertices concerned are inside one
+                    // cell, so the part holds all their triangles.
+                    let filled = part.mesh.filled_normals();
+                    let mut joined = joiner.push(&part, filled.as_deref())?;
+                    // As extraction in memory does at the end: the mesh is made in the grid's
+                    // frame.
+                    orientation.orient_parts(
+                        &mut joined.positions,
+                        &mut joined.normals,
+                        &mut joined.triangles,
+                        origin,
+                    );
+                    sink.vertices(&joined.positions, &joined.normals)
+                        .map_err(StreamError::Sink)?;
+                    sink.triangles(&joined.triangles)
+                        .map_err(StreamError::Sink)?;
+                    stats.add(&joined.chunk.stats);
+                    vertices += joined.positions.len();
+                    triangles += joined.triangles.len();
+                    if progress(part.cells.max[2], nz - 1).is_break() {
+                        return Err(ExtractError::Cancelled.into());
+                    }
+                }
+                Ok(())
+            })();
+        });
+        pushed?;
+        if let Some(done) = next.and_then(|g| g.first()).map(|b| b.min[2]) {
+            // The rest, projected from the layers done at the rate so far, with a quarter more.
+            let project = |n: usize| (n / done).saturating_mul((nz - 1 - done) / 4 * 5 + 1) + 1024;
+            sink.reserve(project(vertices), project(triangles));
+        }
     }
     Ok(stats)
 }
