@@ -884,7 +884,7 @@ impl<'a> Ternary<'a> {
             debug_assert_eq!(safe, self.zero_keeps_topology(p, before, after));
             return safe;
         }
-        let kept = self.topology_kept(p, before, after);
+        let kept = self.topology_kept_by_class(p, pattern, before, after, neighbourhoods);
         neighbourhoods.insert(pattern, self.known(p, pattern, before, after, kept));
         kept && self.no_zero_area(before, after)
     }
@@ -1045,6 +1045,12 @@ impl<'a> Ternary<'a> {
     /// The combinatorial part of [`Ternary::zero_keeps_topology`], leaving the patches in
     /// `before` and `after`.
     fn topology_kept(&self, p: usize, before: &mut Patch, after: &mut Patch) -> bool {
+        self.make_patches(p, before, after);
+        self.patches_keep_topology(p, before, after)
+    }
+
+    /// The patches of the cells around `p` as they are (`before`) and with `p` a zero point.
+    fn make_patches(&self, p: usize, before: &mut Patch, after: &mut Patch) {
         before.clear();
         after.clear();
         for cell in self.star(p) {
@@ -1053,6 +1059,71 @@ impl<'a> Ternary<'a> {
             self.emit(cell, None, before, false);
             self.emit(cell, Some(p), after, false);
         }
+    }
+
+    /// [`Ternary::topology_kept`] on the patches [`Ternary::make_patches`] made, answered from
+    /// the verdict of a rotation of them when one was checked before. The check looks only at
+    /// how triangles share vertices and edges and which vertices lie on the block's faces (all
+    /// six frozen around an interior point), so a rotation of the block, which maps all of that
+    /// onto itself, keeps its verdict. Patterns that are rotations of each other usually have
+    /// rotated patches, but not always (a table may split a symmetric cell along either
+    /// diagonal), so the patches themselves are compared, in the rotation class's frame.
+    fn topology_kept_by_class(
+        &self,
+        p: usize,
+        pattern: u64,
+        before: &mut Patch,
+        after: &mut Patch,
+        neighbourhoods: &Neighbourhoods,
+    ) -> bool {
+        self.make_patches(p, before, after);
+        let rotations = &neighbourhoods.rotations;
+        let (class, r) = rotations.canonical(pattern);
+        let c = self.coords(p);
+        let (mut old, mut new) = (Vec::new(), Vec::new());
+        if !self.class_triangles(c, &rotations.codes[r], before, &mut old)
+            || !self.class_triangles(c, &rotations.codes[r], after, &mut new)
+        {
+            return self.patches_keep_topology(p, before, after);
+        }
+        if let Some(kept) = neighbourhoods.class_verdict(class, &old, &new) {
+            debug_assert_eq!(kept, self.patches_keep_topology(p, before, after));
+            return kept;
+        }
+        let kept = self.patches_keep_topology(p, before, after);
+        neighbourhoods.insert_class(class, old, new, kept);
+        kept
+    }
+
+    /// A patch's triangles by the local codes of their corners around `p` (at `c`; see
+    /// [`Known`]), each code turned by `turn`, each triangle started at its smallest code, in
+    /// order. `false` for a patch with interior points, which codes cannot tell apart.
+    fn class_triangles(
+        &self,
+        c: [usize; 3],
+        turn: &[u8; 125],
+        patch: &Patch,
+        out: &mut Vec<[u8; 3]>,
+    ) -> bool {
+        out.clear();
+        for t in &patch.triangles {
+            let mut codes = [0u8; 3];
+            for (code, &k) in codes.iter_mut().zip(t) {
+                if tag(k) == INTERIOR {
+                    return false;
+                }
+                let d = self.key_coords(k);
+                let l = [0, 1, 2].map(|a| (d[a] + 2 - 2 * c[a]) as u8);
+                *code = turn[usize::from(l[0] * 25 + l[1] * 5 + l[2])];
+            }
+            out.push(canonical(codes));
+        }
+        out.sort_unstable();
+        true
+    }
+
+    /// The combinatorial check of [`Ternary::topology_kept`] on patches already made.
+    fn patches_keep_topology(&self, p: usize, before: &mut Patch, after: &mut Patch) -> bool {
         let c = self.coords(p);
         let dims = self.grid.dims();
         // The block's boundary planes (doubled coordinates): frozen where cells lie beyond them,
@@ -1472,13 +1543,129 @@ enum Known {
 }
 
 /// Known patterns, shared by the threads: what a pattern says does not depend on who found it
-/// first, so neither does the mesh.
-#[derive(Default)]
-struct Neighbourhoods(std::sync::RwLock<rustc_hash::FxHashMap<u64, Known>>);
+/// first, so neither does the mesh. And, by rotation class of pattern, the patches checked and
+/// the check's verdict (see [`Ternary::topology_kept_by_class`]).
+struct Neighbourhoods {
+    known: std::sync::RwLock<rustc_hash::FxHashMap<u64, Known>>,
+    classes: std::sync::RwLock<rustc_hash::FxHashMap<u64, Vec<ClassPatches>>>,
+    rotations: Rotations,
+}
+
+/// A checked pair of patches in its rotation class's frame, and the verdict.
+struct ClassPatches {
+    before: Vec<[u8; 3]>,
+    after: Vec<[u8; 3]>,
+    kept: bool,
+}
+
+/// Different patches seen for one class are kept up to this many (classes whose patterns are
+/// symmetric may meet a few).
+const CLASS_VARIANTS: usize = 4;
+
+impl Default for Neighbourhoods {
+    fn default() -> Self {
+        Neighbourhoods {
+            known: Default::default(),
+            classes: Default::default(),
+            rotations: Rotations::new(),
+        }
+    }
+}
+
+/// The 24 rotations of the 3 × 3 × 3 block around a point: as maps of pattern places
+/// (`x + 3y + 9z`, see [`Ternary::pattern`]) and of local codes (see [`Known`]).
+struct Rotations {
+    places: [[u8; 27]; 24],
+    codes: [[u8; 125]; 24],
+}
+
+impl Rotations {
+    fn new() -> Rotations {
+        let mut out = Rotations {
+            places: [[0; 27]; 24],
+            codes: [[0; 125]; 24],
+        };
+        let mut r = 0;
+        for perm in [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ] {
+            // A swap of two axes turns the block inside out unless one axis flips too: rotations
+            // are the signed permutations of determinant +1.
+            let odd = matches!(perm, [0, 2, 1] | [1, 0, 2] | [2, 1, 0]);
+            for flips in 0..8usize {
+                if odd != (flips.count_ones() % 2 == 1) {
+                    continue;
+                }
+                let turn = |d: [usize; 3], top: usize| {
+                    [0, 1, 2].map(|a| match flips >> a & 1 {
+                        0 => d[perm[a]],
+                        _ => top - d[perm[a]],
+                    })
+                };
+                for (i, place) in out.places[r].iter_mut().enumerate() {
+                    let e = turn([i % 3, i / 3 % 3, i / 9], 2);
+                    *place = (e[0] + 3 * e[1] + 9 * e[2]) as u8;
+                }
+                for (i, code) in out.codes[r].iter_mut().enumerate() {
+                    let e = turn([i / 25, i / 5 % 5, i % 5], 4);
+                    *code = (25 * e[0] + 5 * e[1] + e[2]) as u8;
+                }
+                r += 1;
+            }
+        }
+        debug_assert_eq!(r, 24);
+        out
+    }
+
+    /// The smallest of a pattern's 24 rotations, and the first rotation that makes it.
+    fn canonical(&self, pattern: u64) -> (u64, usize) {
+        let mut best = (u64::MAX, 0);
+        for (r, places) in self.places.iter().enumerate() {
+            let mut turned = 0u64;
+            for (i, &place) in places.iter().enumerate() {
+                turned |= (pattern >> (2 * i) & 3) << (2 * u32::from(place));
+            }
+            if turned < best.0 {
+                best = (turned, r);
+            }
+        }
+        best
+    }
+}
 
 impl Neighbourhoods {
+    fn class_verdict(&self, class: u64, before: &[[u8; 3]], after: &[[u8; 3]]) -> Option<bool> {
+        let classes = self.classes.read().unwrap_or_else(|e| e.into_inner());
+        classes
+            .get(&class)?
+            .iter()
+            .find(|v| v.before == before && v.after == after)
+            .map(|v| v.kept)
+    }
+
+    fn insert_class(&self, class: u64, before: Vec<[u8; 3]>, after: Vec<[u8; 3]>, kept: bool) {
+        let mut classes = self.classes.write().unwrap_or_else(|e| e.into_inner());
+        let variants = classes.entry(class).or_default();
+        if variants.len() < CLASS_VARIANTS
+            && !variants
+                .iter()
+                .any(|v| v.before == before && v.after == after)
+        {
+            variants.push(ClassPatches {
+                before,
+                after,
+                kept,
+            });
+        }
+    }
+
     fn get(&self, pattern: u64) -> Option<Known> {
-        self.0
+        self.known
             .read()
             .unwrap_or_else(|e| e.into_inner())
             .get(&pattern)
@@ -1486,7 +1673,7 @@ impl Neighbourhoods {
     }
 
     fn insert(&self, pattern: u64, known: Known) {
-        self.0
+        self.known
             .write()
             .unwrap_or_else(|e| e.into_inner())
             .insert(pattern, known);
@@ -1782,4 +1969,57 @@ fn fan<T: Copy + Ord>(ts: &[[T; 3]], u: T) -> Option<(Vec<(T, T)>, usize)> {
         }
     }
     Some((paths, cycles))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The rotations are 24 different bijections of the block that keep its centre, and turning
+    /// the codes agrees with turning the places (a grid point's code is its place, doubled).
+    #[test]
+    fn rotations_are_the_cube_group() {
+        let r = Rotations::new();
+        let mut seen = std::collections::BTreeSet::new();
+        for (places, codes) in r.places.iter().zip(&r.codes) {
+            let mut p = places.to_vec();
+            p.sort_unstable();
+            assert_eq!(p, (0..27).collect::<Vec<u8>>());
+            let mut c = codes.to_vec();
+            c.sort_unstable();
+            assert_eq!(c, (0..125).collect::<Vec<u8>>());
+            assert_eq!(places[13], 13);
+            for (i, &place) in places.iter().enumerate() {
+                let (x, y, z) = (i % 3, i / 3 % 3, i / 9);
+                let code = 25 * 2 * x + 5 * 2 * y + 2 * z;
+                let turned = usize::from(codes[code]);
+                let place = usize::from(place);
+                assert_eq!(
+                    turned,
+                    25 * 2 * (place % 3) + 5 * 2 * (place / 3 % 3) + 2 * (place / 9)
+                );
+            }
+            seen.insert(places.to_vec());
+        }
+        assert_eq!(seen.len(), 24);
+    }
+
+    proptest! {
+        /// Every rotation of a pattern has the same class, and the rotation found takes the
+        /// pattern to it.
+        #[test]
+        fn a_class_is_the_same_from_every_rotation(trits in proptest::collection::vec(0u64..3, 27)) {
+            let r = Rotations::new();
+            let pattern = trits.iter().enumerate().fold(0, |p, (i, &t)| p | t << (2 * i));
+            let (class, turn) = r.canonical(pattern);
+            let apply = |p: u64, places: &[u8; 27]| {
+                (0..27).fold(0, |q, i| q | (p >> (2 * i) & 3) << (2 * places[i]))
+            };
+            prop_assert_eq!(apply(pattern, &r.places[turn]), class);
+            for places in &r.places {
+                prop_assert_eq!(r.canonical(apply(pattern, places)).0, class);
+            }
+        }
+    }
 }
