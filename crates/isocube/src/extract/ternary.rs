@@ -1220,20 +1220,20 @@ impl<'a> Ternary<'a> {
         })
     }
 
-    /// Where the vertex of zero point `p`, at coordinates `c`, goes: `(edge start, its
-    /// coordinates, axis, fraction)`, and `(p, c, 0, 0.0)` for the grid point itself. Callers
-    /// pass `c` so that the many who know it need no division to find it.
-    fn snapped_place_at(&self, p: usize, c: [usize; 3]) -> (usize, [usize; 3], usize, f64) {
+    /// Where the vertex of zero point `p`, at coordinates `c`, goes: `(coordinates of the edge
+    /// start, axis, fraction)`, and `(c, 0, 0.0)` for the grid point itself. Callers pass `c`
+    /// so that the many who know it need no division to find it.
+    fn snapped_place_at(&self, p: usize, c: [usize; 3]) -> ([usize; 3], usize, f64) {
         let values: &[f32] = &self.values;
         let level = f64::from(self.level);
         let v = f64::from(values[p]);
         if self.snapping.position == SnapPosition::GridPoint
             || (v - level).abs() <= f64::from(self.snapping.zero_threshold)
         {
-            return (p, c, 0, 0.0);
+            return (c, 0, 0.0);
         }
         let dims = self.grid.dims();
-        let mut best = (p, c, 0, 0.0, f64::INFINITY);
+        let mut best = (c, 0, 0.0, f64::INFINITY);
         for (axis, &stride) in self.strides.iter().enumerate() {
             for forward in [false, true] {
                 let q = match forward {
@@ -1246,23 +1246,23 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
-                if t < best.4 {
+                if t < best.3 {
                     best = if forward {
-                        (p, c, axis, t, t)
+                        (c, axis, t, t)
                     } else {
                         let mut cq = c;
                         cq[axis] -= 1;
-                        (q, cq, axis, 1.0 - t, t)
+                        (cq, axis, 1.0 - t, t)
                     };
                 }
             }
         }
-        (best.0, best.1, best.2, best.3)
+        (best.0, best.1, best.2)
     }
 
     /// Position of the vertex of zero point `p` at coordinates `c`.
     fn point_position(&self, p: usize, c: [usize; 3]) -> [f32; 3] {
-        let (_, c0, axis, t) = self.snapped_place_at(p, c);
+        let (c0, axis, t) = self.snapped_place_at(p, c);
         let mut x = self.grid.point(c0[0], c0[1], c0[2]);
         x[axis] += t * self.grid.spacing()[axis];
         x.map(|c| c as f32)
@@ -1426,8 +1426,8 @@ impl<'a> Ternary<'a> {
         let payload = (key & PAYLOAD) as usize;
         let id = match tag(key) {
             POINT => match self.snapped_place_at(payload, self.coords(payload)) {
-                (_, c0, _, 0.0) => placer.point_vertex(c0, &mut out.mesh)?,
-                (_, c0, axis, t) => placer.vertex_on_edge(c0, axis, t, &mut out.mesh)?,
+                (c0, _, 0.0) => placer.point_vertex(c0, &mut out.mesh)?,
+                (c0, axis, t) => placer.vertex_on_edge(c0, axis, t, &mut out.mesh)?,
             },
             EDGE => {
                 let (a, axis) = (payload / 3, payload % 3);
