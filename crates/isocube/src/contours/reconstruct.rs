@@ -642,6 +642,88 @@ mod tests {
         assert_eq!(r.mesh.report().degenerate, 0);
     }
 
+    /// Found by the needle property: two spikes of one section's second lobe, with flat caps on
+    /// a 33-cell grid, left three boundary edges and a degenerate triangle.
+    #[test]
+    fn needles_of_a_second_lobe_keep_the_surface_closed() {
+        let b = vec![
+            0.6,
+            0.6,
+            0.6684641029114624,
+            0.7079800684870328,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            1.2763638404262168,
+            0.8710067132473372,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            1.2498566809685014,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+            0.6,
+        ];
+        let layers = vec![
+            (0.5, vec![0.6; 36], 0.0, 0u8),
+            (0.5, b, 0.4827244410469335, 1u8),
+        ];
+        let stack = star_stack(&layers);
+        let r = reconstruct(&stack, &PlaneGrid::across(&stack, 33), Cap::Flat).unwrap();
+        let rep = r.mesh.report();
+        assert!(
+            rep.watertight && rep.oriented && rep.degenerate == 0,
+            "{rep:?}"
+        );
+        assert!(rep.volume.unwrap() > 0.0);
+        if r.unresolved_edges + r.missed_contours == 0 {
+            let d = cut_distance(&r.mesh, &stack);
+            let diag = diagonal(&stack);
+            assert!(
+                d.contour_to_cut <= 1e-6 * diag && d.cut_to_contour <= 1e-6 * diag,
+                "{d:?}"
+            );
+        }
+    }
+
+    /// Found by the needle property too: a spiky section over a plain one, flat caps on a
+    /// 44-cell grid, left three boundary edges and a degenerate triangle.
+    #[test]
+    fn needles_over_a_plain_section_keep_the_surface_closed() {
+        let mut b = vec![0.6; 45];
+        b[3] = 1.2961796453956875;
+        b[14] = 1.2131794955024298;
+        b[19] = 1.295475400706063;
+        b[20] = 0.9695121385949563;
+        b[36] = 1.2432864733715838;
+        let layers = vec![
+            (0.5, vec![0.6; 12], 0.0, 0u8),
+            (0.5, b, 2.8305106346173656, 0u8),
+        ];
+        let stack = star_stack(&layers);
+        let r = reconstruct(&stack, &PlaneGrid::across(&stack, 44), Cap::Flat).unwrap();
+        let rep = r.mesh.report();
+        assert!(
+            rep.watertight && rep.oriented && rep.degenerate == 0,
+            "{rep:?}"
+        );
+        assert!(rep.volume.unwrap() > 0.0);
+    }
+
     /// A section without contours ends the body: it closes between the last contour and it.
     #[test]
     fn an_empty_section_ends_the_body() {

@@ -174,6 +174,14 @@ fn segment_crossings(
                     };
                     let mut at = x;
                     at[axis] = o[axis] + line as f64 * h;
+                    // A contour passing within rounding of a grid point would put the crossings
+                    // on two of its edges at one single-precision point: each is kept a few
+                    // units of that precision away from its edge's ends.
+                    let (lo, hi) = (o[other] + k as f64 * h, o[other] + (k + 1) as f64 * h);
+                    let margin = 8.0 * f64::from(f32::EPSILON) * lo.abs().max(hi.abs()).max(h);
+                    if hi - lo > 4.0 * margin {
+                        at[other] = at[other].clamp(lo + margin, hi - margin);
+                    }
                     hits.push((t, (layer, (1 - axis) as u8, i, j), at));
                 }
             }
@@ -181,6 +189,14 @@ fn segment_crossings(
         }
     }
     hits.sort_by(|x, y| x.0.total_cmp(&y.0));
+}
+
+/// Whether two points in a section plane are the same once written in single precision (or
+/// within a few units of its last place): such a pair cannot be two vertices of a mesh.
+fn same_point(a: Point2, b: Point2) -> bool {
+    let scale = a[0].abs().max(a[1].abs()).max(b[0].abs()).max(b[1].abs());
+    let tolerance = 4.0 * f64::from(f32::EPSILON) * scale.max(f64::MIN_POSITIVE);
+    (a[0] - b[0]).abs() <= tolerance && (a[1] - b[1]).abs() <= tolerance
 }
 
 /// The squares next to a plane edge.
@@ -283,15 +299,25 @@ fn walk_section(s: usize, section: &Section, layer: usize, plane: &PlaneGrid) ->
         let mut xs: Vec<Crossing> = Vec::new();
         // Vertices before the first crossing belong after the last one (the contour closes).
         let mut lead: Vec<(Key, Point2)> = Vec::new();
+        // Whether contour vertex `a` is kept: not where a crossing of a segment next to it is.
+        let mut kept = vec![true; n];
         for a in 0..n {
             let (p, q) = (pts[a], pts[(a + 1) % n]);
-            let vertex = (Key::ContourVertex(s, c, a), p);
-            match xs.last_mut() {
-                Some(x) => x.after.push(vertex),
-                None => lead.push(vertex),
-            }
             segment_crossings(p, q, plane, layer, &mut hits);
+            // A vertex within rounding of a grid line would be its crossing's twin once written
+            // in single precision: a flat triangle between them, and a cap that cannot close.
+            // The crossing is on the contour, so it stands for the vertex.
+            if kept[a] && !hits.first().is_some_and(|h| same_point(h.2, p)) {
+                let vertex = (Key::ContourVertex(s, c, a), p);
+                match xs.last_mut() {
+                    Some(x) => x.after.push(vertex),
+                    None => lead.push(vertex),
+                }
+            }
             for &(_, edge, at) in &hits {
+                if same_point(at, q) {
+                    kept[(a + 1) % n] = false;
+                }
                 let key = Key::ContourCrossing(s, c, xs.len());
                 xs.push(Crossing {
                     edge,
@@ -300,6 +326,9 @@ fn walk_section(s: usize, section: &Section, layer: usize, plane: &PlaneGrid) ->
                     after: Vec::new(),
                 });
             }
+        }
+        if !kept[0] {
+            lead.retain(|v| v.0 != Key::ContourVertex(s, c, 0));
         }
         if let Some(x) = xs.last_mut() {
             x.after.append(&mut lead);
