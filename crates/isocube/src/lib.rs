@@ -49,6 +49,7 @@ pub mod mesh;
 pub mod quality;
 pub mod render;
 pub mod subdiv;
+pub mod volume;
 
 pub use error::{no_progress, Error, ParseError};
 

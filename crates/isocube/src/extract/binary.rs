@@ -243,7 +243,7 @@ pub(super) fn slab_height(nx: usize, ny: usize, nz: usize) -> usize {
 }
 
 /// The default partition: slabs of whole cell layers.
-pub(super) fn slabs(dims: [usize; 3]) -> Vec<CellBox> {
+pub(crate) fn slabs(dims: [usize; 3]) -> Vec<CellBox> {
     let [nx, ny, nz] = dims;
     let height = slab_height(nx, ny, nz - 1);
     CellBox::tile(dims, [nx - 1, ny - 1, height]).expect("sizes of at least 1")

@@ -144,7 +144,7 @@ impl CellBox {
 /// assert_eq!(k.on_plane([4, 4, 4], 2, 1), false); // a z edge never lies in a z plane
 /// assert!(VertexKey::point(17).on_plane([4, 4, 4], 2, 1)); // point 17 is (1, 0, 1)
 /// ```
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct VertexKey(u64);
 
 /// What a [`VertexKey`] names.
@@ -455,16 +455,17 @@ pub fn join(
     mesh: &mut Mesh,
     progress: &mut dyn FnMut(usize),
 ) -> Result<ExtractStats, ExtractError> {
-    join_tagged(dims, chunks, mesh, &mut Vec::new(), progress)
+    join_tagged(dims, chunks, mesh, &mut Vec::new(), None, progress)
 }
 
 /// [`join`], with the chunks' triangle tags into `tags` (in the joined triangles' order; left
-/// empty when no chunk has tags).
-pub(super) fn join_tagged(
+/// empty when no chunk has tags) and, if asked, each joined vertex's key into `keys`.
+pub(crate) fn join_tagged(
     dims: [usize; 3],
     chunks: Vec<ChunkMesh>,
     mesh: &mut Mesh,
     tags: &mut Vec<u32>,
+    keys: Option<&mut Vec<VertexKey>>,
     progress: &mut dyn FnMut(usize),
 ) -> Result<ExtractStats, ExtractError> {
     mesh.clear();
@@ -567,6 +568,14 @@ pub(super) fn join_tagged(
     for (c, list) in aliases.iter().enumerate() {
         for &(v, oc, ov) in list {
             global[c][v as usize] = global[oc as usize][ov as usize];
+        }
+    }
+    if let Some(keys) = keys {
+        sized(keys, nv);
+        for (chunk, ids) in chunks.iter().zip(&global) {
+            for (&key, &id) in chunk.keys.iter().zip(ids) {
+                keys[id as usize] = key;
+            }
         }
     }
     sized(&mut mesh.positions, nv);

@@ -168,7 +168,14 @@ pub fn extract_labels_boxes<'a>(
         .collect::<Result<_, _>>()?;
     let mut all = Mesh::new();
     let mut tags = Vec::new();
-    join_tagged(labelled.dims, chunks, &mut all, &mut tags, &mut |_| {})?;
+    join_tagged(
+        labelled.dims,
+        chunks,
+        &mut all,
+        &mut tags,
+        None,
+        &mut |_| {},
+    )?;
     let mut triangles: Vec<Vec<[u32; 3]>> = vec![Vec::new(); labelled.names.len() + 1];
     for (t, &tag) in all.triangles.iter().zip(&tags) {
         triangles[tag as usize].push(*t);

@@ -86,6 +86,8 @@ mod ternary;
 mod weld;
 mod window;
 
+pub(crate) use binary::slabs;
+pub(crate) use chunk::join_tagged;
 pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
 pub use labels::{
     extract_labels, extract_labels_boxes, label_cells, LabelOptions, LabelSelection, LabelSurface,

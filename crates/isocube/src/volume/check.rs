@@ -1,0 +1,242 @@
+//! Checks of a tetrahedral mesh, exact where it matters: orientation by an exact predicate,
+//! conformity by matching faces, and the volume against the boundary's.
+
+use rayon::prelude::*;
+
+use super::TetMesh;
+
+/// Whether the tetrahedron `(a, b, c, d)` is positively oriented, `(b − a) · ((c − a) × (d − a))
+/// > 0`, decided exactly on the given coordinates.
+///
+/// ```
+/// use isocube::volume::positive;
+/// let (a, b, c, d) = ([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+/// assert!(positive(a, b, c, d));
+/// assert!(!positive(a, c, b, d));
+/// assert!(!positive(a, b, c, [0.5, 0.5, 0.0])); // flat
+/// ```
+pub fn positive(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> bool {
+    let p = |x: [f64; 3]| robust::Coord3D {
+        x: x[0],
+        y: x[1],
+        z: x[2],
+    };
+    // `robust` measures the other way round: positive when d lies below the plane of a, b, c
+    // seen counterclockwise.
+    robust::orient3d(p(a), p(b), p(c), p(d)) < 0.0
+}
+
+/// A point, rounded to `f32`, from which all of a closed part's outward triangles are seen from
+/// inside: the centre of the largest ball in the kernel (a linear program, solved by trying every
+/// set of four constraints: parts have a few dozen triangles, and this runs only when simple
+/// guesses fail).
+pub(super) fn kernel_point(tris: &[[[f64; 3]; 3]]) -> Option<[f32; 3]> {
+    // Each constraint: n · x + t ≤ h, n the unit outward normal.
+    let rows: Vec<([f64; 3], f64)> = tris
+        .iter()
+        .filter_map(|t| {
+            let (u, w) = (sub(t[1], t[0]), sub(t[2], t[0]));
+            let n = cross(u, w);
+            let len = dot(n, n).sqrt();
+            (len > 0.0).then(|| {
+                let n = n.map(|x| x / len);
+                (n, dot(n, t[0]))
+            })
+        })
+        .collect();
+    let m = rows.len();
+    let mut best: Option<([f64; 3], f64)> = None;
+    for a in 0..m {
+        for b in a + 1..m {
+            for c in b + 1..m {
+                for d in c + 1..m {
+                    let Some((x, t)) = solve4([rows[a], rows[b], rows[c], rows[d]]) else {
+                        continue;
+                    };
+                    if best.is_some_and(|(_, bt)| t <= bt) {
+                        continue;
+                    }
+                    let slack = 1e-12 * (1.0 + t.abs() + dot(x, x).sqrt());
+                    if rows.iter().all(|(n, h)| dot(*n, x) + t <= h + slack) {
+                        best = Some((x, t));
+                    }
+                }
+            }
+        }
+    }
+    let (x, t) = best?;
+    if t <= 0.0 {
+        return None;
+    }
+    let apex = x.map(|c| c as f32);
+    tris.iter()
+        .all(|tr| positive(tr[0], tr[2], tr[1], apex.map(f64::from)))
+        .then_some(apex)
+}
+
+/// Solves n_i · x + t = h_i for four rows.
+fn solve4(rows: [([f64; 3], f64); 4]) -> Option<([f64; 3], f64)> {
+    let mut a: [[f64; 5]; 4] =
+        std::array::from_fn(|i| [rows[i].0[0], rows[i].0[1], rows[i].0[2], 1.0, rows[i].1]);
+    for col in 0..4 {
+        let pivot = (col..4).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[pivot][col].abs() < 1e-12 {
+            return None;
+        }
+        a.swap(col, pivot);
+        for r in 0..4 {
+            if r != col {
+                let f = a[r][col] / a[col][col];
+                let pivot_row = a[col];
+                for (x, p) in a[r].iter_mut().zip(pivot_row).skip(col) {
+                    *x -= f * p;
+                }
+            }
+        }
+    }
+    let s: [f64; 4] = std::array::from_fn(|i| a[i][4] / a[i][i]);
+    Some(([s[0], s[1], s[2]], s[3]))
+}
+
+pub(super) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub(super) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+pub(super) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// What [`TetMesh::check`] found.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TetCheck {
+    /// Every face is shared by two tetrahedra, once each way, or is a boundary face; and the
+    /// boundary faces are exactly the surface's and the walls' triangles, outward.
+    pub conforming: bool,
+    /// Faces used by more than two tetrahedra or twice the same way.
+    pub bad_faces: usize,
+    /// Boundary faces of the tetrahedra that are not surface or wall triangles, plus surface or
+    /// wall triangles that bound no tetrahedron.
+    pub boundary_mismatch: usize,
+    /// Tetrahedra negatively oriented (exact predicate).
+    pub inverted: usize,
+    /// Tetrahedra with four coplanar vertices (exact predicate).
+    pub flat: usize,
+    /// Sum of the tetrahedra's volumes.
+    pub volume: f64,
+    /// The volume the surface and walls enclose (divergence theorem).
+    pub enclosed: f64,
+}
+
+impl TetMesh {
+    /// Checks conformity, orientation and volume (see [`TetCheck`]).
+    pub fn check(&self) -> TetCheck {
+        // Volumes are measured from a vertex of the mesh, not from a far origin.
+        let o = self
+            .positions
+            .first()
+            .map_or([0.0; 3], |x| x.map(f64::from));
+        let p = |v: u32| sub(self.positions[v as usize].map(f64::from), o);
+        let (inverted, flat, volume) = self
+            .tets
+            .par_iter()
+            .map(|t| {
+                let [a, b, c, d] = t.map(p);
+                let pos = positive(a, b, c, d);
+                let neg = positive(a, c, b, d);
+                let vol = dot(sub(b, a), cross(sub(c, a), sub(d, a))) / 6.0;
+                (usize::from(!pos && neg), usize::from(!pos && !neg), vol)
+            })
+            .reduce(|| (0, 0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
+        // Outward faces of every tetrahedron, keyed by their sorted vertices.
+        let mut faces: Vec<([u32; 3], [u32; 3])> = self
+            .tets
+            .par_iter()
+            .flat_map_iter(|&[a, b, c, d]| {
+                [[a, c, b], [a, b, d], [a, d, c], [b, c, d]].map(|f| {
+                    let mut s = f;
+                    s.sort_unstable();
+                    (s, f)
+                })
+            })
+            .collect();
+        faces.par_sort_unstable_by_key(|f| f.0);
+        let same_way =
+            |f: [u32; 3], g: [u32; 3]| (0..3).any(|r| [f[r], f[(r + 1) % 3], f[(r + 2) % 3]] == g);
+        let mut bad_faces = 0;
+        let mut open: Vec<[u32; 3]> = Vec::new();
+        let mut i = 0;
+        while i < faces.len() {
+            let mut j = i + 1;
+            while j < faces.len() && faces[j].0 == faces[i].0 {
+                j += 1;
+            }
+            match j - i {
+                1 => open.push(faces[i].1),
+                2 if !same_way(faces[i].1, faces[i + 1].1) => {}
+                _ => bad_faces += 1,
+            }
+            i = j;
+        }
+        let canonical = |f: [u32; 3]| {
+            let r = (0..3).min_by_key(|&r| f[r]).expect("three");
+            [f[r], f[(r + 1) % 3], f[(r + 2) % 3]]
+        };
+        let mut open: Vec<[u32; 3]> = open.into_iter().map(canonical).collect();
+        let mut boundary: Vec<[u32; 3]> = self
+            .surface
+            .iter()
+            .chain(&self.walls)
+            .map(|&f| canonical(f))
+            .collect();
+        open.par_sort_unstable();
+        boundary.par_sort_unstable();
+        let mut boundary_mismatch = 0;
+        let (mut a, mut b) = (0, 0);
+        while a < open.len() || b < boundary.len() {
+            match (open.get(a), boundary.get(b)) {
+                (Some(x), Some(y)) if x == y => {
+                    a += 1;
+                    b += 1;
+                }
+                (Some(x), Some(y)) if x < y => {
+                    boundary_mismatch += 1;
+                    a += 1;
+                }
+                (Some(_), None) => {
+                    boundary_mismatch += 1;
+                    a += 1;
+                }
+                _ => {
+                    boundary_mismatch += 1;
+                    b += 1;
+                }
+            }
+        }
+        let enclosed = self
+            .surface
+            .par_iter()
+            .chain(self.walls.par_iter())
+            .map(|t| {
+                let [a, b, c] = t.map(p);
+                dot(a, cross(b, c)) / 6.0
+            })
+            .sum();
+        TetCheck {
+            conforming: bad_faces == 0 && boundary_mismatch == 0,
+            bad_faces,
+            boundary_mismatch,
+            inverted,
+            flat,
+            volume,
+            enclosed,
+        }
+    }
+}

@@ -1,0 +1,815 @@
+//! Tetrahedral meshes of the region inside an isosurface, for finite elements.
+//!
+//! [`tetmesh`] fills the region `f < level` (`f ≥ level` with [`ExtractOptions::flip`]: the two
+//! sides of the binary classification [`crate::extract`] uses) with tetrahedra whose boundary is
+//! the surface [`crate::extract::extract`] makes with the same options — the same vertex
+//! positions and the same triangles, no point added on it — plus, where the region reaches the
+//! grid's outer faces, the parts of those faces inside it (the *walls*).
+//!
+//! How each cell is filled:
+//! - **A cell with all eight corners inside** is cut into the six tetrahedra of its Kuhn
+//!   triangulation (the paths from its lowest to its highest corner along the three axes in
+//!   each order). On cubic cells their dihedral angles are 45°, 60° and 90°.
+//! - **A cell the surface passes through**: its part of the region is bounded by the cell's
+//!   surface triangles and by the parts of its six faces inside the region. Each face part is
+//!   cut by the surface's segments on that face into convex pieces, and every piece is
+//!   triangulated by a rule that reads only the face (a whole square along the Kuhn diagonal,
+//!   anything else the triangulation with the largest smallest angle), so both cells sharing a
+//!   face cut it the same way and the mesh is conforming. Each connected part of the cell's
+//!   region is then coned from one point inside it (a Steiner point, never on the boundary).
+//!
+//! Every cone tetrahedron is checked with an exact orientation predicate on the coordinates as
+//! stored (`f32`): all positive, over a closed boundary, means the cone tiles the part exactly.
+//! A part that no tried point sees whole is reported as an error naming the cell rather than
+//! meshed wrongly.
+//!
+//! ```
+//! use isocube::extract::ExtractOptions;
+//! use isocube::field::Sample;
+//! use isocube::volume::tetmesh;
+//! let grid = Sample::Sphere.grid(16);
+//! let tets = tetmesh(&grid, &ExtractOptions::default().with_flip(false)).unwrap();
+//! let check = tets.check();
+//! assert!(check.conforming && check.inverted == 0 && check.flat == 0);
+//! assert!((check.volume - check.enclosed).abs() <= 1e-9 * check.enclosed.abs());
+//! ```
+
+use rayon::prelude::*;
+use rustc_hash::FxHashMap as HashMap;
+
+use crate::extract::{
+    join_tagged, slabs, ExtractError, ExtractOptions, ExtractStats, Extractor, KeyKind, Method,
+    VertexKey,
+};
+use crate::field::GridView;
+use crate::mesh::Mesh;
+
+mod check;
+mod face;
+
+pub use check::{positive, TetCheck};
+
+/// A tetrahedral mesh of the region inside a surface.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TetMesh {
+    /// Vertex positions: the surface's vertices first (in the order [`crate::extract::extract`]
+    /// gives them), then the grid points inside the region, then the Steiner points.
+    pub positions: Vec<[f32; 3]>,
+    /// Tetrahedra, each positively oriented: `(b − a) · ((c − a) × (d − a)) > 0`.
+    pub tets: Vec<[u32; 4]>,
+    /// The isosurface's triangles, outward: [`crate::extract::extract`]'s triangles.
+    pub surface: Vec<[u32; 3]>,
+    /// Boundary triangles on the grid's outer faces, outward.
+    pub walls: Vec<[u32; 3]>,
+    /// How many of [`TetMesh::positions`] are the surface's vertices.
+    pub surface_vertices: usize,
+    /// Counts.
+    pub stats: TetStats,
+}
+
+/// Counts from [`tetmesh`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TetStats {
+    /// Cells entirely inside, cut into six Kuhn tetrahedra each.
+    pub lattice_cells: usize,
+    /// Cells the surface passes through.
+    pub cut_cells: usize,
+    /// Grid points inside the region (vertices of the mesh).
+    pub grid_points: usize,
+    /// Points added inside cut cells (one per connected part).
+    pub steiner_points: usize,
+    /// The surface extraction's counts.
+    pub extract: ExtractStats,
+}
+
+/// Why a volume mesh could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum TetError {
+    /// Extracting the surface failed.
+    #[error(transparent)]
+    Extract(#[from] ExtractError),
+    /// A value is NaN or infinite: the region is not defined there.
+    #[error("point {point:?} holds {value}: a volume mesh needs a finite value at every point")]
+    NonFinite {
+        /// The grid point.
+        point: [usize; 3],
+        /// Its value.
+        value: f32,
+    },
+    /// No grid point lies inside the region.
+    #[error("no region to mesh: no grid point is on the inside of the level")]
+    Empty,
+    /// An option the volume mesher does not take.
+    #[error("{0}")]
+    Unsupported(&'static str),
+    /// A cell's part of the region could not be filled (a bug: please report the input).
+    #[error("cell {cell:?}: {reason}")]
+    Cell {
+        /// The cell, by its lowest grid point.
+        cell: [usize; 3],
+        /// What went wrong.
+        reason: &'static str,
+    },
+    /// The mesh would take more memory than allowed.
+    #[error("the volume mesh needs about {bytes} bytes, more than the limit of {limit}")]
+    Memory {
+        /// Bytes estimated.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// More vertices than 32-bit indices can number.
+    #[error("too many vertices for 32-bit indices")]
+    TooManyVertices,
+}
+
+/// Steiner points are numbered per layer of cells while the layers are meshed in parallel; this
+/// bit marks such a local number until the layers are joined.
+const STEINER: u32 = 1 << 31;
+
+/// Meshes the region inside the isosurface of `grid` with tetrahedra (see the module
+/// documentation). The options are [`crate::extract::extract`]'s; relaxation is refused (it
+/// moves surface vertices off the cell faces the construction relies on), and so, for now, is
+/// the ternary method.
+pub fn tetmesh<'a>(
+    grid: impl Into<GridView<'a>>,
+    options: &ExtractOptions,
+) -> Result<TetMesh, TetError> {
+    let grid = grid.into();
+    if options.relax > 0 {
+        return Err(TetError::Unsupported(
+            "relaxation moves surface vertices off the cell faces: a volume mesh cannot keep it",
+        ));
+    }
+    if matches!(options.method, Method::Ternary(_)) {
+        return Err(TetError::Unsupported(
+            "volume meshes are made with the mc method for now (ternary is planned)",
+        ));
+    }
+    let dims = grid.dims();
+    if let Some((point, value)) = first_non_finite(&grid) {
+        return Err(TetError::NonFinite { point, value });
+    }
+    let level = options.level;
+    let flip = options.flip;
+    let inside = move |v: f32| if flip { v >= level } else { v < level };
+
+    // The surface, and every vertex's key.
+    let surface_options = ExtractOptions {
+        normals: false,
+        relax: 0,
+        ..*options
+    };
+    let extractor = Extractor::new(grid, &surface_options)?;
+    let chunks = extractor.mesh_boxes(&slabs(dims))?;
+    let mut surface = Mesh::new();
+    let mut keys = Vec::new();
+    let extract_stats = join_tagged(
+        dims,
+        chunks,
+        &mut surface,
+        &mut Vec::new(),
+        Some(&mut keys),
+        &mut |_| {},
+    )?;
+
+    // Inside grid points, numbered after the surface's vertices in grid order.
+    let point_count = dims[0] * dims[1] * dims[2];
+    let mut rank = vec![u32::MAX; point_count];
+    let mut inside_points: Vec<u32> = Vec::new();
+    let base = surface.positions.len();
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                if inside(grid.value(i, j, k)) {
+                    let p = i + dims[0] * (j + dims[1] * k);
+                    rank[p] = (base + inside_points.len()) as u32;
+                    inside_points.push(p as u32);
+                }
+            }
+        }
+    }
+    if inside_points.is_empty() {
+        return Err(TetError::Empty);
+    }
+    if base + inside_points.len() >= STEINER as usize {
+        return Err(TetError::TooManyVertices);
+    }
+    if let Some(limit) = options.max_memory {
+        // About six tetrahedra per inside point, the positions and the surface.
+        let bytes = inside_points.len() as u64 * (6 * 16 + 12 + 4)
+            + surface.triangles.len() as u64 * 24
+            + point_count as u64 * 4;
+        if bytes > limit {
+            return Err(TetError::Memory { bytes, limit });
+        }
+    }
+
+    // Surface triangles by cell.
+    let cell_dims = [dims[0] - 1, dims[1] - 1, dims[2] - 1];
+    let mut by_cell: Vec<(u64, u32)> = surface
+        .triangles
+        .par_iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            let cell = triangle_cell(tri, &keys, &surface.positions, dims).map_or(u64::MAX, |c| {
+                (c[0] + cell_dims[0] * (c[1] + cell_dims[1] * c[2])) as u64
+            });
+            (cell, t as u32)
+        })
+        .collect();
+    by_cell.par_sort_unstable();
+    if let Some(&(_, t)) = by_cell.last().filter(|e| e.0 == u64::MAX) {
+        let tri = surface.triangles[t as usize];
+        let c = cell_near(keys[tri[0] as usize], dims);
+        return Err(TetError::Cell {
+            cell: c,
+            reason: "a surface triangle's vertices share no cell",
+        });
+    }
+
+    // Crossing vertices by key, and the surface's segments on each cell face.
+    let crossings: HashMap<VertexKey, u32> = keys
+        .iter()
+        .enumerate()
+        .filter(|(_, k)| matches!(k.kind(), KeyKind::Crossing { .. }))
+        .map(|(v, &k)| (k, v as u32))
+        .collect();
+    let segments = face::segments_by_face(&surface.triangles, &keys, dims);
+
+    let ctx = Context {
+        grid,
+        dims,
+        rank: &rank,
+        inside_points: &inside_points,
+        positions: &surface.positions,
+        surface: &surface.triangles,
+        by_cell: &by_cell,
+        crossings: &crossings,
+        segments: &segments,
+        base,
+    };
+    let layers: Vec<Layer> = (0..cell_dims[2])
+        .into_par_iter()
+        .map(|k| ctx.layer(k))
+        .collect::<Result<_, _>>()?;
+
+    // Join the layers: Steiner points after the grid points, in layer order.
+    let steiner_base = base + inside_points.len();
+    let total_steiner: usize = layers.iter().map(|l| l.steiner.len()).sum();
+    if steiner_base + total_steiner >= STEINER as usize {
+        return Err(TetError::TooManyVertices);
+    }
+    let grid_positions: Vec<[f32; 3]> = inside_points
+        .par_iter()
+        .map(|&p| ctx.point_position(p as usize))
+        .collect();
+    let mut positions = surface.positions;
+    positions.reserve(inside_points.len() + total_steiner);
+    positions.extend_from_slice(&grid_positions);
+    let mut stats = TetStats {
+        grid_points: inside_points.len(),
+        steiner_points: total_steiner,
+        extract: extract_stats,
+        ..TetStats::default()
+    };
+    let mut tets = Vec::with_capacity(layers.iter().map(|l| l.tets.len()).sum());
+    let mut walls = Vec::new();
+    let mut offset = steiner_base as u32;
+    for layer in layers {
+        let map = |v: u32| {
+            if v & STEINER != 0 {
+                offset + (v & !STEINER)
+            } else {
+                v
+            }
+        };
+        tets.extend(layer.tets.iter().map(|t| t.map(map)));
+        walls.extend(layer.walls.iter().map(|t| t.map(map)));
+        positions.extend_from_slice(&layer.steiner);
+        offset += layer.steiner.len() as u32;
+        stats.lattice_cells += layer.lattice_cells;
+        stats.cut_cells += layer.cut_cells;
+    }
+    let mut mesh = TetMesh {
+        positions,
+        tets,
+        surface: surface.triangles,
+        walls,
+        surface_vertices: base,
+        stats,
+    };
+    // Meshing ran in the grid's frame; its direction turns the mesh into the world.
+    let orientation = grid.orientation();
+    if !orientation.is_identity() {
+        let mut none: Vec<[f32; 3]> = Vec::new();
+        orientation.orient_parts(
+            &mut mesh.positions,
+            &mut none,
+            &mut mesh.surface,
+            grid.origin(),
+        );
+        if orientation.determinant() < 0.0 {
+            for t in &mut mesh.walls {
+                t.swap(1, 2);
+            }
+            for t in &mut mesh.tets {
+                t.swap(2, 3);
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+fn first_non_finite(grid: &GridView) -> Option<([usize; 3], f32)> {
+    let [nx, ny, nz] = grid.dims();
+    (0..nz).into_par_iter().find_map_first(|k| {
+        for j in 0..ny {
+            for i in 0..nx {
+                let v = grid.value(i, j, k);
+                if !v.is_finite() {
+                    return Some(([i, j, k], v));
+                }
+            }
+        }
+        None
+    })
+}
+
+/// Grid coordinates of point `p`.
+fn coords(p: usize, dims: [usize; 3]) -> [usize; 3] {
+    [p % dims[0], p / dims[0] % dims[1], p / (dims[0] * dims[1])]
+}
+
+/// The cells (as ranges of lowest corners per axis) a vertex with key `key` can belong to.
+fn cell_range(key: VertexKey, dims: [usize; 3]) -> [[usize; 2]; 3] {
+    let around = |c: [usize; 3], fixed: Option<usize>| {
+        std::array::from_fn(|d| {
+            if Some(d) == fixed {
+                [c[d], c[d]]
+            } else {
+                [c[d].saturating_sub(1), c[d]]
+            }
+        })
+    };
+    match key.kind() {
+        KeyKind::Crossing { point, axis } => around(coords(point, dims), Some(axis)),
+        KeyKind::Interior { cell, .. } => {
+            let c = coords(cell, dims);
+            std::array::from_fn(|d| [c[d], c[d]])
+        }
+        KeyKind::Point(point) => around(coords(point, dims), None),
+        _ => [[0, usize::MAX]; 3],
+    }
+}
+
+/// The cell whose part of the region the triangle bounds: the one cell holding all three
+/// vertices or, for a triangle lying in a cell face, the cell on its inside (the surface is
+/// outward, so its normal points away from that cell). `None` if the vertices share no cell.
+fn triangle_cell(
+    tri: &[u32; 3],
+    keys: &[VertexKey],
+    positions: &[[f32; 3]],
+    dims: [usize; 3],
+) -> Option<[usize; 3]> {
+    let mut range = [[0usize, usize::MAX]; 3];
+    for &v in tri {
+        let r = cell_range(keys[v as usize], dims);
+        for d in 0..3 {
+            range[d][0] = range[d][0].max(r[d][0]);
+            range[d][1] = range[d][1].min(r[d][1]).min(dims[d] - 2);
+        }
+    }
+    if (0..3).any(|d| range[d][0] > range[d][1]) {
+        return None;
+    }
+    let mut cell: [usize; 3] = std::array::from_fn(|d| range[d][0]);
+    let open: Vec<usize> = (0..3).filter(|&d| range[d][0] != range[d][1]).collect();
+    match open[..] {
+        [] => Some(cell),
+        [n] => {
+            // In the face between cells range[n][0] and range[n][1]: the normal's component
+            // along n says which side is outside.
+            let p = tri.map(|v| positions[v as usize].map(f64::from));
+            let (a, b) = (check::sub(p[1], p[0]), check::sub(p[2], p[0]));
+            let normal = check::cross(a, b)[n];
+            if normal < 0.0 {
+                cell[n] = range[n][1];
+            }
+            (normal != 0.0).then_some(cell)
+        }
+        _ => None,
+    }
+}
+
+/// A cell next to a vertex, to name in an error.
+fn cell_near(key: VertexKey, dims: [usize; 3]) -> [usize; 3] {
+    let r = cell_range(key, dims);
+    std::array::from_fn(|d| r[d][0].min(dims[d] - 2))
+}
+
+/// The tetrahedra of one layer of cells, with Steiner points numbered locally.
+#[derive(Default)]
+struct Layer {
+    tets: Vec<[u32; 4]>,
+    walls: Vec<[u32; 3]>,
+    steiner: Vec<[f32; 3]>,
+    lattice_cells: usize,
+    cut_cells: usize,
+}
+
+struct Context<'a> {
+    grid: GridView<'a>,
+    dims: [usize; 3],
+    /// Inside grid points' vertex numbers (`u32::MAX` outside).
+    rank: &'a [u32],
+    inside_points: &'a [u32],
+    positions: &'a [[f32; 3]],
+    surface: &'a [[u32; 3]],
+    /// (cell, triangle), sorted.
+    by_cell: &'a [(u64, u32)],
+    crossings: &'a HashMap<VertexKey, u32>,
+    segments: &'a HashMap<u64, Vec<[u32; 2]>>,
+    /// Number of the first grid point vertex.
+    base: usize,
+}
+
+/// The six Kuhn tetrahedra of a cube, as corner offsets (bit 0: +x, bit 1: +y, bit 2: +z),
+/// each positively oriented.
+const KUHN: [[u8; 4]; 6] = [
+    // Even permutations (x y z, y z x, z x y) keep the path's orientation; odd ones are
+    // written with their last two points swapped.
+    [0, 1, 3, 7],
+    [0, 2, 6, 7],
+    [0, 4, 5, 7],
+    [0, 1, 7, 5],
+    [0, 2, 7, 3],
+    [0, 4, 7, 6],
+];
+
+impl Context<'_> {
+    fn point_position(&self, p: usize) -> [f32; 3] {
+        let [i, j, k] = coords(p, self.dims);
+        self.grid.point(i, j, k).map(|c| c as f32)
+    }
+
+    /// Any vertex's position (grid points and surface vertices; not Steiner points).
+    fn position(&self, v: u32) -> [f32; 3] {
+        let v = v as usize;
+        if v < self.base {
+            self.positions[v]
+        } else {
+            self.point_position(self.inside_points[v - self.base] as usize)
+        }
+    }
+
+    fn point_id(&self, c: [usize; 3]) -> u32 {
+        self.rank[c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])]
+    }
+
+    fn layer(&self, k: usize) -> Result<Layer, TetError> {
+        let [nx, ny, _] = self.dims;
+        let mut out = Layer::default();
+        let mut scratch = face::Scratch::default();
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                let corner = |o: u8| {
+                    self.point_id([
+                        i + usize::from(o & 1),
+                        j + usize::from(o >> 1 & 1),
+                        k + usize::from(o >> 2 & 1),
+                    ])
+                };
+                let ids: [u32; 8] = std::array::from_fn(|o| corner(o as u8));
+                let inside = ids.iter().filter(|&&v| v != u32::MAX).count();
+                if inside == 8 {
+                    out.lattice_cells += 1;
+                    out.tets
+                        .extend(KUHN.iter().map(|t| t.map(|o| ids[usize::from(o)])));
+                    self.cell_walls([i, j, k], &mut out.walls, &mut scratch)
+                        .map_err(|reason| TetError::Cell {
+                            cell: [i, j, k],
+                            reason,
+                        })?;
+                } else if inside > 0 {
+                    out.cut_cells += 1;
+                    self.cut_cell([i, j, k], &mut out, &mut scratch)
+                        .map_err(|reason| TetError::Cell {
+                            cell: [i, j, k],
+                            reason,
+                        })?;
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The triangles of the cell's faces on the grid's outer faces, outward.
+    fn cell_walls(
+        &self,
+        cell: [usize; 3],
+        walls: &mut Vec<[u32; 3]>,
+        scratch: &mut face::Scratch,
+    ) -> Result<(), &'static str> {
+        for n in 0..3 {
+            if cell[n] == 0 {
+                let from = walls.len();
+                self.face_triangles(cell, n, walls, scratch)?;
+                for t in &mut walls[from..] {
+                    t.swap(1, 2);
+                }
+            }
+            if cell[n] + 2 == self.dims[n] {
+                let mut q = cell;
+                q[n] += 1;
+                self.face_triangles(q, n, walls, scratch)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn cut_cell(
+        &self,
+        cell: [usize; 3],
+        out: &mut Layer,
+        scratch: &mut face::Scratch,
+    ) -> Result<(), &'static str> {
+        let [cx, cy, _] = [self.dims[0] - 1, self.dims[1] - 1, self.dims[2] - 1];
+        let index = (cell[0] + cx * (cell[1] + cy * cell[2])) as u64;
+        let from = self.by_cell.partition_point(|e| e.0 < index);
+        let to = self.by_cell.partition_point(|e| e.0 <= index);
+        let mut boundary: Vec<[u32; 3]> = self.by_cell[from..to]
+            .iter()
+            .map(|&(_, t)| self.surface[t as usize])
+            .collect();
+        for n in 0..3 {
+            let start = boundary.len();
+            self.face_triangles(cell, n, &mut boundary, scratch)?;
+            for t in &mut boundary[start..] {
+                t.swap(1, 2);
+            }
+            if cell[n] == 0 {
+                out.walls.extend_from_slice(&boundary[start..]);
+            }
+            let start = boundary.len();
+            let mut q = cell;
+            q[n] += 1;
+            self.face_triangles(q, n, &mut boundary, scratch)?;
+            if cell[n] + 2 == self.dims[n] {
+                out.walls.extend_from_slice(&boundary[start..]);
+            }
+        }
+        for part in parts(&boundary, &|v| self.position(v))? {
+            self.fill(cell, &part, out)?;
+        }
+        Ok(())
+    }
+
+    /// Fills a closed part with tetrahedra: a cone from one point that sees every triangle from
+    /// inside; failing that, cones from two points, each triangle to one that sees it, with
+    /// the wedge `(b, a, s1, s2)` on every edge `a → b` between the two cones. Every tetrahedron
+    /// is checked positive on the stored coordinates: with a closed boundary, that makes the
+    /// tetrahedra tile the part exactly (their signed indicators add up to its winding number).
+    fn fill(
+        &self,
+        cell: [usize; 3],
+        part: &[[u32; 3]],
+        out: &mut Layer,
+    ) -> Result<(), &'static str> {
+        let tris: Vec<[[f64; 3]; 3]> = part
+            .iter()
+            .map(|t| t.map(|v| self.position(v).map(f64::from)))
+            .collect();
+        let candidates = self.candidates(cell, part);
+        let sees = |apex: [f64; 3], t: &[[f64; 3]; 3]| check::positive(t[0], t[2], t[1], apex);
+        for &c in &candidates {
+            if tris.iter().all(|t| sees(c, t)) {
+                let id = STEINER | out.steiner.len() as u32;
+                out.steiner.push(c.map(|x| x as f32));
+                // A triangle (p, q, r) seen from inside, with the apex, is the tetrahedron
+                // (p, r, q, apex).
+                out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
+                return Ok(());
+            }
+        }
+        if let Some(apex) = check::kernel_point(&tris) {
+            let id = STEINER | out.steiner.len() as u32;
+            out.steiner.push(apex);
+            out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
+            return Ok(());
+        }
+        for (i, &s1) in candidates.iter().enumerate() {
+            for (j, &s2) in candidates.iter().enumerate() {
+                if i == j {
+                    continue;
+                }
+                let first: Vec<bool> = tris.iter().map(|t| sees(s1, t)).collect();
+                if !tris.iter().zip(&first).all(|(t, &f)| f || sees(s2, t)) {
+                    continue;
+                }
+                // Edges a → b of first-cone triangles whose twin is in the second cone.
+                let mut directed: Vec<(u32, u32, bool)> = part
+                    .iter()
+                    .zip(&first)
+                    .flat_map(|(t, &f)| (0..3).map(move |k| (t[k], t[(k + 1) % 3], f)))
+                    .collect();
+                directed.sort_unstable();
+                let wedges: Vec<(u32, u32)> = directed
+                    .iter()
+                    .filter(|e| e.2)
+                    .filter(|e| {
+                        let at = directed.partition_point(|x| (x.0, x.1) < (e.1, e.0));
+                        directed
+                            .get(at)
+                            .is_some_and(|x| (x.0, x.1) == (e.1, e.0) && !x.2)
+                    })
+                    .map(|e| (e.0, e.1))
+                    .collect();
+                let p = |v: u32| self.position(v).map(f64::from);
+                if !wedges
+                    .iter()
+                    .all(|&(a, b)| check::positive(p(b), p(a), s1, s2))
+                {
+                    continue;
+                }
+                let base = out.steiner.len() as u32;
+                let (id1, id2) = (STEINER | base, STEINER | (base + 1));
+                out.steiner.push(s1.map(|x| x as f32));
+                out.steiner.push(s2.map(|x| x as f32));
+                for (t, &f) in part.iter().zip(&first) {
+                    out.tets.push([t[0], t[2], t[1], if f { id1 } else { id2 }]);
+                }
+                out.tets
+                    .extend(wedges.iter().map(|&(a, b)| [b, a, id1, id2]));
+                return Ok(());
+            }
+        }
+        Err("no one or two points inside the cell's part of the region see all of its boundary")
+    }
+
+    /// Points to cone a part from, already rounded to the stored precision: its vertices'
+    /// centroid, its grid corners' centroid, the cell's centre, and points between its corners
+    /// and its centroid.
+    fn candidates(&self, cell: [usize; 3], part: &[[u32; 3]]) -> Vec<[f64; 3]> {
+        let mut vertices: Vec<u32> = part.iter().flatten().copied().collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let points: Vec<[f64; 3]> = vertices
+            .iter()
+            .map(|&v| self.position(v).map(f64::from))
+            .collect();
+        let mean = |pts: &[[f64; 3]]| {
+            let n = pts.len() as f64;
+            std::array::from_fn::<f64, 3, _>(|d| pts.iter().map(|p| p[d]).sum::<f64>() / n)
+        };
+        let mix = |a: [f64; 3], b: [f64; 3], t: f64| -> [f64; 3] {
+            std::array::from_fn(|d| a[d] + t * (b[d] - a[d]))
+        };
+        let centroid = mean(&points);
+        let corners: Vec<[f64; 3]> = vertices
+            .iter()
+            .filter(|&&v| v as usize >= self.base)
+            .map(|&v| self.position(v).map(f64::from))
+            .collect();
+        let lo = self.grid.point(cell[0], cell[1], cell[2]);
+        let hi = self.grid.point(cell[0] + 1, cell[1] + 1, cell[2] + 1);
+        let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
+        let mut out = vec![centroid];
+        if !corners.is_empty() {
+            let c = mean(&corners);
+            out.push(c);
+            out.push(mix(c, centroid, 0.5));
+        }
+        out.push(centre);
+        for &c in &corners {
+            for t in [0.5, 0.75] {
+                out.push(mix(c, centroid, t));
+            }
+        }
+        for p in &points {
+            out.push(mix(*p, centroid, 0.6));
+        }
+        out.into_iter()
+            .map(|c| c.map(|x| f64::from(x as f32)))
+            .collect()
+    }
+
+    fn face_triangles(
+        &self,
+        q: [usize; 3],
+        n: usize,
+        out: &mut Vec<[u32; 3]>,
+        scratch: &mut face::Scratch,
+    ) -> Result<(), &'static str> {
+        face::triangles(self, q, n, out, scratch)
+    }
+}
+
+/// The closed parts of a cell's region boundary: triangles joined across their edges. An edge
+/// used once each way joins its two triangles; an edge where the region is pinched (a fold of
+/// the surface touching a face) is used by more, and each triangle is joined to the one next to
+/// it, around the edge, on its inside. Fails when the edges do not pair up (an open boundary).
+fn parts(
+    boundary: &[[u32; 3]],
+    position: &dyn Fn(u32) -> [f32; 3],
+) -> Result<Vec<Vec<[u32; 3]>>, &'static str> {
+    // (lower vertex, upper vertex, forward: the triangle runs lower → upper, triangle).
+    let mut edges: Vec<(u32, u32, bool, u32)> = boundary
+        .iter()
+        .enumerate()
+        .flat_map(|(t, tri)| {
+            (0..3).map(move |k| {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                (a.min(b), a.max(b), a < b, t as u32)
+            })
+        })
+        .collect();
+    edges.sort_unstable();
+    let mut parent: Vec<u32> = (0..boundary.len() as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    let union = |parent: &mut Vec<u32>, x: u32, y: u32| {
+        let (rx, ry) = (find(parent, x), find(parent, y));
+        parent[rx as usize] = ry;
+    };
+    let mut i = 0;
+    while i < edges.len() {
+        let (a, b) = (edges[i].0, edges[i].1);
+        let mut j = i;
+        while j < edges.len() && (edges[j].0, edges[j].1) == (a, b) {
+            j += 1;
+        }
+        let group = &edges[i..j];
+        let forward = group.iter().filter(|e| e.2).count();
+        if forward * 2 != group.len() {
+            return Err("the cell's region is not closed");
+        }
+        if group.len() == 2 {
+            union(&mut parent, group[0].3, group[1].3);
+        } else {
+            // Around the edge a → b, by angle: a triangle running a → b has its outward normal
+            // toward larger angles, so its inside neighbour is the next one below it.
+            let pa = position(a).map(f64::from);
+            let d = check::sub(position(b).map(f64::from), pa);
+            let helper = if d[0].abs() <= d[1].abs() && d[0].abs() <= d[2].abs() {
+                [1.0, 0.0, 0.0]
+            } else if d[1].abs() <= d[2].abs() {
+                [0.0, 1.0, 0.0]
+            } else {
+                [0.0, 0.0, 1.0]
+            };
+            let e1 = check::cross(d, helper);
+            let e2 = check::cross(d, e1);
+            let mut around: Vec<(f64, bool, u32)> = group
+                .iter()
+                .map(|&(_, _, fwd, t)| {
+                    let tri = boundary[t as usize];
+                    let c = tri
+                        .into_iter()
+                        .find(|&v| v != a && v != b)
+                        .expect("a triangle");
+                    let w = check::sub(position(c).map(f64::from), pa);
+                    let angle = check::dot(w, e2).atan2(check::dot(w, e1));
+                    (angle, fwd, t)
+                })
+                .collect();
+            around.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let m = around.len();
+            for k in 0..m {
+                if around[k].1 {
+                    let below = around[(k + m - 1) % m];
+                    if below.1 {
+                        return Err("the region's triangles around an edge do not alternate");
+                    }
+                    union(&mut parent, around[k].2, below.2);
+                }
+            }
+        }
+        i = j;
+    }
+    let mut groups: Vec<(u32, usize)> = (0..boundary.len())
+        .map(|t| (find(&mut parent, t as u32), t))
+        .collect();
+    groups.sort_unstable();
+    let mut out: Vec<Vec<[u32; 3]>> = Vec::new();
+    let mut last = u32::MAX;
+    for (root, t) in groups {
+        if root != last {
+            out.push(Vec::new());
+            last = root;
+        }
+        out.last_mut().expect("pushed").push(boundary[t]);
+    }
+    // Parts in the order of their first triangle, so the Steiner points' order is fixed.
+    out.sort_by_key(|p| p[0]);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests;

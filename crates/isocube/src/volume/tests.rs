@@ -1,0 +1,229 @@
+use super::*;
+use crate::cube::Topology;
+use crate::field::{Grid, Sample};
+use crate::quality::Strategy;
+
+/// Both topologies, every triangulation, both sides.
+fn all_options() -> Vec<ExtractOptions> {
+    let mut out = Vec::new();
+    for topology in [Topology::Mc33, Topology::Classic] {
+        for strategy in [Strategy::Fan, Strategy::Local, Strategy::Optimal] {
+            for flip in [false, true] {
+                out.push(
+                    ExtractOptions::default()
+                        .with_topology(topology)
+                        .with_triangulation(strategy)
+                        .with_flip(flip),
+                );
+            }
+        }
+    }
+    out
+}
+
+/// The grid's box volume.
+fn box_volume(grid: &Grid) -> f64 {
+    let d = grid.dims();
+    let s = grid.spacing();
+    (0..3).map(|a| (d[a] - 1) as f64 * s[a]).product()
+}
+
+fn assert_valid(tets: &TetMesh, what: &str) -> TetCheck {
+    let c = tets.check();
+    assert!(
+        c.conforming && c.inverted == 0 && c.flat == 0,
+        "{what}: {c:?}"
+    );
+    assert!(
+        (c.volume - c.enclosed).abs() <= 1e-9 * c.enclosed.abs().max(1e-300),
+        "{what}: {c:?}"
+    );
+    c
+}
+
+#[test]
+fn kuhn_tetrahedra_are_positive_and_fill_the_cube() {
+    let corner = |o: u8| [o & 1, o >> 1 & 1, o >> 2 & 1].map(f64::from);
+    // Six times the volumes, exact in floating point: the cube's six.
+    let mut volume = 0.0;
+    for t in KUHN {
+        let [a, b, c, d] = t.map(corner);
+        assert!(positive(a, b, c, d), "{t:?}");
+        volume += check::dot(
+            check::sub(b, a),
+            check::cross(check::sub(c, a), check::sub(d, a)),
+        );
+    }
+    assert_eq!(volume, 6.0);
+}
+
+/// Smooth fields, every option: conforming, positive, the volume the boundary encloses, and
+/// the surface is `extract`'s, vertex for vertex and triangle for triangle. The two sides of
+/// the level fill the grid's box together.
+#[test]
+fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
+    for (sample, n) in [
+        (Sample::Sphere, 20),
+        (Sample::Gyroid, 20),
+        (Sample::Tangle, 24),
+        (Sample::Torus, 24),
+    ] {
+        let grid = sample.grid(n);
+        let mut sides = Vec::new();
+        for options in all_options() {
+            let what = format!("{sample:?} {n} {options:?}");
+            let tets = tetmesh(&grid, &options).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let c = assert_valid(&tets, &what);
+            let (surface, _) = crate::extract::extract(&grid, &options).unwrap();
+            assert_eq!(surface.triangles, tets.surface, "{what}");
+            assert_eq!(
+                surface.positions[..],
+                tets.positions[..tets.surface_vertices],
+                "{what}"
+            );
+            assert!(
+                tets.stats.lattice_cells > 0 && tets.stats.cut_cells > 0,
+                "{what}"
+            );
+            sides.push((options.flip, c.volume));
+        }
+        let total = box_volume(&grid);
+        for pair in sides.chunks(2) {
+            let sum = pair[0].1 + pair[1].1;
+            assert!(
+                (sum - total).abs() <= 1e-9 * total,
+                "{sample:?}: {sum} vs {total}"
+            );
+        }
+    }
+}
+
+/// Random grids (uniform values and ties at the level): whatever comes out is valid, and a
+/// cell that cannot be filled is a typed error naming it, never a wrong mesh or a panic.
+#[test]
+fn random_grids_give_valid_meshes_or_name_the_cell() {
+    let mut rng = crate::TestRng::new(7);
+    let (mut meshed, mut refused) = (0, 0);
+    for case in 0..300 {
+        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 5) as usize);
+        let ties = case % 3 == 0;
+        let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
+            .map(|_| {
+                if ties {
+                    (rng.next_u64() % 5) as f32 - 2.0
+                } else {
+                    rng.unit() as f32 * 2.0 - 1.0
+                }
+            })
+            .collect();
+        let grid = Grid::new(dims, values).unwrap();
+        for options in all_options() {
+            match tetmesh(&grid, &options) {
+                Ok(tets) => {
+                    // Ties put crossings on grid points: the surface itself has flat triangles
+                    // there, and so do the tetrahedra on them; nothing may be inverted.
+                    let c = tets.check();
+                    assert!(
+                        c.conforming && c.inverted == 0,
+                        "case {case} {options:?} {c:?}"
+                    );
+                    if !ties {
+                        assert_valid(&tets, &format!("case {case} {options:?}"));
+                    }
+                    meshed += 1;
+                }
+                Err(TetError::Empty) => {}
+                Err(TetError::Cell { cell, .. }) => {
+                    assert!((0..3).all(|d| cell[d] + 1 < dims[d]), "{cell:?}");
+                    refused += 1;
+                }
+                Err(e) => panic!("case {case} {options:?}: {e}"),
+            }
+        }
+    }
+    eprintln!("random grids: {meshed} meshed, {refused} refused");
+    assert!(meshed > 0);
+}
+
+#[test]
+fn bad_input_is_refused() {
+    let grid = Sample::Sphere.grid(8);
+    let relax = ExtractOptions::default().with_relax(2);
+    assert!(matches!(
+        tetmesh(&grid, &relax),
+        Err(TetError::Unsupported(_))
+    ));
+    let everything_above = ExtractOptions::default().with_level(-1e9);
+    assert!(matches!(
+        tetmesh(&grid, &everything_above),
+        Err(TetError::Empty)
+    ));
+    let holed = crate::with_nan_holes(grid, 97);
+    assert!(matches!(
+        tetmesh(&holed, &ExtractOptions::default()),
+        Err(TetError::NonFinite {
+            point: [0, 0, 0],
+            ..
+        })
+    ));
+}
+
+/// Sweep over the samples at the resolutions (run with `--ignored --release`).
+#[test]
+#[ignore]
+fn sample_sweep() {
+    for sample in [
+        Sample::Sphere,
+        Sample::Gyroid,
+        Sample::Tangle,
+        Sample::Torus,
+    ] {
+        for n in [24, 40, 64] {
+            for options in all_options() {
+                let grid = sample.grid(n);
+                let tets = tetmesh(&grid, &options).unwrap();
+                assert_valid(&tets, &format!("{sample:?} {n} {options:?}"));
+            }
+        }
+    }
+}
+
+/// How often one random cell is refused, per option set (run with `--ignored`).
+#[test]
+#[ignore]
+fn single_cell_refusals() {
+    for options in all_options() {
+        let mut rng = crate::TestRng::new(3);
+        let mut refused = 0;
+        let n = 4000;
+        for _ in 0..n {
+            let values: Vec<f32> = (0..8).map(|_| rng.unit() as f32 * 2.0 - 1.0).collect();
+            let grid = Grid::new([2, 2, 2], values).unwrap();
+            if matches!(tetmesh(&grid, &options), Err(TetError::Cell { .. })) {
+                refused += 1;
+            }
+        }
+        eprintln!(
+            "{:?} {:?} flip {}: {refused} / {n}",
+            options.topology, options.triangulation, options.flip
+        );
+    }
+}
+
+/// Rough throughput on one sample (run with `--ignored --release --nocapture`; not a benchmark).
+#[test]
+#[ignore]
+fn throughput_probe() {
+    let grid = Sample::Sphere.grid(128);
+    let start = std::time::Instant::now();
+    let tets = tetmesh(&grid, &ExtractOptions::default()).unwrap();
+    let took = start.elapsed().as_secs_f64();
+    eprintln!(
+        "sphere 128: {} tets, {} cut cells, {} lattice cells, {:.3} s, {:.2} M tets/s",
+        tets.tets.len(),
+        tets.stats.cut_cells,
+        tets.stats.lattice_cells,
+        took,
+        tets.tets.len() as f64 / took / 1e6
+    );
+}
