@@ -642,48 +642,20 @@ mod tests {
         assert_eq!(r.mesh.report().degenerate, 0);
     }
 
-    /// Found by the needle property: two spikes of one section's second lobe, with flat caps on
-    /// a 33-cell grid, left three boundary edges and a degenerate triangle.
-    #[test]
-    fn needles_of_a_second_lobe_keep_the_surface_closed() {
-        let b = vec![
-            0.6,
-            0.6,
-            0.6684641029114624,
-            0.7079800684870328,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            1.2763638404262168,
-            0.8710067132473372,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            1.2498566809685014,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-            0.6,
-        ];
-        let layers = vec![
-            (0.5, vec![0.6; 36], 0.0, 0u8),
-            (0.5, b, 0.4827244410469335, 1u8),
-        ];
-        let stack = star_stack(&layers);
-        let r = reconstruct(&stack, &PlaneGrid::across(&stack, 33), Cap::Flat).unwrap();
+    /// A star of `n` points of radius 0.6 with spikes (index, radius).
+    fn spiky(n: usize, spikes: &[(usize, f64)]) -> Vec<f64> {
+        let mut radii = vec![0.6; n];
+        for &(i, r) in spikes {
+            radii[i] = r;
+        }
+        radii
+    }
+
+    /// Flat caps on a grid of `cells`: closed, outward, no flat triangle, and the cut exact
+    /// wherever the grid resolves the contours.
+    fn assert_closed_with_flat_caps(layers: &[(f64, Vec<f64>, f64, u8)], cells: usize) {
+        let stack = star_stack(layers);
+        let r = reconstruct(&stack, &PlaneGrid::across(&stack, cells), Cap::Flat).unwrap();
         let rep = r.mesh.report();
         assert!(
             rep.watertight && rep.oriented && rep.degenerate == 0,
@@ -700,28 +672,51 @@ mod tests {
         }
     }
 
-    /// Found by the needle property too: a spiky section over a plain one, flat caps on a
-    /// 44-cell grid, left three boundary edges and a degenerate triangle.
+    /// Found by the needle property: a vertex of a second lobe 3e-7 cells from a grid line,
+    /// which single precision put on its crossing (flat caps, 33 cells): three boundary edges
+    /// and a flat triangle.
+    #[test]
+    fn needles_of_a_second_lobe_keep_the_surface_closed() {
+        let b = spiky(
+            30,
+            &[
+                (2, 0.6684641029114624),
+                (3, 0.7079800684870328),
+                (11, 1.2763638404262168),
+                (12, 0.8710067132473372),
+                (22, 1.2498566809685014),
+            ],
+        );
+        assert_closed_with_flat_caps(
+            &[
+                (0.5, vec![0.6; 36], 0.0, 0),
+                (0.5, b, 0.4827244410469335, 1),
+            ],
+            33,
+        );
+    }
+
+    /// Found by the needle property too: a contour passing within rounding of a grid point,
+    /// whose crossings on two of its edges single precision made one point (44 cells).
     #[test]
     fn needles_over_a_plain_section_keep_the_surface_closed() {
-        let mut b = vec![0.6; 45];
-        b[3] = 1.2961796453956875;
-        b[14] = 1.2131794955024298;
-        b[19] = 1.295475400706063;
-        b[20] = 0.9695121385949563;
-        b[36] = 1.2432864733715838;
-        let layers = vec![
-            (0.5, vec![0.6; 12], 0.0, 0u8),
-            (0.5, b, 2.8305106346173656, 0u8),
-        ];
-        let stack = star_stack(&layers);
-        let r = reconstruct(&stack, &PlaneGrid::across(&stack, 44), Cap::Flat).unwrap();
-        let rep = r.mesh.report();
-        assert!(
-            rep.watertight && rep.oriented && rep.degenerate == 0,
-            "{rep:?}"
+        let b = spiky(
+            45,
+            &[
+                (3, 1.2961796453956875),
+                (14, 1.2131794955024298),
+                (19, 1.295475400706063),
+                (20, 0.9695121385949563),
+                (36, 1.2432864733715838),
+            ],
         );
-        assert!(rep.volume.unwrap() > 0.0);
+        assert_closed_with_flat_caps(
+            &[
+                (0.5, vec![0.6; 12], 0.0, 0),
+                (0.5, b, 2.8305106346173656, 0),
+            ],
+            44,
+        );
     }
 
     /// A section without contours ends the body: it closes between the last contour and it.
