@@ -37,3 +37,20 @@ for case in "${cases[@]}"; do
   done
 done
 "$venv/bin/python" "$here/check_meshes.py" "$manifest"
+
+# Tetrahedral meshes: a closed region (sphere) and one reaching the grid's faces (gyroid's
+# other side), in every tetrahedral format.
+tets="$work/tets.txt"
+: > "$tets"
+for case in "sphere sample:sphere:32" "gyroid sample:gyroid:24 --flip"; do
+  read -r name volume flip <<< "$case"
+  for ext in msh vtu mesh; do
+    out="$work/tet-$name.$ext"
+    summary=$("$isocube" tetmesh "$volume" $flip -o "$out" 2>&1)
+    summary=${summary%%$'\n'*}
+    # "<file>: T tetrahedra, V vertices (...); boundary S surface + W wall triangles"
+    numbers=$(sed -E 's/.*: ([0-9]+) tetrahedra, ([0-9]+) vertices.*boundary ([0-9]+) surface \+ ([0-9]+) wall.*/\1 \2 \3 \4/' <<< "$summary")
+    echo "$out $numbers" >> "$tets"
+  done
+done
+"$venv/bin/python" "$here/check_tets.py" "$tets"

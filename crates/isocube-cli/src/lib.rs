@@ -39,6 +39,9 @@ enum Command {
     Render(commands::render::Args),
     /// Catmull–Clark subdivision (OpenSubdiv's rules; creases, corners, faces with holes).
     Subdivide(commands::subdivide::Args),
+    /// Fill the region inside an isosurface with tetrahedra (for finite elements), bounded by
+    /// the surface `extract` makes.
+    Tetmesh(commands::tetmesh::Args),
     /// Print the symmetry-derived configuration tables as TSV.
     Tables(commands::tables::Args),
     /// Extract the built-in samples and print a summary table.
@@ -179,6 +182,7 @@ fn dispatch(cli: &Cli) -> Result<(), Failure> {
         Command::Render(a) => commands::render::run(a, cli.quiet),
         Command::Subdivide(a) => commands::subdivide::run(a, cli.quiet),
         Command::Tables(a) => commands::tables::run(a),
+        Command::Tetmesh(a) => commands::tetmesh::run(a, cli.quiet),
         Command::Demo(a) => commands::demo::run(a, cli.quiet),
     }
 }

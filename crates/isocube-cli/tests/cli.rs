@@ -1175,3 +1175,59 @@ fn labels_give_one_closed_surface_each() {
         .collect();
     assert!(names.iter().all(|n| !n.starts_with("bad")), "{names:?}");
 }
+
+/// `tetmesh` writes every tetrahedral format with the same counts; the boundary it reports is
+/// the surface `extract` writes (same triangle count); the check line says conforming; bad
+/// outputs and empty regions exit 2 with nothing written.
+#[test]
+fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut firsts = HashSet::new();
+    for ext in ["msh", "vtu", "mesh"] {
+        let out = isocube(
+            dir.path(),
+            &["tetmesh", "sample:torus:24", "-o", &format!("t.{ext}")],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(
+            err.contains("check: conforming, 0 inverted, 0 flat"),
+            "{err}"
+        );
+        let first = err.lines().next().unwrap();
+        firsts.insert(first.split_once(": ").unwrap().1.to_string());
+        assert!(dir.path().join(format!("t.{ext}")).exists());
+    }
+    assert_eq!(firsts.len(), 1, "{firsts:?}");
+    let line = firsts.into_iter().next().unwrap();
+    let surface: usize = line
+        .split("boundary ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    ok(dir.path(), &["extract", "sample:torus:24", "-o", "s.ply"]);
+    let report = info(dir.path(), "s.ply");
+    assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);
+
+    for args in [
+        &["tetmesh", "sample:torus:24", "-o", "t.ply"][..],
+        &[
+            "tetmesh",
+            "sample:torus:24",
+            "--level",
+            "-5",
+            "-o",
+            "empty.msh",
+        ][..],
+    ] {
+        let out = isocube(dir.path(), args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+    }
+    assert!(!dir.path().join("t.ply").exists() && !dir.path().join("empty.msh").exists());
+}

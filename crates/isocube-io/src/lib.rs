@@ -59,6 +59,7 @@ mod npy;
 mod nrrd;
 mod poly;
 mod raw;
+mod tet_io;
 #[cfg(feature = "tiff")]
 mod tiff_stack;
 mod vti;
@@ -90,6 +91,7 @@ pub use npy::{read_npy, NpyAxes};
 pub use nrrd::{read_nrrd, read_nrrd_oriented};
 pub use poly::{read_poly_mesh, read_poly_mesh_bytes, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
+pub use tet_io::{write_tet_mesh, TetFormat};
 #[cfg(feature = "tiff")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tiff")))]
 pub use tiff_stack::read_tiff_stack;

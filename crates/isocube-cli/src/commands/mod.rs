@@ -8,3 +8,4 @@ pub(crate) mod quality;
 pub(crate) mod render;
 pub(crate) mod subdivide;
 pub(crate) mod tables;
+pub(crate) mod tetmesh;

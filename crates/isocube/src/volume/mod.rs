@@ -46,8 +46,10 @@ use crate::mesh::Mesh;
 
 mod check;
 mod face;
+mod quality;
 
 pub use check::{positive, TetCheck};
+pub use quality::{TetQuality, TetReport};
 
 /// A tetrahedral mesh of the region inside a surface.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -55,6 +55,14 @@ fn kuhn_tetrahedra_are_positive_and_fill_the_cube() {
         );
     }
     assert_eq!(volume, 6.0);
+    // Their dihedral angles are 45°, 60° and 90°.
+    for t in KUHN {
+        let q = TetQuality::of(t.map(corner));
+        assert!(
+            (q.min_dihedral - 45.0).abs() < 1e-9 && (q.max_dihedral - 90.0).abs() < 1e-9,
+            "{q:?}"
+        );
+    }
 }
 
 /// Smooth fields, every option: conforming, positive, the volume the boundary encloses, and

@@ -1,0 +1,143 @@
+//! `isocube tetmesh VOLUME -o MESH [--level L]`: tetrahedra of the region inside the surface.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args as ClapArgs;
+use isocube::cube::Topology;
+use isocube::extract::{ExtractOptions, Method, Snapping};
+use isocube::field::{Orientation, SampleSpec};
+use isocube::quality::Strategy;
+use isocube::volume::{tetmesh, TetError, TetReport};
+use isocube_io::{write_tet_mesh, TetFormat};
+
+use crate::volume::VolumeArgs;
+use crate::Failure;
+
+#[derive(Debug, ClapArgs)]
+pub(crate) struct Args {
+    #[command(flatten)]
+    volume: VolumeArgs,
+    /// Output: .msh (Gmsh 4.1), .vtu (VTK unstructured grid, quality as cell data) or .mesh
+    /// (MEDIT). Physical groups: 1 the region, 2 the isosurface, 3 the grid's outer faces.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// The iso-value. The region is the values below it (values equal to it are outside).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    level: f32,
+    /// Mesh the other side: the values at or above the level.
+    #[arg(long)]
+    flip: bool,
+    /// The surface inside each cell, as `extract --topology`: `mc33` or `classic`.
+    #[arg(long, default_value = "mc33")]
+    topology: Topology,
+    /// `mc` (binary Marching Cubes). `ternary` is planned.
+    #[arg(long, default_value = "mc", value_parser = ["mc", "ternary"])]
+    method: String,
+    /// How the surface's cell polygons become triangles, as `extract --triangulate`.
+    #[arg(long, default_value = "fan")]
+    triangulate: Strategy,
+    /// Keep the mesh in grid index coordinates instead of the file's world coordinates.
+    #[arg(long)]
+    index_space: bool,
+    /// Skip the check of the written mesh (conformity, orientation by an exact predicate, the
+    /// volume against the boundary's).
+    #[arg(long)]
+    no_check: bool,
+}
+
+pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
+    if TetFormat::from_path(&args.output).is_none() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: unknown tetrahedral mesh extension (expected .msh, .vtu or .mesh)",
+            args.output.display()
+        )));
+    }
+    if !SampleSpec::is_sample(&args.volume.volume) {
+        crate::refuse_overwrite(
+            &args.output,
+            &[(std::path::Path::new(&args.volume.volume), "input volume")],
+        )?;
+    }
+    let started = Instant::now();
+    let (grid, orientation) = args.volume.load_oriented()?;
+    let (grid, orientation) = if args.index_space {
+        let grid = grid
+            .with_spacing([1.0; 3])
+            .and_then(|g| g.with_origin([0.0; 3]))
+            .map_err(Failure::input)?;
+        (grid, Orientation::IDENTITY)
+    } else {
+        (grid, orientation)
+    };
+    let view = grid.view().with_orientation(orientation);
+    let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
+        .map(|limit| limit.saturating_sub(std::mem::size_of_val(view.values()) as u64));
+    let options = ExtractOptions::default()
+        .with_level(args.level)
+        .with_flip(args.flip)
+        .with_normals(false)
+        .with_topology(args.topology)
+        .with_triangulation(args.triangulate)
+        .with_max_memory(room)
+        .with_method(match args.method.as_str() {
+            "ternary" => Method::Ternary(Snapping::default()),
+            _ => Method::MarchingCubes,
+        });
+    let loaded = started.elapsed();
+    let mesh = tetmesh(view, &options).map_err(|e| match e {
+        TetError::Cell { .. } => Failure::other(e),
+        e => Failure::input(e),
+    })?;
+    let meshed = started.elapsed();
+    let qualities = mesh.qualities();
+    write_tet_mesh(&args.output, &mesh, Some(&qualities))
+        .map_err(|e| crate::io_failure(e, false))?;
+    let written = started.elapsed();
+    if quiet {
+        return Ok(());
+    }
+    let report = TetReport::of(&qualities);
+    let s = &mesh.stats;
+    eprintln!(
+        "{}: {} tetrahedra, {} vertices ({} on the surface, {} grid points, {} inside cut cells); \
+         boundary {} surface + {} wall triangles",
+        args.output.display(),
+        mesh.tets.len(),
+        mesh.positions.len(),
+        mesh.surface_vertices,
+        s.grid_points,
+        s.steiner_points,
+        mesh.surface.len(),
+        mesh.walls.len()
+    );
+    eprintln!(
+        "quality: dihedral angles {:.2}°..{:.2}°, radius ratio mean {:.3}, worst {:.3}",
+        report.min_dihedral, report.max_dihedral, report.mean_radius_ratio, report.max_radius_ratio
+    );
+    if !args.no_check {
+        let c = mesh.check();
+        eprintln!(
+            "check: {}, {} inverted, {} flat, volume {:.6e} (the boundary encloses {:.6e})",
+            if c.conforming {
+                "conforming".to_string()
+            } else {
+                format!(
+                    "NOT conforming ({} bad faces, {} boundary mismatches)",
+                    c.bad_faces, c.boundary_mismatch
+                )
+            },
+            c.inverted,
+            c.flat,
+            c.volume,
+            c.enclosed
+        );
+    }
+    eprintln!(
+        "read {:.1} ms, meshed {:.1} ms, written {:.1} ms",
+        loaded.as_secs_f64() * 1e3,
+        (meshed - loaded).as_secs_f64() * 1e3,
+        (written - meshed).as_secs_f64() * 1e3
+    );
+    Ok(())
+}

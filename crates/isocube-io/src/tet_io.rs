@@ -1,0 +1,323 @@
+//! Tetrahedral mesh files for finite-element codes: Gmsh MSH 4.1, VTK XML unstructured grids
+//! (`.vtu`) and MEDIT (`.mesh`), chosen by extension.
+//!
+//! Every format carries the same groups: the region's tetrahedra (physical group 1, "region"),
+//! the isosurface's triangles (2, "surface") and the triangles on the grid's outer faces (3,
+//! "walls"). Vertex numbers are the mesh's, from 1 where the format counts from 1.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use super::blocks::write_blocks;
+use super::mesh_io::write_atomic;
+use super::IoError;
+use isocube::volume::{TetMesh, TetQuality};
+
+/// A tetrahedral mesh file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TetFormat {
+    /// Gmsh MSH 4.1 (`.msh`, ASCII), physical groups for the region and both boundaries.
+    Msh,
+    /// VTK XML unstructured grid (`.vtu`), arrays appended raw; region, quality as cell data.
+    Vtu,
+    /// MEDIT (`.mesh`, ASCII), references 1 (region), 2 (surface), 3 (walls).
+    Medit,
+}
+
+impl TetFormat {
+    /// The format a path's extension names (case-insensitive).
+    ///
+    /// ```
+    /// use isocube_io::TetFormat;
+    /// assert_eq!(TetFormat::from_path("a/b.VTU".as_ref()), Some(TetFormat::Vtu));
+    /// assert_eq!(TetFormat::from_path("b.ply".as_ref()), None);
+    /// ```
+    pub fn from_path(path: &Path) -> Option<TetFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "msh" => Some(TetFormat::Msh),
+            "vtu" => Some(TetFormat::Vtu),
+            "mesh" => Some(TetFormat::Medit),
+            _ => None,
+        }
+    }
+}
+
+/// Physical group numbers (and MEDIT references).
+const REGION: u32 = 1;
+const SURFACE: u32 = 2;
+const WALLS: u32 = 3;
+
+/// Writes `mesh` to `path` in the format its extension names, atomically (a temporary file
+/// renamed over the target). `quality`, one entry per tetrahedron, is written as cell data where
+/// the format has it (`.vtu`).
+pub fn write_tet_mesh(
+    path: &Path,
+    mesh: &TetMesh,
+    quality: Option<&[TetQuality]>,
+) -> Result<(), IoError> {
+    let format = TetFormat::from_path(path).ok_or_else(|| {
+        IoError::unsupported(
+            path,
+            super::Position::File,
+            "tetrahedral mesh extension (expected .msh, .vtu or .mesh)",
+        )
+    })?;
+    write_atomic(path, &mut |w| {
+        let mut w = io::BufWriter::with_capacity(1 << 20, w);
+        match format {
+            TetFormat::Msh => write_msh(&mut w, mesh),
+            TetFormat::Vtu => write_vtu(&mut w, mesh, quality),
+            TetFormat::Medit => write_medit(&mut w, mesh),
+        }?;
+        w.flush()
+    })
+}
+
+fn bbox(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in positions {
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    if positions.is_empty() {
+        ([0.0; 3], [0.0; 3])
+    } else {
+        (lo, hi)
+    }
+}
+
+/// Gmsh MSH 4.1: entities surface 2 (the isosurface), surface 3 (the walls, when there are
+/// any) and volume 1, each in its physical group; all nodes on the volume entity.
+fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
+    let n = mesh.positions.len();
+    let (lo, hi) = bbox(&mesh.positions);
+    let bounds = format!(
+        "{} {} {} {} {} {}",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    );
+    let walls = !mesh.walls.is_empty();
+    writeln!(w, "$MeshFormat\n4.1 0 8\n$EndMeshFormat")?;
+    writeln!(w, "$PhysicalNames\n{}", if walls { 3 } else { 2 })?;
+    writeln!(w, "3 {REGION} \"region\"\n2 {SURFACE} \"surface\"")?;
+    if walls {
+        writeln!(w, "2 {WALLS} \"walls\"")?;
+    }
+    writeln!(w, "$EndPhysicalNames")?;
+    let surfaces: Vec<u32> = if walls {
+        vec![SURFACE, WALLS]
+    } else {
+        vec![SURFACE]
+    };
+    writeln!(w, "$Entities\n0 0 {} 1", surfaces.len())?;
+    for &s in &surfaces {
+        writeln!(w, "{s} {bounds} 1 {s} 0")?;
+    }
+    let bounding: Vec<String> = surfaces.iter().map(u32::to_string).collect();
+    writeln!(
+        w,
+        "{REGION} {bounds} 1 {REGION} {} {}",
+        surfaces.len(),
+        bounding.join(" ")
+    )?;
+    writeln!(w, "$EndEntities")?;
+    writeln!(w, "$Nodes\n1 {n} 1 {n}\n3 {REGION} 0 {n}")?;
+    write_blocks(w, n, |out, r| {
+        for tag in r {
+            let _ = writeln!(out, "{}", tag + 1);
+        }
+    })?;
+    write_blocks(w, n, |out, r| {
+        for p in &mesh.positions[r] {
+            let _ = writeln!(out, "{} {} {}", p[0], p[1], p[2]);
+        }
+    })?;
+    writeln!(w, "$EndNodes")?;
+    let (s, f, t) = (mesh.surface.len(), mesh.walls.len(), mesh.tets.len());
+    let total = s + f + t;
+    writeln!(w, "$Elements\n{} {total} 1 {total}", 1 + surfaces.len())?;
+    let triangles = |w: &mut dyn Write, entity: u32, tris: &[[u32; 3]], first: usize| {
+        writeln!(w, "2 {entity} 2 {}", tris.len())?;
+        write_blocks(w, tris.len(), |out, r| {
+            for i in r {
+                let x = tris[i];
+                let _ = writeln!(
+                    out,
+                    "{} {} {} {}",
+                    first + i + 1,
+                    x[0] + 1,
+                    x[1] + 1,
+                    x[2] + 1
+                );
+            }
+        })
+    };
+    triangles(w, SURFACE, &mesh.surface, 0)?;
+    if walls {
+        triangles(w, WALLS, &mesh.walls, s)?;
+    }
+    writeln!(w, "3 {REGION} 4 {t}")?;
+    write_blocks(w, t, |out, r| {
+        for i in r {
+            let x = mesh.tets[i];
+            let _ = writeln!(
+                out,
+                "{} {} {} {} {}",
+                s + f + i + 1,
+                x[0] + 1,
+                x[1] + 1,
+                x[2] + 1,
+                x[3] + 1
+            );
+        }
+    })?;
+    writeln!(w, "$EndElements")
+}
+
+/// VTK XML unstructured grid: tetrahedra only (cell type 10), appended raw with 64-bit block
+/// headers; cell data `region` and, when given, `min_dihedral`, `max_dihedral`,
+/// `radius_ratio`.
+fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>) -> io::Result<()> {
+    let n = mesh.positions.len();
+    let t = mesh.tets.len();
+    let quality = quality.filter(|q| q.len() == t);
+    let mut offset = 0u64;
+    let mut next = |bytes: u64| {
+        let at = offset;
+        offset += 8 + bytes;
+        at
+    };
+    let points = next(12 * n as u64);
+    let connectivity = next(4 * 8 * t as u64);
+    let offsets = next(8 * t as u64);
+    let types = next(t as u64);
+    let region = next(4 * t as u64);
+    let measures = quality.map(|_| [next(8 * t as u64), next(8 * t as u64), next(8 * t as u64)]);
+    writeln!(w, r#"<?xml version="1.0"?>"#)?;
+    writeln!(
+        w,
+        r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
+    )?;
+    writeln!(w, "  <UnstructuredGrid>")?;
+    writeln!(w, r#"    <Piece NumberOfPoints="{n}" NumberOfCells="{t}">"#)?;
+    writeln!(w, r#"      <CellData Scalars="region">"#)?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Int32" Name="region" format="appended" offset="{region}"/>"#
+    )?;
+    if let Some(at) = measures {
+        for (name, at) in ["min_dihedral", "max_dihedral", "radius_ratio"]
+            .iter()
+            .zip(at)
+        {
+            writeln!(
+                w,
+                r#"        <DataArray type="Float64" Name="{name}" format="appended" offset="{at}"/>"#
+            )?;
+        }
+    }
+    writeln!(w, "      </CellData>")?;
+    writeln!(w, "      <Points>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Float32" Name="Points" NumberOfComponents="3" format="appended" offset="{points}"/>"#
+    )?;
+    writeln!(w, "      </Points>")?;
+    writeln!(w, "      <Cells>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Int64" Name="connectivity" format="appended" offset="{connectivity}"/>"#
+    )?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Int64" Name="offsets" format="appended" offset="{offsets}"/>"#
+    )?;
+    writeln!(
+        w,
+        r#"        <DataArray type="UInt8" Name="types" format="appended" offset="{types}"/>"#
+    )?;
+    writeln!(w, "      </Cells>")?;
+    writeln!(w, "    </Piece>")?;
+    writeln!(w, "  </UnstructuredGrid>")?;
+    write!(w, r#"  <AppendedData encoding="raw">"#)?;
+    w.write_all(b"\n   _")?;
+    let block = |w: &mut dyn Write, bytes: u64, fill: &dyn Fn(&mut Vec<u8>)| -> io::Result<()> {
+        w.write_all(&bytes.to_le_bytes())?;
+        let mut buf = Vec::with_capacity(bytes as usize);
+        fill(&mut buf);
+        debug_assert_eq!(buf.len() as u64, bytes);
+        w.write_all(&buf)
+    };
+    block(w, 12 * n as u64, &|b| {
+        for x in mesh.positions.as_flattened() {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+    })?;
+    block(w, 32 * t as u64, &|b| {
+        for &v in mesh.tets.as_flattened() {
+            b.extend_from_slice(&i64::from(v).to_le_bytes());
+        }
+    })?;
+    block(w, 8 * t as u64, &|b| {
+        for k in 1..=t as i64 {
+            b.extend_from_slice(&(4 * k).to_le_bytes());
+        }
+    })?;
+    block(w, t as u64, &|b| b.resize(t, 10))?;
+    block(w, 4 * t as u64, &|b| {
+        for _ in 0..t {
+            b.extend_from_slice(&(REGION as i32).to_le_bytes());
+        }
+    })?;
+    if let Some(q) = quality {
+        let fields: [fn(&TetQuality) -> f64; 3] =
+            [|q| q.min_dihedral, |q| q.max_dihedral, |q| q.radius_ratio];
+        for field in fields {
+            block(w, 8 * t as u64, &|b| {
+                for x in q {
+                    b.extend_from_slice(&field(x).to_le_bytes());
+                }
+            })?;
+        }
+    }
+    writeln!(w, "\n  </AppendedData>")?;
+    writeln!(w, "</VTKFile>")
+}
+
+/// MEDIT `.mesh` (ASCII, version 2: single-precision coordinates' shortest forms).
+fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
+    let n = mesh.positions.len();
+    writeln!(w, "MeshVersionFormatted 2\nDimension 3\nVertices\n{n}")?;
+    write_blocks(w, n, |out, r| {
+        for p in &mesh.positions[r] {
+            let _ = writeln!(out, "{} {} {} 0", p[0], p[1], p[2]);
+        }
+    })?;
+    let s = mesh.surface.len() + mesh.walls.len();
+    writeln!(w, "Triangles\n{s}")?;
+    for (tris, reference) in [(&mesh.surface, SURFACE), (&mesh.walls, WALLS)] {
+        write_blocks(w, tris.len(), |out, r| {
+            for x in &tris[r] {
+                let _ = writeln!(out, "{} {} {} {reference}", x[0] + 1, x[1] + 1, x[2] + 1);
+            }
+        })?;
+    }
+    let t = mesh.tets.len();
+    writeln!(w, "Tetrahedra\n{t}")?;
+    write_blocks(w, t, |out, r| {
+        for x in &mesh.tets[r] {
+            let _ = writeln!(
+                out,
+                "{} {} {} {} {REGION}",
+                x[0] + 1,
+                x[1] + 1,
+                x[2] + 1,
+                x[3] + 1
+            );
+        }
+    })?;
+    writeln!(w, "End")
+}
