@@ -26,6 +26,30 @@ pub fn positive(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> bool {
     robust::orient3d(p(a), p(b), p(c), p(d)) < 0.0
 }
 
+/// Whether a triangle's corners lie on one line (exactly).
+pub(super) fn collinear(t: [[f64; 3]; 3]) -> bool {
+    let p = |x: [f64; 3], a: usize, b: usize| robust::Coord { x: x[a], y: x[b] };
+    [(0, 1), (1, 2), (2, 0)]
+        .iter()
+        .all(|&(a, b)| robust::orient2d(p(t[0], a, b), p(t[1], a, b), p(t[2], a, b)) == 0.0)
+}
+
+/// Whether all the triangles' corners lie in one plane (exactly).
+pub(super) fn coplanar(tris: &[[[f64; 3]; 3]]) -> bool {
+    let points: Vec<[f64; 3]> = tris.iter().flatten().copied().collect();
+    let Some(base) = tris.iter().find(|t| !collinear(**t)) else {
+        return true;
+    };
+    let q = |x: [f64; 3]| robust::Coord3D {
+        x: x[0],
+        y: x[1],
+        z: x[2],
+    };
+    points
+        .iter()
+        .all(|&x| robust::orient3d(q(base[0]), q(base[1]), q(base[2]), q(x)) == 0.0)
+}
+
 /// A point, rounded to `f32`, from which all of a closed part's outward triangles are seen from
 /// inside: the centre of the largest ball in the kernel (a linear program, solved by trying every
 /// set of four constraints: parts have a few dozen triangles, and this runs only when simple
@@ -190,11 +214,16 @@ impl TetMesh {
             [f[r], f[(r + 1) % 3], f[(r + 2) % 3]]
         };
         let mut open: Vec<[u32; 3]> = open.into_iter().map(canonical).collect();
+        let mut beyond = self.beyond.clone();
+        beyond.sort_unstable();
         let mut boundary: Vec<[u32; 3]> = self
             .surface
             .iter()
-            .chain(&self.walls)
-            .map(|&f| canonical(f))
+            .enumerate()
+            .filter(|(t, _)| beyond.binary_search(&(*t as u32)).is_err())
+            .map(|(_, &f)| f)
+            .chain(self.walls.iter().copied())
+            .map(canonical)
             .collect();
         open.par_sort_unstable();
         boundary.par_sort_unstable();
@@ -220,10 +249,8 @@ impl TetMesh {
                 }
             }
         }
-        let enclosed = self
-            .surface
+        let enclosed = boundary
             .par_iter()
-            .chain(self.walls.par_iter())
             .map(|t| {
                 let [a, b, c] = t.map(p);
                 dot(a, cross(b, c)) / 6.0

@@ -63,6 +63,10 @@ pub struct TetMesh {
     pub surface: Vec<[u32; 3]>,
     /// Boundary triangles on the grid's outer faces, outward.
     pub walls: Vec<[u32; 3]>,
+    /// Surface triangles (indices into [`TetMesh::surface`]) that bound no tetrahedron: they lie
+    /// in one of the grid's outer faces with the region beyond the grid (a sliver of it the grid
+    /// does not hold).
+    pub beyond: Vec<u32>,
     /// How many of [`TetMesh::positions`] are the surface's vertices.
     pub surface_vertices: usize,
     /// Counts.
@@ -129,6 +133,9 @@ pub enum TetError {
 /// Steiner points are numbered per layer of cells while the layers are meshed in parallel; this
 /// bit marks such a local number until the layers are joined.
 const STEINER: u32 = 1 << 31;
+
+/// The cell number of surface triangles that bound no tetrahedron ([`TetMesh::beyond`]).
+const BEYOND: u64 = u64::MAX - 1;
 
 /// Meshes the region inside the isosurface of `grid` with tetrahedra (see the module
 /// documentation). The options are [`crate::extract::extract`]'s; relaxation is refused (it
@@ -215,13 +222,20 @@ pub fn tetmesh<'a>(
         .par_iter()
         .enumerate()
         .map(|(t, tri)| {
-            let cell = triangle_cell(tri, &keys, &surface.positions, dims).map_or(u64::MAX, |c| {
-                (c[0] + cell_dims[0] * (c[1] + cell_dims[1] * c[2])) as u64
-            });
+            let cell = match triangle_cell(tri, &keys, &surface.positions, dims) {
+                Owner::Cell(c) => (c[0] + cell_dims[0] * (c[1] + cell_dims[1] * c[2])) as u64,
+                Owner::Beyond => BEYOND,
+                Owner::Nowhere => u64::MAX,
+            };
             (cell, t as u32)
         })
         .collect();
     by_cell.par_sort_unstable();
+    let beyond: Vec<u32> = by_cell
+        .iter()
+        .filter(|e| e.0 == BEYOND)
+        .map(|e| e.1)
+        .collect();
     if let Some(&(_, t)) = by_cell.last().filter(|e| e.0 == u64::MAX) {
         let tri = surface.triangles[t as usize];
         let c = cell_near(keys[tri[0] as usize], dims);
@@ -299,6 +313,7 @@ pub fn tetmesh<'a>(
         tets,
         surface: surface.triangles,
         walls,
+        beyond,
         surface_vertices: base,
         stats,
     };
@@ -366,42 +381,76 @@ fn cell_range(key: VertexKey, dims: [usize; 3]) -> [[usize; 2]; 3] {
     }
 }
 
+/// Where a surface triangle belongs.
+enum Owner {
+    /// The cell whose part of the region it bounds.
+    Cell([usize; 3]),
+    /// It lies in one of the grid's outer faces with the region beyond it: it bounds no
+    /// tetrahedron.
+    Beyond,
+    /// Its vertices share no cell (a bug).
+    Nowhere,
+}
+
 /// The cell whose part of the region the triangle bounds: the one cell holding all three
-/// vertices or, for a triangle lying in a cell face, the cell on its inside (the surface is
-/// outward, so its normal points away from that cell). `None` if the vertices share no cell.
+/// vertices or, for a triangle lying in a grid plane, the cell on its inside (the surface is
+/// outward, so its normal points away from that cell).
 fn triangle_cell(
     tri: &[u32; 3],
     keys: &[VertexKey],
     positions: &[[f32; 3]],
     dims: [usize; 3],
-) -> Option<[usize; 3]> {
+) -> Owner {
+    let k = tri.map(|v| keys[v as usize]);
+    if let KeyKind::Crossing { point, .. } | KeyKind::Point(point) = k[0].kind() {
+        let c = coords(point, dims);
+        for n in 0..3 {
+            if k.iter().all(|key| key.on_plane(dims, n, c[n])) {
+                let p = tri.map(|v| positions[v as usize].map(f64::from));
+                let normal = check::cross(check::sub(p[1], p[0]), check::sub(p[2], p[0]))[n];
+                if normal == 0.0 {
+                    return Owner::Nowhere;
+                }
+                // Outward along +n: the region is on the side of lower cells.
+                let side = if normal > 0.0 {
+                    c[n].checked_sub(1)
+                } else {
+                    Some(c[n])
+                };
+                let Some(layer) = side.filter(|&l| l + 1 < dims[n]) else {
+                    return Owner::Beyond;
+                };
+                let mut range = [[0usize, usize::MAX]; 3];
+                for key in k {
+                    let r = cell_range(key, dims);
+                    for d in 0..3 {
+                        range[d][0] = range[d][0].max(r[d][0]);
+                        range[d][1] = range[d][1].min(r[d][1]).min(dims[d] - 2);
+                    }
+                }
+                let mut cell: [usize; 3] = std::array::from_fn(|d| range[d][0]);
+                cell[n] = layer;
+                let unique = (0..3).all(|d| d == n || range[d][0] == range[d][1]);
+                return if unique {
+                    Owner::Cell(cell)
+                } else {
+                    Owner::Nowhere
+                };
+            }
+        }
+    }
     let mut range = [[0usize, usize::MAX]; 3];
-    for &v in tri {
-        let r = cell_range(keys[v as usize], dims);
+    for key in k {
+        let r = cell_range(key, dims);
         for d in 0..3 {
             range[d][0] = range[d][0].max(r[d][0]);
             range[d][1] = range[d][1].min(r[d][1]).min(dims[d] - 2);
         }
     }
-    if (0..3).any(|d| range[d][0] > range[d][1]) {
-        return None;
-    }
-    let mut cell: [usize; 3] = std::array::from_fn(|d| range[d][0]);
-    let open: Vec<usize> = (0..3).filter(|&d| range[d][0] != range[d][1]).collect();
-    match open[..] {
-        [] => Some(cell),
-        [n] => {
-            // In the face between cells range[n][0] and range[n][1]: the normal's component
-            // along n says which side is outside.
-            let p = tri.map(|v| positions[v as usize].map(f64::from));
-            let (a, b) = (check::sub(p[1], p[0]), check::sub(p[2], p[0]));
-            let normal = check::cross(a, b)[n];
-            if normal < 0.0 {
-                cell[n] = range[n][1];
-            }
-            (normal != 0.0).then_some(cell)
-        }
-        _ => None,
+    if (0..3).all(|d| range[d][0] == range[d][1]) {
+        Owner::Cell(std::array::from_fn(|d| range[d][0]))
+    } else {
+        Owner::Nowhere
     }
 }
 
@@ -583,8 +632,29 @@ impl Context<'_> {
             .iter()
             .map(|t| t.map(|v| self.position(v).map(f64::from)))
             .collect();
+        // Values within rounding of the level put crossings on grid points: the surface has
+        // triangles of no area there (the mesh `extract` writes has them too), and a part may
+        // have no volume at all. Tetrahedra over such triangles, or in such a part, are flat;
+        // none may be inverted.
+        let degenerate: Vec<bool> = tris.iter().map(|t| check::collinear(*t)).collect();
+        if check::coplanar(&tris) {
+            let id = STEINER | out.steiner.len() as u32;
+            out.steiner.push(tris[0][0].map(|x| x as f32));
+            out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
+            return Ok(());
+        }
         let candidates = self.candidates(cell, part);
-        let sees = |apex: [f64; 3], t: &[[f64; 3]; 3]| check::positive(t[0], t[2], t[1], apex);
+        let sees_triangle = |apex: [f64; 3], t: &[[f64; 3]; 3], flat_ok: bool| {
+            check::positive(t[0], t[2], t[1], apex)
+                || (flat_ok && !check::positive(t[0], t[1], t[2], apex))
+        };
+        let seen = |apex: [f64; 3]| -> Vec<bool> {
+            tris.iter()
+                .zip(&degenerate)
+                .map(|(t, &d)| sees_triangle(apex, t, d))
+                .collect()
+        };
+        let sees = |apex: [f64; 3], t: &[[f64; 3]; 3]| sees_triangle(apex, t, check::collinear(*t));
         for &c in &candidates {
             if tris.iter().all(|t| sees(c, t)) {
                 let id = STEINER | out.steiner.len() as u32;
@@ -595,59 +665,40 @@ impl Context<'_> {
                 return Ok(());
             }
         }
-        if let Some(apex) = check::kernel_point(&tris) {
+        if let Some(apex) =
+            check::kernel_point(&tris).filter(|a| seen(a.map(f64::from)).iter().all(|&x| x))
+        {
             let id = STEINER | out.steiner.len() as u32;
             out.steiner.push(apex);
             out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
             return Ok(());
         }
-        for (i, &s1) in candidates.iter().enumerate() {
-            for (j, &s2) in candidates.iter().enumerate() {
-                if i == j {
-                    continue;
-                }
-                let first: Vec<bool> = tris.iter().map(|t| sees(s1, t)).collect();
-                if !tris.iter().zip(&first).all(|(t, &f)| f || sees(s2, t)) {
-                    continue;
-                }
-                // Edges a → b of first-cone triangles whose twin is in the second cone.
-                let mut directed: Vec<(u32, u32, bool)> = part
-                    .iter()
-                    .zip(&first)
-                    .flat_map(|(t, &f)| (0..3).map(move |k| (t[k], t[(k + 1) % 3], f)))
-                    .collect();
-                directed.sort_unstable();
-                let wedges: Vec<(u32, u32)> = directed
-                    .iter()
-                    .filter(|e| e.2)
-                    .filter(|e| {
-                        let at = directed.partition_point(|x| (x.0, x.1) < (e.1, e.0));
-                        directed
-                            .get(at)
-                            .is_some_and(|x| (x.0, x.1) == (e.1, e.0) && !x.2)
-                    })
-                    .map(|e| (e.0, e.1))
-                    .collect();
-                let p = |v: u32| self.position(v).map(f64::from);
-                if !wedges
-                    .iter()
-                    .all(|&(a, b)| check::positive(p(b), p(a), s1, s2))
-                {
-                    continue;
-                }
+        // Two, then three points, each triangle coned to the first that sees it.
+        let n = candidates.len();
+        let pairs = (0..n).flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| vec![i, j]));
+        let triples = (0..n)
+            .flat_map(|i| (i + 1..n).flat_map(move |j| (j + 1..n).map(move |k| vec![i, j, k])));
+        for pick in pairs.chain(triples) {
+            let points: Vec<[f64; 3]> = pick.iter().map(|&i| candidates[i]).collect();
+            if let Some(tets) = multi_cone(part, &tris, &degenerate, &points, &|v| {
+                self.position(v).map(f64::from)
+            }) {
                 let base = out.steiner.len() as u32;
-                let (id1, id2) = (STEINER | base, STEINER | (base + 1));
-                out.steiner.push(s1.map(|x| x as f32));
-                out.steiner.push(s2.map(|x| x as f32));
-                for (t, &f) in part.iter().zip(&first) {
-                    out.tets.push([t[0], t[2], t[1], if f { id1 } else { id2 }]);
-                }
-                out.tets
-                    .extend(wedges.iter().map(|&(a, b)| [b, a, id1, id2]));
+                out.steiner
+                    .extend(points.iter().map(|p| p.map(|x| x as f32)));
+                out.tets.extend(tets.into_iter().map(|t| {
+                    t.map(|v| {
+                        if v & STEINER != 0 {
+                            STEINER | (base + (v & !STEINER))
+                        } else {
+                            v
+                        }
+                    })
+                }));
                 return Ok(());
             }
         }
-        Err("no one or two points inside the cell's part of the region see all of its boundary")
+        Err("no one, two or three points inside the cell's part of the region see all of its boundary")
     }
 
     /// Points to cone a part from, already rounded to the stored precision: its vertices'
@@ -706,6 +757,136 @@ impl Context<'_> {
     ) -> Result<(), &'static str> {
         face::triangles(self, q, n, out, scratch)
     }
+}
+
+/// Cones from several points: each triangle of the part to the first point that sees it, a
+/// wedge `(b, a, s_i, s_j)` on every edge `a → b` between triangles coned to `s_i` and `s_j`
+/// (`i < j`), and a tetrahedron at every vertex where three cones meet. Accepted only when the
+/// tetrahedra's outward faces cancel in pairs except the part's own triangles (so their signed
+/// sum is the part) and every tetrahedron is positive (flat only over a triangle of no area):
+/// then they tile the part. Steiner points are `STEINER | index into points`.
+fn multi_cone(
+    part: &[[u32; 3]],
+    tris: &[[[f64; 3]; 3]],
+    degenerate: &[bool],
+    points: &[[f64; 3]],
+    position: &dyn Fn(u32) -> [f64; 3],
+) -> Option<Vec<[u32; 4]>> {
+    let mut group = Vec::with_capacity(part.len());
+    for (t, &d) in tris.iter().zip(degenerate) {
+        let g = points.iter().position(|&s| {
+            check::positive(t[0], t[2], t[1], s) || (d && !check::positive(t[0], t[1], t[2], s))
+        })?;
+        group.push(g as u32);
+    }
+    let steiner = |g: u32| STEINER | g;
+    let mut tets: Vec<[u32; 4]> = part
+        .iter()
+        .zip(&group)
+        .map(|(t, &g)| [t[0], t[2], t[1], steiner(g)])
+        .collect();
+    let cones = tets.len();
+    let mut directed: Vec<(u32, u32, u32)> = part
+        .iter()
+        .zip(&group)
+        .flat_map(|(t, &g)| (0..3).map(move |k| (t[k], t[(k + 1) % 3], g)))
+        .collect();
+    directed.sort_unstable();
+    for &(a, b, i) in &directed {
+        let at = directed.partition_point(|x| (x.0, x.1) < (b, a));
+        let j = directed.get(at).filter(|x| (x.0, x.1) == (b, a))?.2;
+        if i < j {
+            tets.push([b, a, steiner(i), steiner(j)]);
+        }
+    }
+    // Faces left over around the vertices where three cones meet: (v, s_i, s_j).
+    let residual = |tets: &[[u32; 4]]| -> Vec<[u32; 3]> {
+        let mut faces: Vec<([u32; 3], [u32; 3])> = tets
+            .iter()
+            .flat_map(|&[a, b, c, d]| {
+                [[a, c, b], [a, b, d], [a, d, c], [b, c, d]].map(|f| {
+                    let r = (0..3).min_by_key(|&r| f[r]).expect("three");
+                    let f = [f[r], f[(r + 1) % 3], f[(r + 2) % 3]];
+                    let mut key = f;
+                    key.sort_unstable();
+                    (key, f)
+                })
+            })
+            .chain(part.iter().map(|t| {
+                // The part's own triangles, reversed: they cancel the cones' outer faces.
+                let f = [t[0], t[2], t[1]];
+                let r = (0..3).min_by_key(|&r| f[r]).expect("three");
+                let f = [f[r], f[(r + 1) % 3], f[(r + 2) % 3]];
+                let mut key = f;
+                key.sort_unstable();
+                (key, f)
+            }))
+            .collect();
+        faces.sort_unstable();
+        let mut left = Vec::new();
+        let mut i = 0;
+        while i < faces.len() {
+            let mut j = i + 1;
+            while j < faces.len() && faces[j].0 == faces[i].0 {
+                j += 1;
+            }
+            // Opposite orientations cancel; what is left of the group stays.
+            let mut plus: Vec<[u32; 3]> = Vec::new();
+            let mut minus: Vec<[u32; 3]> = Vec::new();
+            let first = faces[i].1;
+            for f in &faces[i..j] {
+                if f.1 == first {
+                    plus.push(f.1);
+                } else {
+                    minus.push(f.1);
+                }
+            }
+            let k = plus.len().min(minus.len());
+            left.extend(plus.into_iter().skip(k));
+            left.extend(minus.into_iter().skip(k));
+            i = j;
+        }
+        left
+    };
+    let left = residual(&tets);
+    let mut junctions: Vec<u32> = Vec::new();
+    for f in &left {
+        // A face (v, x, y) with one mesh vertex and two Steiner points opens a junction at v,
+        // closed by the tetrahedron (v, x, y, z) with the third point z.
+        let rotations = [[f[0], f[1], f[2]], [f[1], f[2], f[0]], [f[2], f[0], f[1]]];
+        let Some(&[v, x, y]) = rotations
+            .iter()
+            .find(|r| r[0] & STEINER == 0 && r[1] & STEINER != 0 && r[2] & STEINER != 0)
+        else {
+            continue;
+        };
+        if junctions.contains(&v) {
+            continue;
+        }
+        let Some(z) = (0..points.len() as u32)
+            .map(steiner)
+            .find(|&z| z != x && z != y)
+        else {
+            continue;
+        };
+        junctions.push(v);
+        tets.push([v, x, y, z]);
+    }
+    if !residual(&tets).is_empty() {
+        return None;
+    }
+    let p = |v: u32| {
+        if v & STEINER != 0 {
+            points[(v & !STEINER) as usize]
+        } else {
+            position(v)
+        }
+    };
+    let all_positive = tets.iter().enumerate().all(|(k, t)| {
+        let [a, b, c, d] = t.map(p);
+        check::positive(a, b, c, d) || (k < cones && degenerate[k] && !check::positive(a, c, b, d))
+    });
+    all_positive.then_some(tets)
 }
 
 /// The closed parts of a cell's region boundary: triangles joined across their edges. An edge

@@ -203,16 +203,18 @@ fn single_cell_refusals() {
     for options in all_options() {
         let mut rng = crate::TestRng::new(3);
         let mut refused = 0;
+        let mut reasons = std::collections::BTreeMap::new();
         let n = 4000;
         for _ in 0..n {
             let values: Vec<f32> = (0..8).map(|_| rng.unit() as f32 * 2.0 - 1.0).collect();
             let grid = Grid::new([2, 2, 2], values).unwrap();
-            if matches!(tetmesh(&grid, &options), Err(TetError::Cell { .. })) {
+            if let Err(TetError::Cell { reason, .. }) = tetmesh(&grid, &options) {
                 refused += 1;
+                *reasons.entry(reason).or_insert(0) += 1;
             }
         }
         eprintln!(
-            "{:?} {:?} flip {}: {refused} / {n}",
+            "{:?} {:?} flip {}: {refused} / {n} {reasons:?}",
             options.topology, options.triangulation, options.flip
         );
     }
@@ -234,4 +236,21 @@ fn throughput_probe() {
         took,
         tets.tets.len() as f64 / took / 1e6
     );
+}
+
+/// Schwarz P has values within rounding of the level on whole lines of grid points: the
+/// surface has triangles of no area there, and the tetrahedra on them are flat, never
+/// inverted; the rest is as everywhere.
+#[test]
+fn values_at_the_level_give_flat_never_inverted_tetrahedra() {
+    let grid = Sample::SchwarzP.grid(40);
+    for flip in [false, true] {
+        let tets = tetmesh(&grid, &ExtractOptions::default().with_flip(flip)).unwrap();
+        let c = tets.check();
+        assert!(c.conforming && c.inverted == 0 && c.flat > 0, "{c:?}");
+        assert!((c.volume - c.enclosed).abs() <= 1e-9 * c.enclosed, "{c:?}");
+        let (surface, _) =
+            crate::extract::extract(&grid, &ExtractOptions::default().with_flip(flip)).unwrap();
+        assert!(surface.report().degenerate > 0);
+    }
 }
