@@ -13,6 +13,6 @@ mod view;
 
 pub use grid::{Grid, GridError};
 pub use orientation::Orientation;
-pub use samples::{Sample, SampleSpec};
+pub use samples::{sphere_packing, Ball, Sample, SampleSpec};
 pub use source::PlaneSource;
 pub use view::GridView;

@@ -698,7 +698,7 @@ impl Context<'_> {
                 return Ok(());
             }
         }
-        Err("no one, two or three points inside the cell's part of the region see all of its boundary")
+        Err("no one, two or three cone points inside the cell's part of the region fill it")
     }
 
     /// Points to cone a part from, already rounded to the stored precision: its vertices'
@@ -848,29 +848,50 @@ fn multi_cone(
         }
         left
     };
-    let left = residual(&tets);
-    let mut junctions: Vec<u32> = Vec::new();
-    for f in &left {
-        // A face (v, x, y) with one mesh vertex and two Steiner points opens a junction at v,
-        // closed by the tetrahedron (v, x, y, z) with the third point z.
-        let rotations = [[f[0], f[1], f[2]], [f[1], f[2], f[0]], [f[2], f[0], f[1]]];
-        let Some(&[v, x, y]) = rotations
-            .iter()
-            .find(|r| r[0] & STEINER == 0 && r[1] & STEINER != 0 && r[2] & STEINER != 0)
-        else {
-            continue;
-        };
-        if junctions.contains(&v) {
-            continue;
+    // Faces left over around the vertices where three or more cones meet, (v, x, y) with x
+    // and y Steiner points, make a cycle x0 → x1 → … around v; a fan of tetrahedra
+    // (v, x_i, x_i+1, x0) from its lowest point closes it (and the fans of two vertices with
+    // the same cycle share their last faces).
+    let mut around: Vec<(u32, u32, u32)> = residual(&tets)
+        .iter()
+        .filter_map(|f| {
+            let rotations = [[f[0], f[1], f[2]], [f[1], f[2], f[0]], [f[2], f[0], f[1]]];
+            rotations
+                .iter()
+                .find(|r| r[0] & STEINER == 0 && r[1] & STEINER != 0 && r[2] & STEINER != 0)
+                .map(|r| (r[0], r[1], r[2]))
+        })
+        .collect();
+    around.sort_unstable();
+    let mut i = 0;
+    while i < around.len() {
+        let v = around[i].0;
+        let mut j = i;
+        while j < around.len() && around[j].0 == v {
+            j += 1;
         }
-        let Some(z) = (0..points.len() as u32)
-            .map(steiner)
-            .find(|&z| z != x && z != y)
-        else {
-            continue;
-        };
-        junctions.push(v);
-        tets.push([v, x, y, z]);
+        let edges = &around[i..j];
+        let start = edges.iter().map(|e| e.1).min()?;
+        let mut cycle = vec![start];
+        let mut at = start;
+        loop {
+            let next = edges.iter().find(|e| e.1 == at)?.2;
+            if next == start {
+                break;
+            }
+            if cycle.len() > edges.len() {
+                return None;
+            }
+            cycle.push(next);
+            at = next;
+        }
+        if cycle.len() != edges.len() {
+            return None;
+        }
+        for k in 1..cycle.len() - 1 {
+            tets.push([v, cycle[k], cycle[k + 1], cycle[0]]);
+        }
+        i = j;
     }
     if !residual(&tets).is_empty() {
         return None;

@@ -254,3 +254,72 @@ fn values_at_the_level_give_flat_never_inverted_tetrahedra() {
         assert!(surface.report().degenerate > 0);
     }
 }
+
+/// Cones from two or three points over a cube's boundary (12 triangles, outward): the
+/// tetrahedra tile it (volume 1, all positive), wedges and junctions included.
+#[test]
+fn cones_from_several_points_tile_a_cube() {
+    let corner = |o: u32| [o & 1, o >> 1 & 1, o >> 2 & 1].map(f64::from);
+    // Faces as quads (outward, counterclockwise seen from outside).
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let part: Vec<[u32; 3]> = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    let tris: Vec<[[f64; 3]; 3]> = part.iter().map(|t| t.map(corner)).collect();
+    let degenerate = vec![false; part.len()];
+    for points in [
+        vec![[0.3, 0.5, 0.5], [0.7, 0.5, 0.5]],
+        vec![[0.2, 0.3, 0.5], [0.8, 0.3, 0.5], [0.5, 0.8, 0.5]],
+    ] {
+        let tets = multi_cone(&part, &tris, &degenerate, &points, &corner).expect("tiles");
+        let p = |v: u32| {
+            if v & STEINER != 0 {
+                points[(v & !STEINER) as usize]
+            } else {
+                corner(v)
+            }
+        };
+        let volume: f64 = tets
+            .iter()
+            .map(|t| {
+                let [a, b, c, d] = t.map(p);
+                check::dot(
+                    check::sub(b, a),
+                    check::cross(check::sub(c, a), check::sub(d, a)),
+                ) / 6.0
+            })
+            .sum();
+        assert!((volume - 1.0).abs() < 1e-12, "{volume} {}", tets.len());
+    }
+}
+
+/// The paper's example: the pores between packed spheres, some cut by the box, meshed as a
+/// region reaching the grid's faces.
+#[test]
+fn the_pores_between_packed_spheres() {
+    let spec: crate::field::SampleSpec = "sample:packed-spheres:64:1".parse().unwrap();
+    let grid = spec.grid();
+    let tets = tetmesh(&grid, &ExtractOptions::default().with_flip(true)).unwrap();
+    let c = assert_valid(&tets, "pores");
+    assert!(!tets.walls.is_empty() && tets.beyond.is_empty());
+    // The pores and the spheres fill the box; the spheres' volume is close to the packing's.
+    let balls = crate::field::sphere_packing(1);
+    let balls_volume: f64 = balls
+        .iter()
+        .map(|(_, r)| 4.0 / 3.0 * std::f64::consts::PI * r.powi(3))
+        .sum();
+    let solid = 1.0 - c.volume;
+    // Spheres sticking out of the box lose a part, so the solid is at most the balls' volume.
+    assert!(
+        solid < balls_volume && solid > 0.5 * balls_volume,
+        "{solid} vs {balls_volume}"
+    );
+}
