@@ -1,0 +1,81 @@
+"""isocube tetmesh beside TetGen on the same surfaces, end to end, in one run.
+
+    python bench/peers/tets.py ISOCUBE_BINARY [SAMPLE:N ...]
+
+For each sample, isocube runs as a user runs it: `isocube tetmesh sample:NAME:N -o out.vtu`
+(the field sampled, meshed, checked and written), timed from outside. TetGen (PyPI `tetgen`)
+gets isocube's surface (`isocube extract`, read from the PLY) and must keep it: `-pYQ` (no
+quality refinement) and `-pYqQ` (quality refinement, boundary kept; `Q` only silences it). Its time is the
+`tetrahedralize` call alone, input already in memory. Prints a Markdown table: elements,
+dihedral angles, seconds.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+
+def dihedrals(points: np.ndarray, tets: np.ndarray) -> tuple[float, float]:
+    p = points.astype(np.float64)[tets]
+    lo, hi = np.inf, -np.inf
+    faces = [(1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2)]
+    normals = []
+    for k, (a, b, c) in enumerate(faces):
+        n = np.cross(p[:, b] - p[:, a], p[:, c] - p[:, a])
+        # Away from the opposite corner.
+        side = np.einsum("ij,ij->i", n, p[:, k] - p[:, a])
+        n[side > 0] *= -1
+        normals.append(n / np.linalg.norm(n, axis=1, keepdims=True))
+    for i in range(4):
+        for j in range(i + 1, 4):
+            cos = np.clip(np.einsum("ij,ij->i", normals[i], normals[j]), -1, 1)
+            angle = 180.0 - np.degrees(np.arccos(cos))
+            lo, hi = min(lo, angle.min()), max(hi, angle.max())
+    return float(lo), float(hi)
+
+
+def main() -> None:
+    binary = sys.argv[1]
+    samples = sys.argv[2:] or ["sphere:64", "torus:64", "tangle:64"]
+    import tetgen
+
+    print("| surface | tool | elements | min dihedral | max dihedral | seconds |")
+    print("|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as work:
+        for sample in samples:
+            volume = f"sample:{sample}"
+            out = Path(work) / "t.vtu"
+            start = time.perf_counter()
+            subprocess.run([binary, "-q", "tetmesh", volume, "-o", str(out)], check=True)
+            took = time.perf_counter() - start
+            m = meshio.read(out)
+            tets = m.cells_dict["tetra"]
+            lo, hi = dihedrals(m.points, tets)
+            print(f"| {sample} | isocube tetmesh (end to end) | {len(tets)} | {lo:.2f} | {hi:.2f} | {took:.3f} |")
+            ply = Path(work) / "s.ply"
+            subprocess.run([binary, "-q", "extract", volume, "-o", str(ply), "--no-normals"], check=True)
+            surface = meshio.read(ply)
+            faces = surface.cells_dict["triangle"]
+            for switches in ["pYQ", "pYqQ"]:
+                gen = tetgen.TetGen(surface.points.astype(np.float64), faces.astype(np.int32))
+                start = time.perf_counter()
+                try:
+                    result = gen.tetrahedralize(switches=switches)
+                except Exception as e:  # TetGen refuses some surfaces (self-intersections)
+                    print(f"| {sample} | TetGen -{switches} | failed: {str(e)[:60]} | | | |")
+                    continue
+                took = time.perf_counter() - start
+                nodes, elems = result[0], result[1]
+                lo, hi = dihedrals(np.asarray(nodes), np.asarray(elems)[:, :4])
+                print(f"| {sample} | TetGen -{switches} | {len(elems)} | {lo:.2f} | {hi:.2f} | {took:.3f} |")
+
+
+if __name__ == "__main__":
+    main()
