@@ -27,16 +27,17 @@ fn too_large(what: &str) -> io::Error {
     io::Error::new(io::ErrorKind::InvalidInput, what.to_string())
 }
 
-fn bbox(mesh: &Mesh) -> ([f32; 3], [f32; 3]) {
+/// The bounding box of positions (zeros when there are none).
+pub(crate) fn bbox(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
-    for p in &mesh.positions {
+    for p in positions {
         for d in 0..3 {
             lo[d] = lo[d].min(p[d]);
             hi[d] = hi[d].max(p[d]);
         }
     }
-    if mesh.positions.is_empty() {
+    if positions.is_empty() {
         ([0.0; 3], [0.0; 3])
     } else {
         (lo, hi)
@@ -68,7 +69,7 @@ pub(crate) fn write_glb(
         ));
         views.len() - 1
     };
-    let (lo, hi) = bbox(mesh);
+    let (lo, hi) = bbox(&mesh.positions);
     let view = block(&mut bin, &le_bytes(mesh.positions.as_flattened()), 34962);
     accessors.push(format!(
         r#"{{"bufferView":{view},"componentType":5126,"count":{n},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]}}"#,
@@ -352,7 +353,7 @@ pub(crate) fn write_msh(
 ) -> io::Result<()> {
     let n = mesh.positions.len();
     let f = mesh.triangles.len();
-    let (lo, hi) = bbox(mesh);
+    let (lo, hi) = bbox(&mesh.positions);
     writeln!(w, "$MeshFormat\n4.1 0 8\n$EndMeshFormat")?;
     writeln!(w, "$Entities\n0 0 1 0")?;
     writeln!(
@@ -468,7 +469,7 @@ mod tests {
         // The bounds the specification requires are the positions' own.
         let pos =
             &json["accessors"][primitive["attributes"]["POSITION"].as_u64().unwrap() as usize];
-        let (lo, hi) = bbox(&m);
+        let (lo, hi) = bbox(&m.positions);
         for d in 0..3 {
             assert_eq!(pos["min"][d].as_f64().unwrap() as f32, lo[d]);
             assert_eq!(pos["max"][d].as_f64().unwrap() as f32, hi[d]);

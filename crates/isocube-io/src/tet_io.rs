@@ -9,6 +9,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::blocks::write_blocks;
+use super::export::bbox;
 use super::mesh_io::write_atomic;
 use super::IoError;
 use isocube::volume::{TetMesh, TetQuality};
@@ -72,22 +73,6 @@ pub fn write_tet_mesh(
         }?;
         w.flush()
     })
-}
-
-fn bbox(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for p in positions {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    if positions.is_empty() {
-        ([0.0; 3], [0.0; 3])
-    } else {
-        (lo, hi)
-    }
 }
 
 /// Gmsh MSH 4.1: entities surface 2 (the isosurface), surface 3 (the walls, when there are

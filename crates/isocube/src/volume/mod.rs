@@ -420,14 +420,7 @@ fn triangle_cell(
                 let Some(layer) = side.filter(|&l| l + 1 < dims[n]) else {
                     return Owner::Beyond;
                 };
-                let mut range = [[0usize, usize::MAX]; 3];
-                for key in k {
-                    let r = cell_range(key, dims);
-                    for d in 0..3 {
-                        range[d][0] = range[d][0].max(r[d][0]);
-                        range[d][1] = range[d][1].min(r[d][1]).min(dims[d] - 2);
-                    }
-                }
+                let range = common_range(&k, dims);
                 let mut cell: [usize; 3] = std::array::from_fn(|d| range[d][0]);
                 cell[n] = layer;
                 let unique = (0..3).all(|d| d == n || range[d][0] == range[d][1]);
@@ -439,19 +432,25 @@ fn triangle_cell(
             }
         }
     }
+    let range = common_range(&k, dims);
+    if (0..3).all(|d| range[d][0] == range[d][1]) {
+        Owner::Cell(std::array::from_fn(|d| range[d][0]))
+    } else {
+        Owner::Nowhere
+    }
+}
+
+/// The cells (ranges of lowest corners per axis, within the grid) that hold all the keys.
+fn common_range(keys: &[VertexKey], dims: [usize; 3]) -> [[usize; 2]; 3] {
     let mut range = [[0usize, usize::MAX]; 3];
-    for key in k {
+    for &key in keys {
         let r = cell_range(key, dims);
         for d in 0..3 {
             range[d][0] = range[d][0].max(r[d][0]);
             range[d][1] = range[d][1].min(r[d][1]).min(dims[d] - 2);
         }
     }
-    if (0..3).all(|d| range[d][0] == range[d][1]) {
-        Owner::Cell(std::array::from_fn(|d| range[d][0]))
-    } else {
-        Owner::Nowhere
-    }
+    range
 }
 
 /// A cell next to a vertex, to name in an error.
