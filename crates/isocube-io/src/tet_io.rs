@@ -44,6 +44,9 @@ impl TetFormat {
     }
 }
 
+/// Items encoded per write in `.vtu` arrays.
+const STRETCH: usize = 1 << 16;
+
 /// Physical group numbers (and MEDIT references).
 const REGION: u32 = 1;
 const SURFACE: u32 = 2;
@@ -175,9 +178,12 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
         offset += 8 + bytes;
         at
     };
+    // Int32 indices while they fit (half the size), Int64 beyond.
+    let wide = n > i32::MAX as usize || 4 * t > i32::MAX as usize;
+    let (int, int_size) = if wide { ("Int64", 8) } else { ("Int32", 4) };
     let points = next(12 * n as u64);
-    let connectivity = next(4 * 8 * t as u64);
-    let offsets = next(8 * t as u64);
+    let connectivity = next(4 * int_size * t as u64);
+    let offsets = next(int_size * t as u64);
     let types = next(t as u64);
     let region = next(4 * t as u64);
     let measures = quality.map(|_| [next(8 * t as u64), next(8 * t as u64), next(8 * t as u64)]);
@@ -214,11 +220,11 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
     writeln!(w, "      <Cells>")?;
     writeln!(
         w,
-        r#"        <DataArray type="Int64" Name="connectivity" format="appended" offset="{connectivity}"/>"#
+        r#"        <DataArray type="{int}" Name="connectivity" format="appended" offset="{connectivity}"/>"#
     )?;
     writeln!(
         w,
-        r#"        <DataArray type="Int64" Name="offsets" format="appended" offset="{offsets}"/>"#
+        r#"        <DataArray type="{int}" Name="offsets" format="appended" offset="{offsets}"/>"#
     )?;
     writeln!(
         w,
@@ -229,42 +235,58 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
     writeln!(w, "  </UnstructuredGrid>")?;
     write!(w, r#"  <AppendedData encoding="raw">"#)?;
     w.write_all(b"\n   _")?;
-    let block = |w: &mut dyn Write, bytes: u64, fill: &dyn Fn(&mut Vec<u8>)| -> io::Result<()> {
-        w.write_all(&bytes.to_le_bytes())?;
-        let mut buf = Vec::with_capacity(bytes as usize);
-        fill(&mut buf);
-        debug_assert_eq!(buf.len() as u64, bytes);
-        w.write_all(&buf)
+    // Each array: its byte count, then its items, encoded a stretch at a time so that no array
+    // is ever held whole a second time.
+    let array = |w: &mut dyn Write,
+                 count: usize,
+                 size: usize,
+                 item: &dyn Fn(usize, &mut Vec<u8>)|
+     -> io::Result<()> {
+        w.write_all(&((count * size) as u64).to_le_bytes())?;
+        let mut buf = Vec::with_capacity(STRETCH * size);
+        for start in (0..count).step_by(STRETCH) {
+            buf.clear();
+            for i in start..(start + STRETCH).min(count) {
+                item(i, &mut buf);
+            }
+            w.write_all(&buf)?;
+        }
+        Ok(())
     };
-    block(w, 12 * n as u64, &|b| {
-        for x in mesh.positions.as_flattened() {
+    array(w, n, 12, &|i, b| {
+        for x in mesh.positions[i] {
             b.extend_from_slice(&x.to_le_bytes());
         }
     })?;
-    block(w, 32 * t as u64, &|b| {
-        for &v in mesh.tets.as_flattened() {
-            b.extend_from_slice(&i64::from(v).to_le_bytes());
-        }
-    })?;
-    block(w, 8 * t as u64, &|b| {
-        for k in 1..=t as i64 {
-            b.extend_from_slice(&(4 * k).to_le_bytes());
-        }
-    })?;
-    block(w, t as u64, &|b| b.resize(t, 10))?;
-    block(w, 4 * t as u64, &|b| {
-        for _ in 0..t {
-            b.extend_from_slice(&(REGION as i32).to_le_bytes());
-        }
+    if wide {
+        array(w, t, 32, &|i, b| {
+            for v in mesh.tets[i] {
+                b.extend_from_slice(&i64::from(v).to_le_bytes());
+            }
+        })?;
+        array(w, t, 8, &|i, b| {
+            b.extend_from_slice(&(4 * (i as i64 + 1)).to_le_bytes())
+        })?;
+    } else {
+        array(w, t, 16, &|i, b| {
+            for v in mesh.tets[i] {
+                b.extend_from_slice(&(v as i32).to_le_bytes());
+            }
+        })?;
+        array(w, t, 4, &|i, b| {
+            b.extend_from_slice(&(4 * (i as i32 + 1)).to_le_bytes())
+        })?;
+    }
+    array(w, t, 1, &|_, b| b.push(10))?;
+    array(w, t, 4, &|_, b| {
+        b.extend_from_slice(&(REGION as i32).to_le_bytes())
     })?;
     if let Some(q) = quality {
         let fields: [fn(&TetQuality) -> f64; 3] =
             [|q| q.min_dihedral, |q| q.max_dihedral, |q| q.radius_ratio];
         for field in fields {
-            block(w, 8 * t as u64, &|b| {
-                for x in q {
-                    b.extend_from_slice(&field(x).to_le_bytes());
-                }
+            array(w, t, 8, &|i, b| {
+                b.extend_from_slice(&field(&q[i]).to_le_bytes())
             })?;
         }
     }
