@@ -179,36 +179,7 @@ impl TetMesh {
                 (usize::from(!pos && neg), usize::from(!pos && !neg), vol)
             })
             .reduce(|| (0, 0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
-        // Outward faces of every tetrahedron, keyed by their sorted vertices.
-        let mut faces: Vec<([u32; 3], [u32; 3])> = self
-            .tets
-            .par_iter()
-            .flat_map_iter(|&[a, b, c, d]| {
-                [[a, c, b], [a, b, d], [a, d, c], [b, c, d]].map(|f| {
-                    let mut s = f;
-                    s.sort_unstable();
-                    (s, f)
-                })
-            })
-            .collect();
-        faces.par_sort_unstable_by_key(|f| f.0);
-        let same_way =
-            |f: [u32; 3], g: [u32; 3]| (0..3).any(|r| [f[r], f[(r + 1) % 3], f[(r + 2) % 3]] == g);
-        let mut bad_faces = 0;
-        let mut open: Vec<[u32; 3]> = Vec::new();
-        let mut i = 0;
-        while i < faces.len() {
-            let mut j = i + 1;
-            while j < faces.len() && faces[j].0 == faces[i].0 {
-                j += 1;
-            }
-            match j - i {
-                1 => open.push(faces[i].1),
-                2 if !same_way(faces[i].1, faces[i + 1].1) => {}
-                _ => bad_faces += 1,
-            }
-            i = j;
-        }
+        let (bad_faces, open) = match_faces(&self.tets, self.positions.len());
         let canonical = |f: [u32; 3]| {
             let r = (0..3).min_by_key(|&r| f[r]).expect("three");
             [f[r], f[(r + 1) % 3], f[(r + 2) % 3]]
@@ -266,4 +237,80 @@ impl TetMesh {
             enclosed,
         }
     }
+}
+
+/// Matches the tetrahedra's outward faces: each face is filed under its lowest vertex (a
+/// counting sort, linear), each vertex's few faces are sorted on their own, in parallel. Returns
+/// the faces used otherwise than once each way, and the faces used once (the boundary), as
+/// oriented triangles.
+fn match_faces(tets: &[[u32; 4]], vertices: usize) -> (usize, Vec<[u32; 3]>) {
+    /// The other two vertices of a face filed under its lowest, and its direction.
+    type Filed = (u32, u32, bool);
+    // A face (lowest vertex first, then the other two in order) and whether it runs that way.
+    let faces_of = |&[a, b, c, d]: &[u32; 4]| {
+        [[a, c, b], [a, b, d], [a, d, c], [b, c, d]].map(|f| {
+            let r = (0..3).min_by_key(|&r| f[r]).expect("three");
+            let (x, y) = (f[(r + 1) % 3], f[(r + 2) % 3]);
+            (f[r], x.min(y), x.max(y), x < y)
+        })
+    };
+    let mut start = vec![0usize; vertices + 1];
+    for t in tets {
+        for f in faces_of(t) {
+            start[f.0 as usize + 1] += 1;
+        }
+    }
+    for v in 0..vertices {
+        start[v + 1] += start[v];
+    }
+    // (second, third, forward) per face, grouped by lowest vertex.
+    let mut filed: Vec<Filed> = vec![(0, 0, false); start[vertices]];
+    let mut next = start.clone();
+    for t in tets {
+        for (low, x, y, forward) in faces_of(t) {
+            let at = &mut next[low as usize];
+            filed[*at] = (x, y, forward);
+            *at += 1;
+        }
+    }
+    // Each vertex's faces, sorted and matched on their own.
+    let mut slices: Vec<(u32, &mut [Filed])> = Vec::with_capacity(vertices);
+    let mut rest = filed.as_mut_slice();
+    for v in 0..vertices {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(start[v + 1] - start[v]);
+        if !head.is_empty() {
+            slices.push((v as u32, head));
+        }
+        rest = tail;
+    }
+    slices
+        .into_par_iter()
+        .map(|(low, faces)| {
+            faces.sort_unstable();
+            let mut bad = 0;
+            let mut open = Vec::new();
+            let mut i = 0;
+            while i < faces.len() {
+                let mut j = i + 1;
+                while j < faces.len() && (faces[j].0, faces[j].1) == (faces[i].0, faces[i].1) {
+                    j += 1;
+                }
+                let (x, y, forward) = faces[i];
+                match j - i {
+                    1 => open.push(if forward { [low, x, y] } else { [low, y, x] }),
+                    2 if faces[i].2 != faces[i + 1].2 => {}
+                    _ => bad += 1,
+                }
+                i = j;
+            }
+            (bad, open)
+        })
+        .reduce(
+            || (0, Vec::new()),
+            |mut a, mut b| {
+                a.0 += b.0;
+                a.1.append(&mut b.1);
+                a
+            },
+        )
 }

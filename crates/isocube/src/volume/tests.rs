@@ -323,3 +323,23 @@ fn the_pores_between_packed_spheres() {
         "{solid} vs {balls_volume}"
     );
 }
+
+/// The check finds what is wrong: a missing tetrahedron (a hole in the boundary), a doubled
+/// one (faces used three times), a turned one (inverted, faces used twice the same way).
+#[test]
+fn the_check_catches_broken_meshes() {
+    let good = tetmesh(&Sample::Torus.grid(16), &ExtractOptions::default()).unwrap();
+    assert!(good.check().conforming);
+    let mut missing = good.clone();
+    missing.tets.remove(missing.tets.len() / 2);
+    let c = missing.check();
+    assert!(!c.conforming && c.boundary_mismatch > 0, "{c:?}");
+    let mut doubled = good.clone();
+    doubled.tets.push(doubled.tets[7]);
+    let c = doubled.check();
+    assert!(!c.conforming && c.bad_faces == 4, "{c:?}");
+    let mut turned = good.clone();
+    turned.tets[3].swap(0, 1);
+    let c = turned.check();
+    assert!(!c.conforming && c.inverted == 1, "{c:?}");
+}
