@@ -55,8 +55,17 @@ pub(super) fn coplanar(tris: &[[[f64; 3]; 3]]) -> bool {
 /// set of four constraints: parts have a few dozen triangles, and this runs only when simple
 /// guesses fail).
 pub(super) fn kernel_point(tris: &[[[f64; 3]; 3]]) -> Option<[f32; 3]> {
+    kernel_point_in(tris, None)
+}
+
+/// [`kernel_point`] for any set of triangles, optionally kept inside a box (`lo`, `hi`): for a
+/// few triangles of a part, the region that sees them all is unbounded without it.
+pub(super) fn kernel_point_in(
+    tris: &[[[f64; 3]; 3]],
+    bounds: Option<([f64; 3], [f64; 3])>,
+) -> Option<[f32; 3]> {
     // Each constraint: n · x + t ≤ h, n the unit outward normal.
-    let rows: Vec<([f64; 3], f64)> = tris
+    let mut rows: Vec<([f64; 3], f64)> = tris
         .iter()
         .filter_map(|t| {
             let (u, w) = (sub(t[1], t[0]), sub(t[2], t[0]));
@@ -68,6 +77,15 @@ pub(super) fn kernel_point(tris: &[[[f64; 3]; 3]]) -> Option<[f32; 3]> {
             })
         })
         .collect();
+    if let Some((lo, hi)) = bounds {
+        for d in 0..3 {
+            let mut n = [0.0; 3];
+            n[d] = 1.0;
+            rows.push((n, hi[d]));
+            n[d] = -1.0;
+            rows.push((n, -lo[d]));
+        }
+    }
     let m = rows.len();
     let mut best: Option<([f64; 3], f64)> = None;
     for a in 0..m {

@@ -45,6 +45,7 @@ use crate::field::GridView;
 use crate::mesh::Mesh;
 
 mod check;
+mod cones;
 mod face;
 mod quality;
 
@@ -469,6 +470,24 @@ struct Layer {
     cut_cells: usize,
 }
 
+impl Layer {
+    /// Appends tetrahedra whose Steiner points (`STEINER | k`) index `points`.
+    fn push_tiled(&mut self, (points, tets): cones::Tiled) {
+        let base = self.steiner.len() as u32;
+        self.steiner
+            .extend(points.iter().map(|p| p.map(|x| x as f32)));
+        self.tets.extend(tets.into_iter().map(|t| {
+            t.map(|v| {
+                if v & STEINER != 0 {
+                    STEINER | (base + (v & !STEINER))
+                } else {
+                    v
+                }
+            })
+        }));
+    }
+}
+
 struct Context<'a> {
     grid: GridView<'a>,
     dims: [usize; 3],
@@ -664,6 +683,19 @@ impl Context<'_> {
                 return Ok(());
             }
         }
+        // A cone from one of the part's own corners, over the triangles not touching it: no
+        // Steiner point at all (the apex of a fan that folds the surface often sees the rest).
+        let mut corners: Vec<u32> = part.iter().flatten().copied().collect();
+        corners.sort_unstable();
+        corners.dedup();
+        for &v in &corners {
+            let pv = self.position(v).map(f64::from);
+            let far = || part.iter().zip(&tris).filter(|(t, _)| !t.contains(&v));
+            if far().all(|(_, t)| check::positive(t[0], t[2], t[1], pv)) {
+                out.tets.extend(far().map(|(t, _)| [t[0], t[2], t[1], v]));
+                return Ok(());
+            }
+        }
         if let Some(apex) =
             check::kernel_point(&tris).filter(|a| seen(a.map(f64::from)).iter().all(|&x| x))
         {
@@ -677,27 +709,112 @@ impl Context<'_> {
         let pairs = (0..n).flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| vec![i, j]));
         let triples = (0..n)
             .flat_map(|i| (i + 1..n).flat_map(move |j| (j + 1..n).map(move |k| vec![i, j, k])));
+        let position = |v: u32| self.position(v).map(f64::from);
         for pick in pairs.chain(triples) {
             let points: Vec<[f64; 3]> = pick.iter().map(|&i| candidates[i]).collect();
-            if let Some(tets) = multi_cone(part, &tris, &degenerate, &points, &|v| {
-                self.position(v).map(f64::from)
-            }) {
-                let base = out.steiner.len() as u32;
-                out.steiner
-                    .extend(points.iter().map(|p| p.map(|x| x as f32)));
-                out.tets.extend(tets.into_iter().map(|t| {
-                    t.map(|v| {
-                        if v & STEINER != 0 {
-                            STEINER | (base + (v & !STEINER))
-                        } else {
-                            v
-                        }
-                    })
-                }));
+            // Each triangle to the first point that sees it.
+            let group: Option<Vec<u32>> = tris
+                .iter()
+                .zip(&degenerate)
+                .map(|(t, &d)| {
+                    points
+                        .iter()
+                        .position(|&s| cones::sees(t, d, s))
+                        .map(|g| g as u32)
+                })
+                .collect();
+            let Some(group) = group else { continue };
+            if let Ok(tiled) =
+                cones::tile(part, &tris, &degenerate, &points, &group, &position, None)
+            {
+                out.push_tiled(tiled);
                 return Ok(());
             }
         }
+        if let Some(tiled) = self.spread_cones(cell, part, &tris, &degenerate, &candidates) {
+            out.push_tiled(tiled);
+            return Ok(());
+        }
         Err("no one, two or three cone points inside the cell's part of the region fill it")
+    }
+
+    /// Cones from points chosen by [`cones::assign`] among the candidates and two points inside
+    /// each triangle (those covering the part greedily first, then those seeing most), tiled by
+    /// [`cones::tile`].
+    fn spread_cones(
+        &self,
+        cell: [usize; 3],
+        part: &[[u32; 3]],
+        tris: &[[[f64; 3]; 3]],
+        degenerate: &[bool],
+        candidates: &[[f64; 3]],
+    ) -> Option<cones::Tiled> {
+        let lo = self.grid.point(cell[0], cell[1], cell[2]);
+        let hi = self.grid.point(cell[0] + 1, cell[1] + 1, cell[2] + 1);
+        let size = (0..3).map(|d| hi[d] - lo[d]).fold(f64::INFINITY, f64::min);
+        let n = part.len();
+        let mut pool: Vec<[f64; 3]> = candidates.to_vec();
+        for (t, &d) in tris.iter().zip(degenerate) {
+            if d {
+                continue;
+            }
+            let nrm = check::cross(check::sub(t[1], t[0]), check::sub(t[2], t[0]));
+            let len = check::dot(nrm, nrm).sqrt();
+            for depth in [0.25, 0.1] {
+                pool.push(std::array::from_fn(|k| {
+                    let c = (t[0][k] + t[1][k] + t[2][k]) / 3.0;
+                    f64::from((c - depth * size * nrm[k] / len) as f32)
+                }));
+            }
+        }
+        let seen_by: Vec<Vec<bool>> = pool
+            .iter()
+            .map(|&p| {
+                (0..n)
+                    .map(|i| cones::sees(&tris[i], degenerate[i], p))
+                    .collect()
+            })
+            .collect();
+        let mut covered = vec![false; n];
+        let mut points: Vec<[f64; 3]> = Vec::new();
+        while covered.iter().any(|&c| !c) {
+            if points.len() >= 8 {
+                return None;
+            }
+            let gain = |k: usize| (0..n).filter(|&i| !covered[i] && seen_by[k][i]).count();
+            let best = (0..pool.len()).max_by_key(|&k| (gain(k), std::cmp::Reverse(k)))?;
+            if gain(best) == 0 {
+                return None;
+            }
+            for i in 0..n {
+                covered[i] |= seen_by[best][i];
+            }
+            points.push(pool[best]);
+        }
+        // Spare points give the search room: the pool's others, those seeing most first.
+        let mut spare: Vec<usize> = (0..pool.len()).collect();
+        spare.sort_by_key(|&k| std::cmp::Reverse(seen_by[k].iter().filter(|&&x| x).count()));
+        for k in spare {
+            if points.len() >= 40 {
+                break;
+            }
+            if !points.contains(&pool[k]) {
+                points.push(pool[k]);
+            }
+        }
+        let group = cones::assign(part, tris, degenerate, &points, &|v| {
+            self.position(v).map(f64::from)
+        })?;
+        cones::tile(
+            part,
+            tris,
+            degenerate,
+            &points,
+            &group,
+            &|v| self.position(v).map(f64::from),
+            None,
+        )
+        .ok()
     }
 
     /// Points to cone a part from, already rounded to the stored precision: its vertices'
@@ -756,157 +873,6 @@ impl Context<'_> {
     ) -> Result<(), &'static str> {
         face::triangles(self, q, n, out, scratch)
     }
-}
-
-/// Cones from several points: each triangle of the part to the first point that sees it, a
-/// wedge `(b, a, s_i, s_j)` on every edge `a → b` between triangles coned to `s_i` and `s_j`
-/// (`i < j`), and a tetrahedron at every vertex where three cones meet. Accepted only when the
-/// tetrahedra's outward faces cancel in pairs except the part's own triangles (so their signed
-/// sum is the part) and every tetrahedron is positive (flat only over a triangle of no area):
-/// then they tile the part. Steiner points are `STEINER | index into points`.
-fn multi_cone(
-    part: &[[u32; 3]],
-    tris: &[[[f64; 3]; 3]],
-    degenerate: &[bool],
-    points: &[[f64; 3]],
-    position: &dyn Fn(u32) -> [f64; 3],
-) -> Option<Vec<[u32; 4]>> {
-    let mut group = Vec::with_capacity(part.len());
-    for (t, &d) in tris.iter().zip(degenerate) {
-        let g = points.iter().position(|&s| {
-            check::positive(t[0], t[2], t[1], s) || (d && !check::positive(t[0], t[1], t[2], s))
-        })?;
-        group.push(g as u32);
-    }
-    let steiner = |g: u32| STEINER | g;
-    let mut tets: Vec<[u32; 4]> = part
-        .iter()
-        .zip(&group)
-        .map(|(t, &g)| [t[0], t[2], t[1], steiner(g)])
-        .collect();
-    let cones = tets.len();
-    let mut directed: Vec<(u32, u32, u32)> = part
-        .iter()
-        .zip(&group)
-        .flat_map(|(t, &g)| (0..3).map(move |k| (t[k], t[(k + 1) % 3], g)))
-        .collect();
-    directed.sort_unstable();
-    for &(a, b, i) in &directed {
-        let at = directed.partition_point(|x| (x.0, x.1) < (b, a));
-        let j = directed.get(at).filter(|x| (x.0, x.1) == (b, a))?.2;
-        if i < j {
-            tets.push([b, a, steiner(i), steiner(j)]);
-        }
-    }
-    // Faces left over around the vertices where three cones meet: (v, s_i, s_j).
-    let residual = |tets: &[[u32; 4]]| -> Vec<[u32; 3]> {
-        let mut faces: Vec<([u32; 3], [u32; 3])> = tets
-            .iter()
-            .flat_map(|&[a, b, c, d]| {
-                [[a, c, b], [a, b, d], [a, d, c], [b, c, d]].map(|f| {
-                    let r = (0..3).min_by_key(|&r| f[r]).expect("three");
-                    let f = [f[r], f[(r + 1) % 3], f[(r + 2) % 3]];
-                    let mut key = f;
-                    key.sort_unstable();
-                    (key, f)
-                })
-            })
-            .chain(part.iter().map(|t| {
-                // The part's own triangles, reversed: they cancel the cones' outer faces.
-                let f = [t[0], t[2], t[1]];
-                let r = (0..3).min_by_key(|&r| f[r]).expect("three");
-                let f = [f[r], f[(r + 1) % 3], f[(r + 2) % 3]];
-                let mut key = f;
-                key.sort_unstable();
-                (key, f)
-            }))
-            .collect();
-        faces.sort_unstable();
-        let mut left = Vec::new();
-        let mut i = 0;
-        while i < faces.len() {
-            let mut j = i + 1;
-            while j < faces.len() && faces[j].0 == faces[i].0 {
-                j += 1;
-            }
-            // Opposite orientations cancel; what is left of the group stays.
-            let mut plus: Vec<[u32; 3]> = Vec::new();
-            let mut minus: Vec<[u32; 3]> = Vec::new();
-            let first = faces[i].1;
-            for f in &faces[i..j] {
-                if f.1 == first {
-                    plus.push(f.1);
-                } else {
-                    minus.push(f.1);
-                }
-            }
-            let k = plus.len().min(minus.len());
-            left.extend(plus.into_iter().skip(k));
-            left.extend(minus.into_iter().skip(k));
-            i = j;
-        }
-        left
-    };
-    // Faces left over around the vertices where three or more cones meet, (v, x, y) with x
-    // and y Steiner points, make a cycle x0 → x1 → … around v; a fan of tetrahedra
-    // (v, x_i, x_i+1, x0) from its lowest point closes it (and the fans of two vertices with
-    // the same cycle share their last faces).
-    let mut around: Vec<(u32, u32, u32)> = residual(&tets)
-        .iter()
-        .filter_map(|f| {
-            let rotations = [[f[0], f[1], f[2]], [f[1], f[2], f[0]], [f[2], f[0], f[1]]];
-            rotations
-                .iter()
-                .find(|r| r[0] & STEINER == 0 && r[1] & STEINER != 0 && r[2] & STEINER != 0)
-                .map(|r| (r[0], r[1], r[2]))
-        })
-        .collect();
-    around.sort_unstable();
-    let mut i = 0;
-    while i < around.len() {
-        let v = around[i].0;
-        let mut j = i;
-        while j < around.len() && around[j].0 == v {
-            j += 1;
-        }
-        let edges = &around[i..j];
-        let start = edges.iter().map(|e| e.1).min()?;
-        let mut cycle = vec![start];
-        let mut at = start;
-        loop {
-            let next = edges.iter().find(|e| e.1 == at)?.2;
-            if next == start {
-                break;
-            }
-            if cycle.len() > edges.len() {
-                return None;
-            }
-            cycle.push(next);
-            at = next;
-        }
-        if cycle.len() != edges.len() {
-            return None;
-        }
-        for k in 1..cycle.len() - 1 {
-            tets.push([v, cycle[k], cycle[k + 1], cycle[0]]);
-        }
-        i = j;
-    }
-    if !residual(&tets).is_empty() {
-        return None;
-    }
-    let p = |v: u32| {
-        if v & STEINER != 0 {
-            points[(v & !STEINER) as usize]
-        } else {
-            position(v)
-        }
-    };
-    let all_positive = tets.iter().enumerate().all(|(k, t)| {
-        let [a, b, c, d] = t.map(p);
-        check::positive(a, b, c, d) || (k < cones && degenerate[k] && !check::positive(a, c, b, d))
-    });
-    all_positive.then_some(tets)
 }
 
 /// The closed parts of a cell's region boundary: triangles joined across their edges. An edge

@@ -279,7 +279,17 @@ fn cones_from_several_points_tile_a_cube() {
         vec![[0.3, 0.5, 0.5], [0.7, 0.5, 0.5]],
         vec![[0.2, 0.3, 0.5], [0.8, 0.3, 0.5], [0.5, 0.8, 0.5]],
     ] {
-        let tets = multi_cone(&part, &tris, &degenerate, &points, &corner).expect("tiles");
+        let group: Vec<u32> = tris
+            .iter()
+            .map(|t| {
+                points
+                    .iter()
+                    .position(|&s| cones::sees(t, false, s))
+                    .unwrap() as u32
+            })
+            .collect();
+        let (points, tets) =
+            cones::tile(&part, &tris, &degenerate, &points, &group, &corner, None).expect("tiles");
         let p = |v: u32| {
             if v & STEINER != 0 {
                 points[(v & !STEINER) as usize]
@@ -342,4 +352,104 @@ fn the_check_catches_broken_meshes() {
     turned.tets[3].swap(0, 1);
     let c = turned.check();
     assert!(!c.conforming && c.inverted == 1, "{c:?}");
+}
+
+/// Refusals on packed spheres at the resolutions, every option set (run with
+/// `--ignored --release --nocapture`).
+#[test]
+#[ignore]
+fn packed_sweep() {
+    let mut reasons = std::collections::BTreeMap::new();
+    let mut total = 0;
+    for seed in 0..4u64 {
+        for n in [24, 40, 64] {
+            let grid = Sample::PackedSpheres { seed }.grid(n);
+            for options in all_options() {
+                total += 1;
+                match tetmesh(&grid, &options) {
+                    Ok(t) => {
+                        assert_valid(&t, &format!("{seed} {n} {options:?}"));
+                    }
+                    Err(TetError::Cell { reason, .. }) => *reasons.entry(reason).or_insert(0) += 1,
+                    Err(e) => panic!("{seed} {n} {options:?}: {e}"),
+                }
+            }
+        }
+    }
+    eprintln!("{total} runs, refusals {reasons:?}");
+}
+
+/// A U-shaped prism is not star-shaped: no point sees all of it. Cone points in the arms and
+/// the base, each triangle's chosen by the search, tile it exactly (volume 5).
+#[test]
+fn cones_fill_a_region_no_point_sees_whole() {
+    let outline: [[f64; 2]; 8] = [
+        [0.0, 0.0],
+        [3.0, 0.0],
+        [3.0, 2.0],
+        [2.0, 2.0],
+        [2.0, 1.0],
+        [1.0, 1.0],
+        [1.0, 2.0],
+        [0.0, 2.0],
+    ];
+    // Vertices 0..8 at z = 0, 8..16 at z = 1.
+    let corner = |v: u32| {
+        let [x, y] = outline[(v % 8) as usize];
+        [x, y, f64::from(v / 8)]
+    };
+    let cap: [[u32; 3]; 6] = [
+        [7, 0, 5],
+        [7, 5, 6],
+        [0, 1, 4],
+        [0, 4, 5],
+        [1, 2, 3],
+        [1, 3, 4],
+    ];
+    let mut part: Vec<[u32; 3]> = Vec::new();
+    for t in cap {
+        part.push(t.map(|v| v + 8));
+        part.push([t[0], t[2], t[1]]);
+    }
+    for i in 0..8u32 {
+        let j = (i + 1) % 8;
+        part.push([i, j, j + 8]);
+        part.push([i, j + 8, i + 8]);
+    }
+    let tris: Vec<[[f64; 3]; 3]> = part.iter().map(|t| t.map(corner)).collect();
+    let degenerate = vec![false; part.len()];
+    let points = [
+        [0.5, 1.5, 0.5],
+        [2.5, 1.5, 0.5],
+        [1.5, 0.5, 0.5],
+        [0.5, 0.5, 0.5],
+        [2.5, 0.5, 0.5],
+    ];
+    assert!(check::kernel_point(&tris).is_none());
+    for p in points {
+        assert!(!tris.iter().all(|t| cones::sees(t, false, p)));
+    }
+    let group = cones::assign(&part, &tris, &degenerate, &points, &corner).expect("assigned");
+    let (steiner, tets) =
+        cones::tile(&part, &tris, &degenerate, &points, &group, &corner, None).expect("tiles");
+    let p = |v: u32| {
+        if v & STEINER != 0 {
+            steiner[(v & !STEINER) as usize]
+        } else {
+            corner(v)
+        }
+    };
+    let mut volume = 0.0;
+    for t in &tets {
+        let [a, b, c, d] = t.map(p);
+        assert!(check::positive(a, b, c, d), "{t:?}");
+        volume += check::dot(
+            check::sub(b, a),
+            check::cross(check::sub(c, a), check::sub(d, a)),
+        ) / 6.0;
+    }
+    assert!((volume - 5.0).abs() < 1e-12, "{volume}");
+    assert!(cones::open_faces(&tets, &part).is_empty());
+    // Every Steiner point returned is used.
+    assert!((0..steiner.len() as u32).all(|k| tets.iter().flatten().any(|&v| v == STEINER | k)));
 }
