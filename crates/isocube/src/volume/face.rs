@@ -31,42 +31,76 @@ fn faces_of(key: VertexKey, dims: [usize; 3], out: &mut Vec<u64>) {
     }
 }
 
-/// The surface's edges lying in cell faces, by face: each as the two vertices' numbers, lower
-/// first, once.
-pub(super) fn segments_by_face(
+/// The surface on one cell face: its edges lying in the face, and its triangles lying in it.
+#[derive(Default)]
+pub(super) struct OnFace {
+    /// Each edge as its two vertices' numbers (lower first), and whether it is a chord: an edge
+    /// inside one cell's patch that only touches the face (both its triangles belong to the same
+    /// cell), as opposed to the trace of the surface across the face, which separates the
+    /// region's side from the other.
+    segments: Vec<([u32; 2], bool)>,
+    /// Surface triangles lying in the face, as their sorted vertex numbers.
+    flat: Vec<[u32; 3]>,
+}
+
+/// The surface's edges and triangles lying in cell faces, by face. `owner` is each triangle's
+/// cell (or any other value telling triangles in different cells apart).
+pub(super) fn surface_on_faces(
     triangles: &[[u32; 3]],
+    owner: &[u64],
     keys: &[VertexKey],
     dims: [usize; 3],
-) -> HashMap<u64, Vec<[u32; 2]>> {
-    let mut found: Vec<(u64, [u32; 2])> = triangles
+) -> HashMap<u64, OnFace> {
+    // (face, edge, owner) for every triangle edge in a face; (face, [u32::MAX, t]) marks a
+    // triangle lying in a face.
+    let mut found: Vec<(u64, [u32; 2], u64)> = triangles
         .par_iter()
+        .enumerate()
         .fold(
-            || (Vec::new(), Vec::new(), Vec::new()),
-            |(mut acc, mut fa, mut fb), t| {
+            || (Vec::new(), [Vec::new(), Vec::new(), Vec::new()]),
+            |(mut acc, mut faces), (t, tri)| {
                 for k in 0..3 {
-                    let (a, b) = (t[k], t[(k + 1) % 3]);
-                    faces_of(keys[a as usize], dims, &mut fa);
-                    if fa.is_empty() {
-                        continue;
-                    }
-                    faces_of(keys[b as usize], dims, &mut fb);
-                    for f in fa.iter().filter(|f| fb.contains(f)) {
-                        acc.push((*f, [a.min(b), a.max(b)]));
+                    faces_of(keys[tri[k] as usize], dims, &mut faces[k]);
+                }
+                for k in 0..3 {
+                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                    for f in faces[k].iter().filter(|f| faces[(k + 1) % 3].contains(f)) {
+                        acc.push((*f, [a.min(b), a.max(b)], owner[t]));
                     }
                 }
-                (acc, fa, fb)
+                for f in faces[0]
+                    .iter()
+                    .filter(|f| faces[1].contains(f) && faces[2].contains(f))
+                {
+                    acc.push((*f, [u32::MAX, t as u32], 0));
+                }
+                (acc, faces)
             },
         )
-        .map(|(acc, _, _)| acc)
+        .map(|(acc, _)| acc)
         .reduce(Vec::new, |mut a, mut b| {
             a.append(&mut b);
             a
         });
     found.par_sort_unstable();
-    found.dedup();
-    let mut map: HashMap<u64, Vec<[u32; 2]>> = HashMap::default();
-    for (f, s) in found {
-        map.entry(f).or_default().push(s);
+    let mut map: HashMap<u64, OnFace> = HashMap::default();
+    let mut i = 0;
+    while i < found.len() {
+        let (f, edge, cell) = found[i];
+        let mut j = i + 1;
+        while j < found.len() && (found[j].0, found[j].1) == (f, edge) {
+            j += 1;
+        }
+        let entry = map.entry(f).or_default();
+        if edge[0] == u32::MAX {
+            let mut tri = triangles[edge[1] as usize];
+            tri.sort_unstable();
+            entry.flat.push(tri);
+        } else {
+            let chord = j - i == 2 && found[i + 1].2 == cell;
+            entry.segments.push((edge, chord));
+        }
+        i = j;
     }
     map
 }
@@ -75,6 +109,8 @@ pub(super) fn segments_by_face(
 #[derive(Default)]
 pub(super) struct Scratch {
     pieces: Vec<Vec<usize>>,
+    /// Whether each piece (once the trace has cut the face) lies inside the region.
+    status: Vec<bool>,
 }
 
 /// A point of a face's boundary cycle: a corner (inside or not) or a crossing.
@@ -107,8 +143,8 @@ pub(super) fn triangles(
     // Counterclockwise seen from +n.
     let corners = [offset(0, 0), offset(1, 0), offset(1, 1), offset(0, 1)];
     let ids = corners.map(|c| ctx.point_id(c));
-    let segments = ctx.segments.get(&face_id(q, n, dims));
-    if segments.is_none() && ids.iter().all(|&i| i != u32::MAX) {
+    let on_face = ctx.segments.get(&face_id(q, n, dims));
+    if on_face.is_none() && ids.iter().all(|&i| i != u32::MAX) {
         // A whole square: along the Kuhn diagonal, from its lowest to its highest corner.
         out.push([ids[0], ids[1], ids[2]]);
         out.push([ids[0], ids[2], ids[3]]);
@@ -154,46 +190,71 @@ pub(super) fn triangles(
             });
         }
     }
-    // Cut the face along the surface's segments on it.
+    // Cut the face along the surface's trace on it; each piece is inside or outside the region
+    // by its corners. Then cut the pieces along the chords where the surface only touches the
+    // face: the parts keep their piece's side.
     let pieces = &mut scratch.pieces;
     pieces.clear();
     pieces.push((0..cycle.len()).collect());
-    for s in segments.into_iter().flatten() {
-        let find = |id: u32| cycle.iter().position(|p| !p.corner && p.id == id);
-        let (Some(a), Some(b)) = (find(s[0]), find(s[1])) else {
-            return Err("a surface segment on a face does not end on its edges");
-        };
-        let Some(k) = pieces.iter().position(|p| p.contains(&a) && p.contains(&b)) else {
-            return Err("surface segments on a face cross");
-        };
-        let piece = std::mem::take(&mut pieces[k]);
-        let ia = piece.iter().position(|&x| x == a).expect("contains");
-        let ib = piece.iter().position(|&x| x == b).expect("contains");
-        let (ia, ib) = (ia.min(ib), ia.max(ib));
-        if ib - ia == 1 || (ia == 0 && ib == piece.len() - 1) {
-            // Already a side of the piece.
-            pieces[k] = piece;
+    let status = &mut scratch.status;
+    status.clear();
+    let segments = on_face.map_or(&[][..], |o| &o.segments[..]);
+    for chords in [false, true] {
+        if chords {
+            // Pieces as the trace leaves them: with an inside corner and no outside one, in;
+            // with only outside corners, out; with none (a surface triangle lying in the face,
+            // bounding the region on one side only, so the cell on that side has it), neither.
+            for piece in pieces.iter() {
+                let outside = piece
+                    .iter()
+                    .any(|&x| cycle[x].corner && cycle[x].id == u32::MAX);
+                let inside = piece
+                    .iter()
+                    .any(|&x| cycle[x].corner && cycle[x].id != u32::MAX);
+                if inside && outside {
+                    return Err("the surface's segments do not separate a face's corners");
+                }
+                status.push(inside);
+            }
+        }
+        for &(s, _) in segments.iter().filter(|s| s.1 == chords) {
+            let find = |id: u32| cycle.iter().position(|p| !p.corner && p.id == id);
+            let (Some(a), Some(b)) = (find(s[0]), find(s[1])) else {
+                return Err("a surface segment on a face does not end on its edges");
+            };
+            let Some(k) = pieces.iter().position(|p| p.contains(&a) && p.contains(&b)) else {
+                return Err("surface segments on a face cross");
+            };
+            let piece = std::mem::take(&mut pieces[k]);
+            let ia = piece.iter().position(|&x| x == a).expect("contains");
+            let ib = piece.iter().position(|&x| x == b).expect("contains");
+            let (ia, ib) = (ia.min(ib), ia.max(ib));
+            if ib - ia == 1 || (ia == 0 && ib == piece.len() - 1) {
+                // Already a side of the piece.
+                pieces[k] = piece;
+                continue;
+            }
+            let first: Vec<usize> = piece[ia..=ib].to_vec();
+            let second: Vec<usize> = piece[ib..].iter().chain(&piece[..=ia]).copied().collect();
+            pieces[k] = first;
+            pieces.push(second);
+            if chords {
+                status.push(status[k]);
+            }
+        }
+    }
+    let flat = on_face.map_or(&[][..], |o| &o.flat[..]);
+    for (piece, &inside) in pieces.iter().zip(status.iter()) {
+        if !inside {
             continue;
         }
-        let first: Vec<usize> = piece[ia..=ib].to_vec();
-        let second: Vec<usize> = piece[ib..].iter().chain(&piece[..=ia]).copied().collect();
-        pieces[k] = first;
-        pieces.push(second);
-    }
-    for piece in pieces.iter() {
-        let outside = piece
-            .iter()
-            .any(|&x| cycle[x].corner && cycle[x].id == u32::MAX);
-        let inside = piece
-            .iter()
-            .any(|&x| cycle[x].corner && cycle[x].id != u32::MAX);
-        match (inside, outside) {
-            (false, true) => continue,
-            (true, false) => {}
-            (true, true) => return Err("the surface's segments do not separate a face's corners"),
-            // A surface triangle lying in the face: it bounds the region on one side only, and
-            // belongs to that side's cell.
-            (false, false) => continue,
+        if piece.len() == 3 {
+            // A surface triangle lying in the face takes the piece's place in its cell.
+            let mut ids = [0, 1, 2].map(|k| cycle[piece[k]].id);
+            ids.sort_unstable();
+            if flat.contains(&ids) {
+                continue;
+            }
         }
         convex_triangulation(piece, &cycle, out);
     }

@@ -253,7 +253,11 @@ pub fn tetmesh<'a>(
         .filter(|(_, k)| matches!(k.kind(), KeyKind::Crossing { .. }))
         .map(|(v, &k)| (k, v as u32))
         .collect();
-    let segments = face::segments_by_face(&surface.triangles, &keys, dims);
+    let mut owner = vec![u64::MAX; surface.triangles.len()];
+    for &(cell, t) in &by_cell {
+        owner[t as usize] = cell;
+    }
+    let segments = face::surface_on_faces(&surface.triangles, &owner, &keys, dims);
 
     let ctx = Context {
         grid,
@@ -499,7 +503,7 @@ struct Context<'a> {
     /// (cell, triangle), sorted.
     by_cell: &'a [(u64, u32)],
     crossings: &'a HashMap<VertexKey, u32>,
-    segments: &'a HashMap<u64, Vec<[u32; 2]>>,
+    segments: &'a HashMap<u64, face::OnFace>,
     /// Number of the first grid point vertex.
     base: usize,
 }

@@ -453,3 +453,42 @@ fn cones_fill_a_region_no_point_sees_whole() {
     // Every Steiner point returned is used.
     assert!((0..steiner.len() as u32).all(|k| tets.iter().flatten().any(|&v| v == STEINER | k)));
 }
+
+/// Two inside corners joined across a face (a tube along it): the optimal triangulation puts an
+/// interior point above the face and two chords in it, so the surface touches the face along
+/// them and the tube's part of the face between the chords has no corner. That part keeps the
+/// side of the strip it was cut from (inside), and the cell's region closes.
+#[test]
+fn chords_touching_a_face_keep_the_strip_inside() {
+    let values = vec![
+        0.021_070_123,
+        -0.375_273_76,
+        0.620_647_43,
+        0.056_394_458,
+        0.355_478_4,
+        0.818_865_06,
+        0.015_649_796,
+        -0.270_416_68,
+    ];
+    let grid = Grid::new([2, 2, 2], values).unwrap();
+    for topology in [Topology::Mc33, Topology::Classic] {
+        let options = ExtractOptions::default()
+            .with_topology(topology)
+            .with_triangulation(Strategy::Optimal);
+        let (surface, _) = crate::extract::extract(&grid, &options).unwrap();
+        // The premise: two surface edges lie in the face x = 1 without being its trace.
+        let on_x1 = |v: u32| surface.positions[v as usize][0] == 1.0;
+        let mut in_face: Vec<[u32; 2]> = surface
+            .triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |k| [t[k], t[(k + 1) % 3]]))
+            .filter(|e| on_x1(e[0]) && on_x1(e[1]))
+            .map(|[a, b]| [a.min(b), a.max(b)])
+            .collect();
+        in_face.sort_unstable();
+        let shared = in_face.windows(2).filter(|w| w[0] == w[1]).count();
+        assert!(shared >= 1, "{topology:?}: no chord in the face");
+        let tets = tetmesh(&grid, &options).unwrap();
+        assert_valid(&tets, &format!("{topology:?}"));
+    }
+}
