@@ -1,11 +1,11 @@
-"""Reads isocube's tetrahedral meshes back with meshio (.msh, .vtu, .mesh) and gmsh (.msh).
+"""Reads isocube's tetrahedral meshes back with meshio (.msh, .vtu, .mesh, .inp) and gmsh (.msh).
 
     python check_tets.py MANIFEST
 
 Each manifest line: `path tetrahedra vertices surface_triangles wall_triangles`. Checks the
 counts, that every tetrahedron has a positive signed volume, that the volumes add up to what the
 boundary triangles enclose (divergence theorem), and the physical groups (1 region, 2 surface,
-3 walls).
+3 walls); for Abaqus, the boundary is the element sides named in the surfaces' element sets.
 """
 
 from __future__ import annotations
@@ -28,14 +28,33 @@ def enclosed(points: np.ndarray, tris: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
+# Abaqus C3D4 sides S1..S4 as corner positions.
+C3D4_FACES = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
+
+
 def check_meshio(path: str, tets: int, vertices: int, surface: int, walls: int) -> None:
-    m = meshio.read(path)
+    # ".msh" is Ansys's extension too: name the format, or meshio tries that reader first.
+    m = meshio.read(path, file_format="gmsh" if path.endswith(".msh") else None)
     assert len(m.points) == vertices, (path, len(m.points), vertices)
     tet = np.concatenate([c.data for c in m.cells if c.type == "tetra"])
     assert len(tet) == tets, (path, len(tet), tets)
     vol = signed_volumes(m.points, tet)
     assert (vol > 0).all(), (path, int((vol <= 0).sum()))
-    if not path.endswith(".vtu"):
+    if path.endswith(".inp"):
+        assert len(m.cell_sets["REGION"][0]) == tets, path
+        faces = {"SURFACE": [], "WALLS": []}
+        for name, (elements,) in m.cell_sets.items():
+            group, _, side = name.rpartition("_S")
+            if group in faces:
+                faces[group].append(tet[elements][:, C3D4_FACES[int(side) - 1]])
+        found = {g: sum(len(f) for f in fs) for g, fs in faces.items()}
+        assert found == {"SURFACE": surface, "WALLS": walls}, (path, found)
+        # The sides' corners run clockwise seen from outside (each face's right-hand normal
+        # points to the element's fourth node).
+        tri = np.concatenate(faces["SURFACE"] + faces["WALLS"])[:, ::-1]
+        total = vol.sum()
+        assert abs(total - enclosed(m.points, tri)) <= 1e-6 * abs(total), path
+    elif not path.endswith(".vtu"):
         tri = np.concatenate([c.data for c in m.cells if c.type == "triangle"])
         assert len(tri) == surface + walls, (path, len(tri), surface + walls)
         total = vol.sum()

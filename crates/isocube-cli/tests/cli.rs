@@ -1183,7 +1183,7 @@ fn labels_give_one_closed_surface_each() {
 fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let mut firsts = HashSet::new();
-    for ext in ["msh", "vtu", "mesh"] {
+    for ext in ["msh", "vtu", "mesh", "inp"] {
         let out = isocube(
             dir.path(),
             &["tetmesh", "sample:torus:24", "-o", &format!("t.{ext}")],
@@ -1211,6 +1211,18 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
         .unwrap()
         .parse()
         .unwrap();
+    // Abaqus names every boundary triangle by its element and side, in SURFACE_S1..S4.
+    let inp = std::fs::read_to_string(dir.path().join("t.inp")).unwrap();
+    let mut sides = 0;
+    let mut counting = false;
+    for l in inp.lines() {
+        if l.starts_with('*') {
+            counting = l.starts_with("*Elset, elset=SURFACE_S");
+        } else if counting {
+            sides += l.split(',').count();
+        }
+    }
+    assert_eq!(sides, surface);
     ok(dir.path(), &["extract", "sample:torus:24", "-o", "s.ply"]);
     let report = info(dir.path(), "s.ply");
     assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);

@@ -1,5 +1,5 @@
 //! Tetrahedral mesh files for finite-element codes: Gmsh MSH 4.1, VTK XML unstructured grids
-//! (`.vtu`) and MEDIT (`.mesh`), chosen by extension.
+//! (`.vtu`), MEDIT (`.mesh`) and Abaqus input (`.inp`), chosen by extension.
 //!
 //! Every format carries the same groups: the region's tetrahedra (physical group 1, "region"),
 //! the isosurface's triangles (2, "surface") and the triangles on the grid's outer faces (3,
@@ -23,6 +23,9 @@ pub enum TetFormat {
     Vtu,
     /// MEDIT (`.mesh`, ASCII), references 1 (region), 2 (surface), 3 (walls).
     Medit,
+    /// Abaqus input (`.inp`): C3D4 elements in the element set `REGION`, the boundary as the
+    /// element-based surfaces `SURFACE` and `WALLS`.
+    Inp,
 }
 
 impl TetFormat {
@@ -39,6 +42,7 @@ impl TetFormat {
             "msh" => Some(TetFormat::Msh),
             "vtu" => Some(TetFormat::Vtu),
             "mesh" => Some(TetFormat::Medit),
+            "inp" => Some(TetFormat::Inp),
             _ => None,
         }
     }
@@ -64,7 +68,7 @@ pub fn write_tet_mesh(
         IoError::unsupported(
             path,
             super::Position::File,
-            "tetrahedral mesh extension (expected .msh, .vtu or .mesh)",
+            "tetrahedral mesh extension (expected .msh, .vtu, .mesh or .inp)",
         )
     })?;
     write_atomic(path, &mut |w| {
@@ -73,6 +77,7 @@ pub fn write_tet_mesh(
             TetFormat::Msh => write_msh(&mut w, mesh),
             TetFormat::Vtu => write_vtu(&mut w, mesh, quality),
             TetFormat::Medit => write_medit(&mut w, mesh),
+            TetFormat::Inp => write_inp(&mut w, mesh),
         }?;
         w.flush()
     })
@@ -327,4 +332,91 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         }
     })?;
     writeln!(w, "End")
+}
+
+/// The faces of an Abaqus C3D4 element, S1 to S4, as corner positions (each seen from outside
+/// counterclockwise for a positive element).
+const C3D4_FACES: [[usize; 3]; 4] = [[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]];
+
+/// Abaqus input: nodes, C3D4 elements (isocube's positive orientation is Abaqus's: the fourth
+/// node on the side of face 1-2-3 its right-hand normal points to), the element set `REGION`,
+/// and each boundary as an element-based surface: the element and side of every boundary
+/// triangle, sides gathered in element sets `SURFACE_S1` … `WALLS_S4`.
+fn write_inp(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
+    writeln!(w, "*Heading")?;
+    writeln!(
+        w,
+        "isocube tetmesh: {} C3D4 elements (REGION); boundary surfaces SURFACE and WALLS",
+        mesh.tets.len()
+    )?;
+    writeln!(w, "*Node")?;
+    write_blocks(w, mesh.positions.len(), |out, r| {
+        for (i, p) in mesh.positions[r.clone()].iter().enumerate() {
+            let _ = writeln!(out, "{}, {}, {}, {}", r.start + i + 1, p[0], p[1], p[2]);
+        }
+    })?;
+    writeln!(w, "*Element, type=C3D4, elset=REGION")?;
+    write_blocks(w, mesh.tets.len(), |out, r| {
+        for (k, t) in mesh.tets[r.clone()].iter().enumerate() {
+            let _ = writeln!(
+                out,
+                "{}, {}, {}, {}, {}",
+                r.start + k + 1,
+                t[0] + 1,
+                t[1] + 1,
+                t[2] + 1,
+                t[3] + 1
+            );
+        }
+    })?;
+    // Each boundary triangle's element and side: only faces whose corners all lie on the
+    // boundary are looked up.
+    let mut on_boundary = vec![false; mesh.positions.len()];
+    let mut boundary: std::collections::HashMap<[u32; 3], usize> = std::collections::HashMap::new();
+    for (group, tris) in [&mesh.surface, &mesh.walls].into_iter().enumerate() {
+        for t in tris {
+            let mut key = *t;
+            key.sort_unstable();
+            boundary.insert(key, group);
+            for &v in t {
+                on_boundary[v as usize] = true;
+            }
+        }
+    }
+    // sides[group][side]: element numbers (from 1).
+    let mut sides: [[Vec<usize>; 4]; 2] = Default::default();
+    for (k, t) in mesh.tets.iter().enumerate() {
+        for (side, face) in C3D4_FACES.iter().enumerate() {
+            let mut key = face.map(|c| t[c]);
+            if !key.iter().all(|&v| on_boundary[v as usize]) {
+                continue;
+            }
+            key.sort_unstable();
+            if let Some(&group) = boundary.get(&key) {
+                sides[group][side].push(k + 1);
+            }
+        }
+    }
+    for (name, group) in ["SURFACE", "WALLS"].iter().zip(&sides) {
+        if group.iter().all(|s| s.is_empty()) {
+            continue;
+        }
+        for (side, elements) in group.iter().enumerate() {
+            if elements.is_empty() {
+                continue;
+            }
+            writeln!(w, "*Elset, elset={name}_S{}", side + 1)?;
+            for line in elements.chunks(16) {
+                let text: Vec<String> = line.iter().map(|e| e.to_string()).collect();
+                writeln!(w, "{}", text.join(", "))?;
+            }
+        }
+        writeln!(w, "*Surface, type=ELEMENT, name={name}")?;
+        for (side, elements) in group.iter().enumerate() {
+            if !elements.is_empty() {
+                writeln!(w, "{name}_S{}, S{}", side + 1, side + 1)?;
+            }
+        }
+    }
+    Ok(())
 }

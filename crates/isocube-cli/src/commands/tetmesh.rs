@@ -18,8 +18,9 @@ use crate::Failure;
 pub(crate) struct Args {
     #[command(flatten)]
     volume: VolumeArgs,
-    /// Output: .msh (Gmsh 4.1), .vtu (VTK unstructured grid, quality as cell data) or .mesh
-    /// (MEDIT). Physical groups: 1 the region, 2 the isosurface, 3 the grid's outer faces.
+    /// Output: .msh (Gmsh 4.1), .vtu (VTK unstructured grid, quality as cell data), .mesh
+    /// (MEDIT) or .inp (Abaqus: C3D4 in REGION, element surfaces SURFACE and WALLS). Physical
+    /// groups: 1 the region, 2 the isosurface, 3 the grid's outer faces.
     #[arg(long, short)]
     output: PathBuf,
     /// The iso-value. The region is the values below it (values equal to it are outside).
@@ -49,7 +50,7 @@ pub(crate) struct Args {
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if TetFormat::from_path(&args.output).is_none() {
         return Err(Failure::input(anyhow::anyhow!(
-            "{}: unknown tetrahedral mesh extension (expected .msh, .vtu or .mesh)",
+            "{}: unknown tetrahedral mesh extension (expected .msh, .vtu, .mesh or .inp)",
             args.output.display()
         )));
     }

@@ -739,7 +739,7 @@ impl Context<'_> {
             out.push_tiled(tiled);
             return Ok(());
         }
-        Err("no one, two or three cone points inside the cell's part of the region fill it")
+        Err("no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)")
     }
 
     /// Cones from points chosen by [`cones::assign`] among the candidates and two points inside
