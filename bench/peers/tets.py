@@ -1,4 +1,4 @@
-"""isocube tetmesh beside TetGen on the same surfaces, end to end, in one run.
+"""isocube tetmesh beside TetGen and fTetWild on the same surfaces, end to end, in one run.
 
     python bench/peers/tets.py ISOCUBE_BINARY [SAMPLE:N ...]
 
@@ -6,12 +6,17 @@ For each sample, isocube runs as a user runs it: `isocube tetmesh sample:NAME:N 
 (the field sampled, meshed, checked and written), timed from outside. TetGen (PyPI `tetgen`)
 gets isocube's surface (`isocube extract`, read from the PLY) and must keep it: `-pYQ` (no
 quality refinement) and `-pYqQ` (quality refinement, boundary kept; `Q` only silences it). Its time is the
-`tetrahedralize` call alone, input already in memory. Prints a Markdown table: elements,
-dihedral angles, seconds.
+`tetrahedralize` call alone, input already in memory. fTetWild (PyPI `wildmeshing`, if
+installed) gets the same surface with its defaults (envelope 1e-3 of the diagonal, target edge
+length 5 % of it): it does not keep the surface's triangles, it stays within the envelope. Its
+time is `tetrahedralize` plus `get_tet_mesh` (which extracts the inside). Prints a Markdown table:
+elements, dihedral angles, seconds.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import subprocess
 import sys
 import tempfile
@@ -41,10 +46,32 @@ def dihedrals(points: np.ndarray, tets: np.ndarray) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+@contextlib.contextmanager
+def quiet():
+    """Silences a native library's own logging to the process's stdout and stderr."""
+    sys.stdout.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 1)
+        os.dup2(null.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+
+
 def main() -> None:
     binary = sys.argv[1]
     samples = sys.argv[2:] or ["sphere:64", "torus:64", "tangle:64"]
     import tetgen
+
+    try:
+        import wildmeshing
+    except ImportError:
+        wildmeshing = None
 
     print("| surface | tool | elements | min dihedral | max dihedral | seconds |")
     print("|---|---|---|---|---|---|")
@@ -67,7 +94,8 @@ def main() -> None:
                 gen = tetgen.TetGen(surface.points.astype(np.float64), faces.astype(np.int32))
                 start = time.perf_counter()
                 try:
-                    result = gen.tetrahedralize(switches=switches)
+                    with quiet():
+                        result = gen.tetrahedralize(switches=switches)
                 except Exception as e:  # TetGen refuses some surfaces (self-intersections)
                     print(f"| {sample} | TetGen -{switches} | failed: {str(e)[:60]} | | | |")
                     continue
@@ -75,6 +103,17 @@ def main() -> None:
                 nodes, elems = result[0], result[1]
                 lo, hi = dihedrals(np.asarray(nodes), np.asarray(elems)[:, :4])
                 print(f"| {sample} | TetGen -{switches} | {len(elems)} | {lo:.2f} | {hi:.2f} | {took:.3f} |")
+            if wildmeshing is not None:
+                with quiet():
+                    wild = wildmeshing.Tetrahedralizer()
+                    wild.set_mesh(surface.points.astype(np.float64), faces.astype(np.int32))
+                start = time.perf_counter()
+                with quiet():
+                    wild.tetrahedralize()
+                    nodes, elems = wild.get_tet_mesh()[:2]
+                took = time.perf_counter() - start
+                lo, hi = dihedrals(np.asarray(nodes), np.asarray(elems)[:, :4])
+                print(f"| {sample} | fTetWild (defaults) | {len(elems)} | {lo:.2f} | {hi:.2f} | {took:.3f} |")
 
 
 if __name__ == "__main__":
