@@ -351,7 +351,7 @@ pub(super) fn assign(
         })
     };
     let mut pick = vec![usize::MAX; n];
-    let mut budget = 1_500usize;
+    let mut budget = 5_000usize;
     if !search(
         &mut pick,
         &alive,

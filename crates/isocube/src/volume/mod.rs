@@ -764,7 +764,7 @@ impl Context<'_> {
             }
             let nrm = check::cross(check::sub(t[1], t[0]), check::sub(t[2], t[0]));
             let len = check::dot(nrm, nrm).sqrt();
-            for depth in [0.25, 0.1] {
+            for depth in [0.4, 0.25, 0.1, 0.04] {
                 pool.push(std::array::from_fn(|k| {
                     let c = (t[0][k] + t[1][k] + t[2][k]) / 3.0;
                     f64::from((c - depth * size * nrm[k] / len) as f32)
@@ -799,7 +799,7 @@ impl Context<'_> {
         let mut spare: Vec<usize> = (0..pool.len()).collect();
         spare.sort_by_key(|&k| std::cmp::Reverse(seen_by[k].iter().filter(|&&x| x).count()));
         for k in spare {
-            if points.len() >= 40 {
+            if points.len() >= 60 {
                 break;
             }
             if !points.contains(&pool[k]) {
