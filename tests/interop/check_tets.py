@@ -1,4 +1,5 @@
-"""Reads isocube's tetrahedral meshes back with meshio (.msh, .vtu, .mesh, .inp) and gmsh (.msh).
+"""Reads isocube's tetrahedral meshes back with meshio (.msh, .vtu, .mesh, .inp) and gmsh (.msh,
+.mesh; gmsh reads neither .vtu nor Abaqus input).
 
     python check_tets.py MANIFEST
 
@@ -104,6 +105,30 @@ def check_gmsh(path: str, tets: int, vertices: int, surface: int, walls: int) ->
         gmsh.finalize()
 
 
+def check_gmsh_medit(path: str, tets: int, vertices: int, surface: int, walls: int) -> None:
+    """gmsh turns MEDIT references into elementary entities: 1 the region, 2 and 3 the
+    boundaries."""
+    import gmsh
+
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(path)
+        tags, _, _ = gmsh.model.mesh.getNodes()
+        assert len(tags) == vertices, (path, len(tags), vertices)
+        counts = {}
+        for dim, tag in gmsh.model.getEntities():
+            _, elements, _ = gmsh.model.mesh.getElements(dim, tag)
+            counts[(dim, tag)] = sum(len(e) for e in elements)
+        expected = {(3, 1): tets, (2, 2): surface}
+        if walls:
+            expected[(2, 3)] = walls
+        found = {k: v for k, v in counts.items() if v}
+        assert found == expected, (path, found, expected)
+    finally:
+        gmsh.finalize()
+
+
 def main() -> None:
     checked = 0
     with open(sys.argv[1]) as manifest:
@@ -113,6 +138,8 @@ def main() -> None:
             check_meshio(path, tets, vertices, surface, walls)
             if path.endswith(".msh"):
                 check_gmsh(path, tets, vertices, surface, walls)
+            if path.endswith(".mesh"):
+                check_gmsh_medit(path, tets, vertices, surface, walls)
             checked += 1
     print(f"{checked} tetrahedral meshes read back by meshio and gmsh")
 
