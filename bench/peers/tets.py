@@ -104,11 +104,12 @@ def main() -> None:
                 lo, hi = dihedrals(np.asarray(nodes), np.asarray(elems)[:, :4])
                 print(f"| {sample} | TetGen -{switches} | {len(elems)} | {lo:.2f} | {hi:.2f} | {took:.3f} |")
             if wildmeshing is not None:
-                with quiet():
+                # fTetWild writes __tracked_surface.stl into the working folder: keep it in ours.
+                with quiet(), contextlib.chdir(work):
                     wild = wildmeshing.Tetrahedralizer()
                     wild.set_mesh(surface.points.astype(np.float64), faces.astype(np.int32))
                 start = time.perf_counter()
-                with quiet():
+                with quiet(), contextlib.chdir(work):
                     wild.tetrahedralize()
                     nodes, elems = wild.get_tet_mesh()[:2]
                 took = time.perf_counter() - start
