@@ -82,6 +82,9 @@ def check_meshio(path: str, tets: int, vertices: int, surface: int, walls: int) 
 
 
 def check_gmsh(path: str, tets: int, vertices: int, surface: int, walls: int) -> None:
+    """Opens the file in gmsh and counts elements by group: for .msh the physical groups by
+    name; for MEDIT, whose references gmsh turns into elementary entities, by entity (3, 1)
+    the region and (2, 2), (2, 3) the boundaries."""
     import gmsh
 
     gmsh.initialize()
@@ -90,40 +93,27 @@ def check_gmsh(path: str, tets: int, vertices: int, surface: int, walls: int) ->
         gmsh.open(path)
         tags, _, _ = gmsh.model.mesh.getNodes()
         assert len(tags) == vertices, (path, len(tags), vertices)
-        counts = {}
-        for dim, tag in gmsh.model.getPhysicalGroups():
-            name = gmsh.model.getPhysicalName(dim, tag)
-            n = 0
-            for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
-                _, elements, _ = gmsh.model.mesh.getElements(dim, entity)
-                n += sum(len(e) for e in elements)
-            counts[name] = n
-        assert counts.get("region") == tets, (path, counts)
-        assert counts.get("surface") == surface, (path, counts)
-        assert counts.get("walls", 0) == walls, (path, counts)
-    finally:
-        gmsh.finalize()
 
+        def elements(dim: int, entity: int) -> int:
+            _, blocks, _ = gmsh.model.mesh.getElements(dim, entity)
+            return sum(len(b) for b in blocks)
 
-def check_gmsh_medit(path: str, tets: int, vertices: int, surface: int, walls: int) -> None:
-    """gmsh turns MEDIT references into elementary entities: 1 the region, 2 and 3 the
-    boundaries."""
-    import gmsh
-
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.open(path)
-        tags, _, _ = gmsh.model.mesh.getNodes()
-        assert len(tags) == vertices, (path, len(tags), vertices)
-        counts = {}
-        for dim, tag in gmsh.model.getEntities():
-            _, elements, _ = gmsh.model.mesh.getElements(dim, tag)
-            counts[(dim, tag)] = sum(len(e) for e in elements)
-        expected = {(3, 1): tets, (2, 2): surface}
-        if walls:
-            expected[(2, 3)] = walls
-        found = {k: v for k, v in counts.items() if v}
+        if path.endswith(".msh"):
+            found = {
+                gmsh.model.getPhysicalName(dim, tag): sum(
+                    elements(dim, e) for e in gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
+                )
+                for dim, tag in gmsh.model.getPhysicalGroups()
+            }
+            expected = {"region": tets, "surface": surface}
+            if walls:
+                expected["walls"] = walls
+        else:
+            counts = {(dim, tag): elements(dim, tag) for dim, tag in gmsh.model.getEntities()}
+            found = {k: v for k, v in counts.items() if v}
+            expected = {(3, 1): tets, (2, 2): surface}
+            if walls:
+                expected[(2, 3)] = walls
         assert found == expected, (path, found, expected)
     finally:
         gmsh.finalize()
@@ -136,10 +126,8 @@ def main() -> None:
             path, *numbers = line.split()
             tets, vertices, surface, walls = (int(x) for x in numbers)
             check_meshio(path, tets, vertices, surface, walls)
-            if path.endswith(".msh"):
+            if path.endswith((".msh", ".mesh")):
                 check_gmsh(path, tets, vertices, surface, walls)
-            if path.endswith(".mesh"):
-                check_gmsh_medit(path, tets, vertices, surface, walls)
             checked += 1
     print(f"{checked} tetrahedral meshes read back by meshio and gmsh")
 

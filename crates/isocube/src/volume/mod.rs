@@ -639,11 +639,12 @@ impl Context<'_> {
         Ok(())
     }
 
-    /// Fills a closed part with tetrahedra: a cone from one point that sees every triangle from
-    /// inside; failing that, cones from two points, each triangle to one that sees it, with
-    /// the wedge `(b, a, s1, s2)` on every edge `a → b` between the two cones. Every tetrahedron
-    /// is checked positive on the stored coordinates: with a closed boundary, that makes the
-    /// tetrahedra tile the part exactly (their signed indicators add up to its winding number).
+    /// Fills a closed part with tetrahedra, trying in turn: a cone from one candidate point that
+    /// sees every triangle from inside; from one of the part's own corners; from the centre of
+    /// the largest ball in its kernel; from two or three candidates; from points chosen by a
+    /// search ([`Context::spread_cones`]). Every tetrahedron is checked positive on the stored
+    /// coordinates: with a closed boundary, that makes the tetrahedra tile the part exactly
+    /// (their signed indicators add up to its winding number).
     fn fill(
         &self,
         cell: [usize; 3],
@@ -659,33 +660,24 @@ impl Context<'_> {
         // have no volume at all. Tetrahedra over such triangles, or in such a part, are flat;
         // none may be inverted.
         let degenerate: Vec<bool> = tris.iter().map(|t| check::collinear(*t)).collect();
+        // A triangle (p, q, r) seen from inside, with the apex, is the tetrahedron (p, r, q, apex).
+        let cone = |apex: [f64; 3]| -> cones::Tiled {
+            let tets = part.iter().map(|t| [t[0], t[2], t[1], STEINER]).collect();
+            (vec![apex], tets)
+        };
         if check::coplanar(&tris) {
-            let id = STEINER | out.steiner.len() as u32;
-            out.steiner.push(tris[0][0].map(|x| x as f32));
-            out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
+            out.push_tiled(cone(tris[0][0]));
             return Ok(());
         }
         let candidates = self.candidates(cell, part);
-        let sees_triangle = |apex: [f64; 3], t: &[[f64; 3]; 3], flat_ok: bool| {
-            check::positive(t[0], t[2], t[1], apex)
-                || (flat_ok && !check::positive(t[0], t[1], t[2], apex))
-        };
-        let seen = |apex: [f64; 3]| -> Vec<bool> {
+        let sees_all = |apex: [f64; 3]| {
             tris.iter()
                 .zip(&degenerate)
-                .map(|(t, &d)| sees_triangle(apex, t, d))
-                .collect()
+                .all(|(t, &d)| cones::sees(t, d, apex))
         };
-        let sees = |apex: [f64; 3], t: &[[f64; 3]; 3]| sees_triangle(apex, t, check::collinear(*t));
-        for &c in &candidates {
-            if tris.iter().all(|t| sees(c, t)) {
-                let id = STEINER | out.steiner.len() as u32;
-                out.steiner.push(c.map(|x| x as f32));
-                // A triangle (p, q, r) seen from inside, with the apex, is the tetrahedron
-                // (p, r, q, apex).
-                out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
-                return Ok(());
-            }
+        if let Some(&c) = candidates.iter().find(|&&c| sees_all(c)) {
+            out.push_tiled(cone(c));
+            return Ok(());
         }
         // A cone from one of the part's own corners, over the triangles not touching it: no
         // Steiner point at all (the apex of a fan that folds the surface often sees the rest).
@@ -700,12 +692,11 @@ impl Context<'_> {
                 return Ok(());
             }
         }
-        if let Some(apex) =
-            check::kernel_point(&tris).filter(|a| seen(a.map(f64::from)).iter().all(|&x| x))
+        if let Some(apex) = check::kernel_point(&tris)
+            .map(|a| a.map(f64::from))
+            .filter(|&a| sees_all(a))
         {
-            let id = STEINER | out.steiner.len() as u32;
-            out.steiner.push(apex);
-            out.tets.extend(part.iter().map(|t| [t[0], t[2], t[1], id]));
+            out.push_tiled(cone(apex));
             return Ok(());
         }
         // Two, then three points, each triangle coned to the first that sees it.
@@ -806,19 +797,9 @@ impl Context<'_> {
                 points.push(pool[k]);
             }
         }
-        let group = cones::assign(part, tris, degenerate, &points, &|v| {
-            self.position(v).map(f64::from)
-        })?;
-        cones::tile(
-            part,
-            tris,
-            degenerate,
-            &points,
-            &group,
-            &|v| self.position(v).map(f64::from),
-            None,
-        )
-        .ok()
+        let position = |v: u32| self.position(v).map(f64::from);
+        let group = cones::assign(part, tris, degenerate, &points, &position)?;
+        cones::tile(part, tris, degenerate, &points, &group, &position, None).ok()
     }
 
     /// Points to cone a part from, already rounded to the stored precision: its vertices'
