@@ -1243,3 +1243,61 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
     }
     assert!(!dir.path().join("t.ply").exists() && !dir.path().join("empty.msh").exists());
 }
+
+/// `tetmesh --method ternary`: the boundary is `extract --method ternary --snap-position grid`'s
+/// surface, and the dihedral angles stay within [10°, 165°] on the torus.
+#[test]
+fn tetmesh_ternary_keeps_the_angles_moderate() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = isocube(
+        dir.path(),
+        &[
+            "tetmesh",
+            "sample:torus:32",
+            "--method",
+            "ternary",
+            "--snap",
+            "0.5",
+            "-o",
+            "t.vtu",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("check: conforming, 0 inverted, 0 flat"),
+        "{err}"
+    );
+    let angles = err
+        .split("dihedral angles ")
+        .nth(1)
+        .and_then(|s| s.split(',').next())
+        .unwrap();
+    let (lo, hi) = angles.split_once("..").unwrap();
+    let degrees = |s: &str| s.trim_end_matches('°').parse::<f64>().unwrap();
+    assert!(degrees(lo) > 10.0 && degrees(hi) < 165.0, "{angles}");
+    let surface: usize = err
+        .split("boundary ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    ok(
+        dir.path(),
+        &[
+            "extract",
+            "sample:torus:32",
+            "--method",
+            "ternary",
+            "--snap",
+            "0.5",
+            "--snap-position",
+            "grid",
+            "-o",
+            "s.ply",
+        ],
+    );
+    let report = info(dir.path(), "s.ply");
+    assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);
+}

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{ExtractOptions, Method, Snapping};
+use isocube::extract::{ExtractOptions, Method, SnapPosition, Snapping};
 use isocube::field::{Orientation, SampleSpec};
 use isocube::quality::Strategy;
 use isocube::volume::{tetmesh, TetError, TetReport};
@@ -32,9 +32,18 @@ pub(crate) struct Args {
     /// The surface inside each cell, as `extract --topology`: `mc33` or `classic`.
     #[arg(long, default_value = "mc33")]
     topology: Topology,
-    /// `mc` (binary Marching Cubes). `ternary` is planned.
+    /// `mc` (binary Marching Cubes) or `ternary`: grid points on or near the level become
+    /// surface vertices, on the grid point itself (as `extract --method ternary --snap-position
+    /// grid`), so no tetrahedron is squeezed against a crossing next to a corner.
     #[arg(long, default_value = "mc", value_parser = ["mc", "ternary"])]
     method: String,
+    /// Ternary: values within this distance of the level count as zero (on the surface).
+    #[arg(long, default_value_t = 0.0)]
+    zero_threshold: f32,
+    /// Ternary: snap a grid point onto the surface when a crossing on one of its edges lies
+    /// within this fraction of the edge (0 to 0.5).
+    #[arg(long, default_value_t = 0.3)]
+    snap: f32,
     /// How the surface's cell polygons become triangles, as `extract --triangulate`.
     #[arg(long, default_value = "fan")]
     triangulate: Strategy,
@@ -82,7 +91,12 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         .with_triangulation(args.triangulate)
         .with_max_memory(room)
         .with_method(match args.method.as_str() {
-            "ternary" => Method::Ternary(Snapping::default()),
+            "ternary" => Method::Ternary(
+                Snapping::default()
+                    .with_snap(args.snap)
+                    .with_zero_threshold(args.zero_threshold)
+                    .with_position(SnapPosition::GridPoint),
+            ),
             _ => Method::MarchingCubes,
         });
     let loaded = started.elapsed();

@@ -555,6 +555,26 @@ impl<'a> Extractor<'a> {
         self.snapping
     }
 
+    /// Ternary extraction: whether grid point `(i, j, k)` was made a zero point (the surface
+    /// passes through it; it counts as the level). Always `false` for Marching Cubes.
+    ///
+    /// ```
+    /// use isocube::extract::{ExtractOptions, Extractor, Method, Snapping};
+    /// use isocube::field::Grid;
+    /// // A plane through the middle points, x = 1.
+    /// let grid = Grid::new([3, 2, 2], [-1.0, 0.0, 1.0].repeat(4)).unwrap();
+    /// let options = ExtractOptions::default().with_method(Method::Ternary(Snapping::default()));
+    /// let extractor = Extractor::new(&grid, &options).unwrap();
+    /// assert!(extractor.is_zero_point([1, 1, 0]));
+    /// assert!(!extractor.is_zero_point([0, 1, 0]));
+    /// ```
+    pub fn is_zero_point(&self, [i, j, k]: [usize; 3]) -> bool {
+        let [nx, ny, _] = self.grid.dims();
+        self.ternary
+            .as_ref()
+            .is_some_and(|t| t.zero_point(i + nx * (j + ny * k)))
+    }
+
     /// Meshes one box of cells.
     pub fn mesh_box(&self, cells: CellBox) -> Result<ChunkMesh, ExtractError> {
         self.mesh_box_with(&mut EdgeCache::new(0, 0), cells)

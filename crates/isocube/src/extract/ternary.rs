@@ -509,7 +509,7 @@ impl<'a> Ternary<'a> {
 
     /// Whether `p` was chosen as a zero point.
     #[inline]
-    fn zero_point(&self, p: usize) -> bool {
+    pub(super) fn zero_point(&self, p: usize) -> bool {
         self.zero[p / 64] >> (p % 64) & 1 != 0
     }
 

@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
-use super::{coords, Context};
+use super::{coords, Context, Corner};
 use crate::extract::{KeyKind, VertexKey};
 
 /// A cell face: its lowest grid point (linear index) times 3 plus its normal axis.
@@ -12,22 +12,44 @@ pub(super) fn face_id(q: [usize; 3], n: usize, dims: [usize; 3]) -> u64 {
     ((q[0] + dims[0] * (q[1] + dims[1] * q[2])) * 3 + n) as u64
 }
 
-/// The cell faces holding the crossing `key` (on an edge, so up to four), as ids.
+/// The cell faces holding a crossing (on an edge, so up to four) or a grid point (a corner of up
+/// to twelve), as ids.
 fn faces_of(key: VertexKey, dims: [usize; 3], out: &mut Vec<u64>) {
     out.clear();
-    let KeyKind::Crossing { point, axis } = key.kind() else {
-        return;
-    };
-    let c = coords(point, dims);
-    for n in (0..3).filter(|&n| n != axis) {
-        let m = 3 - n - axis;
-        for q_m in [c[m].checked_sub(1), Some(c[m])].into_iter().flatten() {
-            if q_m + 1 < dims[m] {
+    // Faces with normal `n` holding the point `c` (its coordinate along `axis`, if any, fixed).
+    let mut around = |c: [usize; 3], n: usize, fixed: Option<usize>| {
+        let (u, v) = ((n + 1) % 3, (n + 2) % 3);
+        let range = |d: usize| {
+            let lo = if fixed == Some(d) {
+                c[d]
+            } else {
+                c[d].saturating_sub(1)
+            };
+            (lo..=c[d]).filter(move |&x| x + 1 < dims[d])
+        };
+        for qu in range(u) {
+            for qv in range(v) {
                 let mut q = c;
-                q[m] = q_m;
+                q[u] = qu;
+                q[v] = qv;
                 out.push(face_id(q, n, dims));
             }
         }
+    };
+    match key.kind() {
+        KeyKind::Crossing { point, axis } => {
+            let c = coords(point, dims);
+            for n in (0..3).filter(|&n| n != axis) {
+                around(c, n, Some(axis));
+            }
+        }
+        KeyKind::Point(point) => {
+            let c = coords(point, dims);
+            for n in 0..3 {
+                around(c, n, None);
+            }
+        }
+        _ => {}
     }
 }
 
@@ -41,15 +63,20 @@ pub(super) struct OnFace {
     segments: Vec<([u32; 2], bool)>,
     /// Surface triangles lying in the face, as their sorted vertex numbers.
     flat: Vec<[u32; 3]>,
+    /// Surface vertices inside the face (a cell's interior point that a polygon lying in the
+    /// face put there): the edges to them lie within flat triangles.
+    inner: Vec<u32>,
 }
 
 /// The surface's edges and triangles lying in cell faces, by face. `owner` is each triangle's
-/// cell (or any other value telling triangles in different cells apart).
+/// cell (or any other value telling triangles in different cells apart); `inner_face` gives the
+/// face a vertex lies inside of, for vertices that are neither crossings nor grid points.
 pub(super) fn surface_on_faces(
     triangles: &[[u32; 3]],
     owner: &[u64],
     keys: &[VertexKey],
     dims: [usize; 3],
+    inner_face: &(dyn Fn(u32) -> Option<u64> + Sync),
 ) -> HashMap<u64, OnFace> {
     // (face, edge, owner) for every triangle edge in a face; (face, [u32::MAX, t]) marks a
     // triangle lying in a face.
@@ -61,6 +88,9 @@ pub(super) fn surface_on_faces(
             |(mut acc, mut faces), (t, tri)| {
                 for k in 0..3 {
                     faces_of(keys[tri[k] as usize], dims, &mut faces[k]);
+                    if faces[k].is_empty() {
+                        faces[k].extend(inner_face(tri[k]));
+                    }
                 }
                 for k in 0..3 {
                     let (a, b) = (tri[k], tri[(k + 1) % 3]);
@@ -99,6 +129,11 @@ pub(super) fn surface_on_faces(
         } else {
             let chord = j - i == 2 && found[i + 1].2 == cell;
             entry.segments.push((edge, chord));
+            for v in edge {
+                if inner_face(v).is_some() && !entry.inner.contains(&v) {
+                    entry.inner.push(v);
+                }
+            }
         }
         i = j;
     }
@@ -113,12 +148,13 @@ pub(super) struct Scratch {
     status: Vec<bool>,
 }
 
-/// A point of a face's boundary cycle: a corner (inside or not) or a crossing.
+/// A point of a face's boundary cycle: a corner or a crossing.
 #[derive(Clone, Copy)]
 struct Point {
     /// The vertex number (`u32::MAX` for a corner outside the region).
     id: u32,
-    corner: bool,
+    /// A corner's side; `None` for a crossing.
+    kind: Option<Corner>,
     /// Coordinates in the face's plane.
     at: [f64; 2],
 }
@@ -143,14 +179,19 @@ pub(super) fn triangles(
     // Counterclockwise seen from +n.
     let corners = [offset(0, 0), offset(1, 0), offset(1, 1), offset(0, 1)];
     let ids = corners.map(|c| ctx.point_id(c));
+    let kinds = ids.map(|id| ctx.corner(id));
     let on_face = ctx.segments.get(&face_id(q, n, dims));
-    if on_face.is_none() && ids.iter().all(|&i| i != u32::MAX) {
-        // A whole square: along the Kuhn diagonal, from its lowest to its highest corner.
-        out.push([ids[0], ids[1], ids[2]]);
-        out.push([ids[0], ids[2], ids[3]]);
+    if on_face.is_none() && !kinds.contains(&Corner::Out) {
+        // A whole square: along the Kuhn diagonal, from its lowest to its highest corner. Zero
+        // corners alone (the surface passing through them) bound the region's side of `g`, where
+        // they count as the level: inside with `flip` only.
+        if kinds.contains(&Corner::In) || ctx.flip {
+            out.push([ids[0], ids[1], ids[2]]);
+            out.push([ids[0], ids[2], ids[3]]);
+        }
         return Ok(());
     }
-    if ids.iter().all(|&i| i == u32::MAX) {
+    if kinds.iter().all(|&k| k == Corner::Out) {
         return Ok(());
     }
     let point_index = |c: [usize; 3]| c[0] + dims[0] * (c[1] + dims[1] * c[2]);
@@ -173,10 +214,16 @@ pub(super) fn triangles(
         };
         cycle.push(Point {
             id: ids[s],
-            corner: true,
-            at: corner_at,
+            kind: Some(kinds[s]),
+            // A zero corner is a surface vertex: its stored position.
+            at: if kinds[s] == Corner::Zero {
+                plane(ids[s])
+            } else {
+                corner_at
+            },
         });
-        if (ids[s] == u32::MAX) != (ids[(s + 1) % 4] == u32::MAX) {
+        let ends = [kinds[s], kinds[(s + 1) % 4]];
+        if ends.contains(&Corner::In) && ends.contains(&Corner::Out) {
             let (from, axis) = sides[s];
             let key = VertexKey::crossing(point_index(from), axis);
             let &id = ctx
@@ -185,7 +232,7 @@ pub(super) fn triangles(
                 .ok_or("a face edge whose ends differ has no crossing")?;
             cycle.push(Point {
                 id,
-                corner: false,
+                kind: None,
                 at: plane(id),
             });
         }
@@ -202,23 +249,26 @@ pub(super) fn triangles(
     for chords in [false, true] {
         if chords {
             // Pieces as the trace leaves them: with an inside corner and no outside one, in;
-            // with only outside corners, out; with none (a surface triangle lying in the face,
-            // bounding the region on one side only, so the cell on that side has it), neither.
+            // with an outside corner, out. With neither, only zero corners: inside with `flip`
+            // (where `g`, the level there, counts as inside), else out. A surface triangle lying
+            // in the face bounds the region on one side only, so the cell on that side has it
+            // (skipped below, whatever the piece's side).
             for piece in pieces.iter() {
-                let outside = piece
-                    .iter()
-                    .any(|&x| cycle[x].corner && cycle[x].id == u32::MAX);
-                let inside = piece
-                    .iter()
-                    .any(|&x| cycle[x].corner && cycle[x].id != u32::MAX);
+                let has = |kind| piece.iter().any(|&x| cycle[x].kind == Some(kind));
+                let (inside, outside) = (has(Corner::In), has(Corner::Out));
                 if inside && outside {
                     return Err("the surface's segments do not separate a face's corners");
                 }
-                status.push(inside);
+                status.push(inside || (!outside && ctx.flip));
             }
         }
-        for &(s, _) in segments.iter().filter(|s| s.1 == chords) {
-            let find = |id: u32| cycle.iter().position(|p| !p.corner && p.id == id);
+        let inner = on_face.map_or(&[][..], |o| &o.inner[..]);
+        for &(s, _) in segments
+            .iter()
+            .filter(|s| s.1 == chords && !s.0.iter().any(|v| inner.contains(v)))
+        {
+            // Crossings and zero corners: the surface's vertices on the face's edges.
+            let find = |id: u32| cycle.iter().position(|p| p.id == id);
             let (Some(a), Some(b)) = (find(s[0]), find(s[1])) else {
                 return Err("a surface segment on a face does not end on its edges");
             };
@@ -248,17 +298,61 @@ pub(super) fn triangles(
         if !inside {
             continue;
         }
-        if piece.len() == 3 {
-            // A surface triangle lying in the face takes the piece's place in its cell.
-            let mut ids = [0, 1, 2].map(|k| cycle[piece[k]].id);
-            ids.sort_unstable();
-            if flat.contains(&ids) {
-                continue;
-            }
+        // Surface triangles lying in the face take the piece's place in its cell.
+        if covered(
+            piece,
+            &cycle,
+            flat,
+            on_face.map_or(&[][..], |o| &o.inner[..]),
+            ctx,
+            (u, v),
+        ) {
+            continue;
         }
         convex_triangulation(piece, &cycle, out);
     }
     Ok(())
+}
+
+/// Whether surface triangles lying in the face (`flat`) cover the convex piece: those over its
+/// vertices and the face's inner vertices add up to its area.
+fn covered(
+    piece: &[usize],
+    cycle: &[Point],
+    flat: &[[u32; 3]],
+    inner: &[u32],
+    ctx: &Context,
+    (u, v): (usize, usize),
+) -> bool {
+    if flat.is_empty() {
+        return false;
+    }
+    let ids: Vec<u32> = piece.iter().map(|&k| cycle[k].id).collect();
+    if piece.len() == 3 {
+        let mut sorted = [ids[0], ids[1], ids[2]];
+        sorted.sort_unstable();
+        if flat.contains(&sorted) {
+            return true;
+        }
+    }
+    let area = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).abs() / 2.0
+    };
+    let at = |id: u32| {
+        let p = ctx.position(id);
+        [f64::from(p[u]), f64::from(p[v])]
+    };
+    let first = cycle[piece[0]].at;
+    let whole: f64 = (1..piece.len() - 1)
+        .map(|k| area(first, cycle[piece[k]].at, cycle[piece[k + 1]].at))
+        .sum();
+    let within = |x: &u32| ids.contains(x) || inner.contains(x);
+    let flat_area: f64 = flat
+        .iter()
+        .filter(|t| t.iter().all(within) && t.iter().any(|x| ids.contains(x)))
+        .map(|t| area(at(t[0]), at(t[1]), at(t[2])))
+        .sum();
+    whole > 0.0 && flat_area >= whole * (1.0 - 1e-9)
 }
 
 /// The triangulation of a convex polygon (counterclockwise) with the largest smallest angle;

@@ -17,6 +17,16 @@
 //!   anything else the triangulation with the largest smallest angle), so both cells sharing a
 //!   face cut it the same way and the mesh is conforming. Each connected part of the cell's
 //!   region is then coned from one point inside it (a Steiner point, never on the boundary).
+//! - **Ternary extraction** ([`Method::Ternary`] with [`SnapPosition::GridPoint`]): a zero
+//!   point is a corner on the surface, the surface's vertex there. A cell whose other corners
+//!   are inside, and which the surface only touches at such corners, is still six Kuhn
+//!   tetrahedra. As the crossings left keep at least the snap distance from the corners, the
+//!   cut cells' parts are fat, and their cone points are placed for the angles: of the
+//!   candidate points the one whose tetrahedra have the best dihedral angles, moved by a short
+//!   compass search while its worst angle is under 12° (or 165° for the largest), or one of the
+//!   part's own corners when that does better (thin parts). With snap 0.3 or 0.5 the angles
+//!   stay within [10°, 165°] on smooth surfaces resolved by a few cells (the README's table).
+//!   Snapped vertices must stay on their grid points: the cells around them stay cubes.
 //!
 //! Every cone tetrahedron is checked with an exact orientation predicate on the coordinates as
 //! stored (`f32`): all positive, over a closed boundary, means the cone tiles the part exactly.
@@ -32,6 +42,13 @@
 //! let check = tets.check();
 //! assert!(check.conforming && check.inverted == 0 && check.flat == 0);
 //! assert!((check.volume - check.enclosed).abs() <= 1e-9 * check.enclosed.abs());
+//!
+//! // Ternary extraction, snapped points on their grid points: the angles stay moderate.
+//! use isocube::extract::{Method, SnapPosition, Snapping};
+//! let snapping = Snapping::default().with_snap(0.5).with_position(SnapPosition::GridPoint);
+//! let options = ExtractOptions::default().with_method(Method::Ternary(snapping));
+//! let report = tetmesh(&Sample::Sphere.grid(24), &options).unwrap().quality_report();
+//! assert!(report.min_dihedral > 10.0 && report.max_dihedral < 165.0);
 //! ```
 
 use rayon::prelude::*;
@@ -39,7 +56,7 @@ use rustc_hash::FxHashMap as HashMap;
 
 use crate::extract::{
     join_tagged, slabs, ExtractError, ExtractOptions, ExtractStats, Extractor, KeyKind, Method,
-    VertexKey,
+    SnapPosition, VertexKey,
 };
 use crate::field::GridView;
 use crate::mesh::Mesh;
@@ -140,8 +157,9 @@ const BEYOND: u64 = u64::MAX - 1;
 
 /// Meshes the region inside the isosurface of `grid` with tetrahedra (see the module
 /// documentation). The options are [`crate::extract::extract`]'s; relaxation is refused (it
-/// moves surface vertices off the cell faces the construction relies on), and so, for now, is
-/// the ternary method.
+/// moves surface vertices off the cell faces the construction relies on), and so is ternary
+/// snapping onto crossings ([`SnapPosition::NearestCrossing`] with a snap distance): the
+/// construction needs snapped vertices on their grid points.
 pub fn tetmesh<'a>(
     grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
@@ -152,10 +170,13 @@ pub fn tetmesh<'a>(
             "relaxation moves surface vertices off the cell faces: a volume mesh cannot keep it",
         ));
     }
-    if matches!(options.method, Method::Ternary(_)) {
-        return Err(TetError::Unsupported(
-            "volume meshes are made with the mc method for now (ternary is planned)",
-        ));
+    if let Method::Ternary(snapping) = options.method {
+        if snapping.position == SnapPosition::NearestCrossing && snapping.snap > 0.0 {
+            return Err(TetError::Unsupported(
+                "a volume mesh keeps snapped vertices on their grid points (the cells around \
+                 them must stay cubes): use the grid snap position",
+            ));
+        }
     }
     let dims = grid.dims();
     if let Some((point, value)) = first_non_finite(&grid) {
@@ -184,16 +205,46 @@ pub fn tetmesh<'a>(
         &mut |_| {},
     )?;
 
-    // Inside grid points, numbered after the surface's vertices in grid order.
+    // Each grid point's vertex: a zero point (ternary) is the surface's vertex there; inside
+    // points are numbered after the surface's vertices in grid order.
     let point_count = dims[0] * dims[1] * dims[2];
     let mut rank = vec![u32::MAX; point_count];
+    for (v, key) in keys.iter().enumerate() {
+        if let KeyKind::Point(p) = key.kind() {
+            rank[p] = v as u32;
+        }
+    }
+    let ternary = matches!(options.method, Method::Ternary(_));
     let mut inside_points: Vec<u32> = Vec::new();
     let base = surface.positions.len();
     for k in 0..dims[2] {
         for j in 0..dims[1] {
             for i in 0..dims[0] {
-                if inside(grid.value(i, j, k)) {
-                    let p = i + dims[0] * (j + dims[1] * k);
+                let p = i + dims[0] * (j + dims[1] * k);
+                let is_in = if ternary && extractor.is_zero_point([i, j, k]) {
+                    // A zero point the surface does not pass through: the surface around it
+                    // vanished as the point reached the level, leaving it on the side of its
+                    // neighbours.
+                    rank[p] == u32::MAX && {
+                        let c = [i, j, k];
+                        let sides: Vec<bool> = (0..6)
+                            .filter_map(|e| {
+                                let mut q = c;
+                                q[e / 2] = (c[e / 2] + 1).checked_sub(2 * (e % 2))?;
+                                (q[e / 2] < dims[e / 2] && !extractor.is_zero_point(q))
+                                    .then(|| inside(grid.value(q[0], q[1], q[2])))
+                            })
+                            .collect();
+                        if sides.is_empty() {
+                            flip
+                        } else {
+                            sides.contains(&true)
+                        }
+                    }
+                } else {
+                    inside(grid.value(i, j, k))
+                };
+                if is_in {
                     rank[p] = (base + inside_points.len()) as u32;
                     inside_points.push(p as u32);
                 }
@@ -217,13 +268,18 @@ pub fn tetmesh<'a>(
     }
 
     // Surface triangles by cell.
+    let plane = |n: usize, m: usize| {
+        let mut c = [0; 3];
+        c[n] = m;
+        grid.point(c[0], c[1], c[2])[n] as f32
+    };
     let cell_dims = [dims[0] - 1, dims[1] - 1, dims[2] - 1];
     let mut by_cell: Vec<(u64, u32)> = surface
         .triangles
         .par_iter()
         .enumerate()
         .map(|(t, tri)| {
-            let cell = match triangle_cell(tri, &keys, &surface.positions, dims) {
+            let cell = match triangle_cell(tri, &keys, &surface.positions, dims, &plane) {
                 Owner::Cell(c) => (c[0] + cell_dims[0] * (c[1] + cell_dims[1] * c[2])) as u64,
                 Owner::Beyond => BEYOND,
                 Owner::Nowhere => u64::MAX,
@@ -257,7 +313,19 @@ pub fn tetmesh<'a>(
     for &(cell, t) in &by_cell {
         owner[t as usize] = cell;
     }
-    let segments = face::surface_on_faces(&surface.triangles, &owner, &keys, dims);
+    let inner_face = |v: u32| {
+        let KeyKind::Interior { cell, .. } = keys[v as usize].kind() else {
+            return None;
+        };
+        let p = surface.positions[v as usize];
+        let mut q = coords(cell, dims);
+        let n = (0..3).find(|&n| p[n] == plane(n, q[n]) || p[n] == plane(n, q[n] + 1))?;
+        if p[n] != plane(n, q[n]) {
+            q[n] += 1;
+        }
+        Some(face::face_id(q, n, dims))
+    };
+    let segments = face::surface_on_faces(&surface.triangles, &owner, &keys, dims, &inner_face);
 
     let ctx = Context {
         grid,
@@ -270,6 +338,8 @@ pub fn tetmesh<'a>(
         crossings: &crossings,
         segments: &segments,
         base,
+        flip,
+        shape: ternary,
     };
     let layers: Vec<Layer> = (0..cell_dims[2])
         .into_par_iter()
@@ -405,12 +475,24 @@ fn triangle_cell(
     keys: &[VertexKey],
     positions: &[[f32; 3]],
     dims: [usize; 3],
+    plane: &dyn Fn(usize, usize) -> f32,
 ) -> Owner {
     let k = tri.map(|v| keys[v as usize]);
-    if let KeyKind::Crossing { point, .. } | KeyKind::Point(point) = k[0].kind() {
+    let on_grid = k.iter().find_map(|key| match key.kind() {
+        KeyKind::Crossing { point, .. } | KeyKind::Point(point) => Some(point),
+        _ => None,
+    });
+    if let Some(point) = on_grid {
         let c = coords(point, dims);
+        // A cell's interior point lies in one of its faces when the polygon it splits does.
+        let on_plane = |v: u32, n: usize| {
+            let key = keys[v as usize];
+            key.on_plane(dims, n, c[n])
+                || (matches!(key.kind(), KeyKind::Interior { .. })
+                    && positions[v as usize][n] == plane(n, c[n]))
+        };
         for n in 0..3 {
-            if k.iter().all(|key| key.on_plane(dims, n, c[n])) {
+            if tri.iter().all(|&v| on_plane(v, n)) {
                 let p = tri.map(|v| positions[v as usize].map(f64::from));
                 let normal = check::cross(check::sub(p[1], p[0]), check::sub(p[2], p[0]))[n];
                 if normal == 0.0 {
@@ -506,6 +588,22 @@ struct Context<'a> {
     segments: &'a HashMap<u64, face::OnFace>,
     /// Number of the first grid point vertex.
     base: usize,
+    flip: bool,
+    /// Whether to place cone points for the tetrahedra's angles: with ternary extraction only,
+    /// whose crossings keep away from the corners. Marching Cubes' surface has needles and
+    /// slivers next to corners that no cone point can lift, and the search would only cost time.
+    shape: bool,
+}
+
+/// Where a cell corner lies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Corner {
+    /// Inside the region: a grid point vertex.
+    In,
+    /// On the surface: a zero point of ternary extraction, the surface's vertex.
+    Zero,
+    /// Outside.
+    Out,
 }
 
 /// The six Kuhn tetrahedra of a cube, as corner offsets (bit 0: +x, bit 1: +y, bit 2: +z),
@@ -541,6 +639,37 @@ impl Context<'_> {
         self.rank[c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])]
     }
 
+    /// The side of the corner whose vertex (by [`Context::point_id`]) is `id`.
+    fn corner(&self, id: u32) -> Corner {
+        if id == u32::MAX {
+            Corner::Out
+        } else if (id as usize) < self.base {
+            Corner::Zero
+        } else {
+            Corner::In
+        }
+    }
+
+    /// The surface's triangles bounding the cell's part of the region.
+    fn cell_triangles(&self, cell: [usize; 3]) -> &[(u64, u32)] {
+        let [cx, cy] = [self.dims[0] - 1, self.dims[1] - 1];
+        let index = (cell[0] + cx * (cell[1] + cy * cell[2])) as u64;
+        let from = self.by_cell.partition_point(|e| e.0 < index);
+        let to = self.by_cell.partition_point(|e| e.0 <= index);
+        &self.by_cell[from..to]
+    }
+
+    /// Whether the surface has an edge on one of the cell's six faces.
+    fn touches_faces(&self, cell: [usize; 3]) -> bool {
+        (0..3).any(|n| {
+            let mut q = cell;
+            q[n] += 1;
+            [cell, q]
+                .iter()
+                .any(|&f| self.segments.contains_key(&face::face_id(f, n, self.dims)))
+        })
+    }
+
     fn layer(&self, k: usize) -> Result<Layer, TetError> {
         let [nx, ny, _] = self.dims;
         let mut out = Layer::default();
@@ -555,8 +684,17 @@ impl Context<'_> {
                     ])
                 };
                 let ids: [u32; 8] = std::array::from_fn(|o| corner(o as u8));
-                let inside = ids.iter().filter(|&&v| v != u32::MAX).count();
-                if inside == 8 {
+                let outside = ids.iter().filter(|&&v| v == u32::MAX).count();
+                let zero = ids.iter().filter(|&&v| (v as usize) < self.base).count();
+                let inside = 8 - outside - zero;
+                // Zero corners (ternary): the surface passes through them. The cell is whole
+                // when the rest are inside and the surface only touches it at those points;
+                // with zero corners only, it lies on the side where `g`, the level, counts.
+                let owns = zero > 0 && !self.cell_triangles([i, j, k]).is_empty();
+                let whole = outside == 0
+                    && (zero == 0
+                        || ((inside > 0 || self.flip) && !owns && !self.touches_faces([i, j, k])));
+                if whole {
                     out.lattice_cells += 1;
                     out.tets
                         .extend(KUHN.iter().map(|t| t.map(|o| ids[usize::from(o)])));
@@ -565,7 +703,7 @@ impl Context<'_> {
                             cell: [i, j, k],
                             reason,
                         })?;
-                } else if inside > 0 {
+                } else if inside > 0 || owns || (outside == 0 && self.flip) {
                     out.cut_cells += 1;
                     self.cut_cell([i, j, k], &mut out, &mut scratch)
                         .map_err(|reason| TetError::Cell {
@@ -608,11 +746,8 @@ impl Context<'_> {
         out: &mut Layer,
         scratch: &mut face::Scratch,
     ) -> Result<(), &'static str> {
-        let [cx, cy, _] = [self.dims[0] - 1, self.dims[1] - 1, self.dims[2] - 1];
-        let index = (cell[0] + cx * (cell[1] + cy * cell[2])) as u64;
-        let from = self.by_cell.partition_point(|e| e.0 < index);
-        let to = self.by_cell.partition_point(|e| e.0 <= index);
-        let mut boundary: Vec<[u32; 3]> = self.by_cell[from..to]
+        let mut boundary: Vec<[u32; 3]> = self
+            .cell_triangles(cell)
             .iter()
             .map(|&(_, t)| self.surface[t as usize])
             .collect();
@@ -675,22 +810,50 @@ impl Context<'_> {
                 .zip(&degenerate)
                 .all(|(t, &d)| cones::sees(t, d, apex))
         };
-        if let Some(&c) = candidates.iter().find(|&&c| sees_all(c)) {
-            out.push_tiled(cone(c));
+        let apex = self.best_apex(cell, &tris, &degenerate, &candidates);
+        if let Some((apex, _)) = apex.filter(|a| !self.shape || a.1 >= GOOD_CONE) {
+            out.push_tiled(cone(apex));
             return Ok(());
         }
         // A cone from one of the part's own corners, over the triangles not touching it: no
-        // Steiner point at all (the apex of a fan that folds the surface often sees the rest).
+        // Steiner point at all (the apex of a fan that folds the surface often sees the rest;
+        // a thin part's corner often makes better tetrahedra than any point inside).
         let mut corners: Vec<u32> = part.iter().flatten().copied().collect();
         corners.sort_unstable();
         corners.dedup();
+        let mut best_corner: Option<(u32, f64)> = None;
         for &v in &corners {
             let pv = self.position(v).map(f64::from);
             let far = || part.iter().zip(&tris).filter(|(t, _)| !t.contains(&v));
             if far().all(|(_, t)| check::positive(t[0], t[2], t[1], pv)) {
-                out.tets.extend(far().map(|(t, _)| [t[0], t[2], t[1], v]));
+                if !self.shape {
+                    out.tets.extend(far().map(|(t, _)| [t[0], t[2], t[1], v]));
+                    return Ok(());
+                }
+                let q = far()
+                    .map(|(_, t)| cone_quality(t, pv))
+                    .fold(f64::INFINITY, f64::min);
+                if best_corner.is_none_or(|b| q > b.1) {
+                    best_corner = Some((v, q));
+                }
+            }
+        }
+        match (apex, best_corner) {
+            (Some((_, a)), Some((v, c))) if c > a => {
+                let far = part.iter().filter(|t| !t.contains(&v));
+                out.tets.extend(far.map(|t| [t[0], t[2], t[1], v]));
                 return Ok(());
             }
+            (Some((apex, _)), _) => {
+                out.push_tiled(cone(apex));
+                return Ok(());
+            }
+            (None, Some((v, _))) => {
+                let far = part.iter().filter(|t| !t.contains(&v));
+                out.tets.extend(far.map(|t| [t[0], t[2], t[1], v]));
+                return Ok(());
+            }
+            (None, None) => {}
         }
         if let Some(apex) = check::kernel_point(&tris)
             .map(|a| a.map(f64::from))
@@ -731,6 +894,75 @@ impl Context<'_> {
             return Ok(());
         }
         Err("no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)")
+    }
+
+    /// Among the candidates that see every triangle, the apex whose cone has the best angles,
+    /// moved by a short compass search while that improves them (only where the best
+    /// candidate's angles are poor). With [`Context::shape`] off, the first candidate.
+    fn best_apex(
+        &self,
+        cell: [usize; 3],
+        tris: &[[[f64; 3]; 3]],
+        degenerate: &[bool],
+        candidates: &[[f64; 3]],
+    ) -> Option<([f64; 3], f64)> {
+        let sees_all = |apex: [f64; 3]| {
+            tris.iter()
+                .zip(degenerate)
+                .all(|(t, &d)| cones::sees(t, d, apex))
+        };
+        let score = |apex: [f64; 3]| {
+            tris.iter()
+                .zip(degenerate)
+                .filter(|(_, &d)| !d)
+                .map(|(t, _)| cone_quality(t, apex))
+                .fold(f64::INFINITY, f64::min)
+        };
+        if !self.shape {
+            return candidates
+                .iter()
+                .copied()
+                .find(|&c| sees_all(c))
+                .map(|c| (c, 0.0));
+        }
+        const GOOD: f64 = GOOD_CONE;
+        let mut best: Option<([f64; 3], f64)> = None;
+        for &c in candidates {
+            if sees_all(c) {
+                let q = score(c);
+                if q >= GOOD {
+                    return Some((c, q));
+                }
+                if best.is_none_or(|b| q > b.1) {
+                    best = Some((c, q));
+                }
+            }
+        }
+        let (mut apex, mut quality) = best?;
+        let lo = self.grid.point(cell[0], cell[1], cell[2]);
+        let hi = self.grid.point(cell[0] + 1, cell[1] + 1, cell[2] + 1);
+        let mut step = (0..3).map(|d| hi[d] - lo[d]).fold(f64::INFINITY, f64::min) / 8.0;
+        for _ in 0..5 {
+            let mut moved = false;
+            for axis in 0..6 {
+                let mut p = apex;
+                p[axis / 2] += if axis % 2 == 0 { step } else { -step };
+                let p = p.map(|x| f64::from(x as f32));
+                if sees_all(p) {
+                    let q = score(p);
+                    if q > quality {
+                        (apex, quality, moved) = (p, q, true);
+                    }
+                }
+            }
+            if quality >= GOOD {
+                break;
+            }
+            if !moved {
+                step /= 2.0;
+            }
+        }
+        Some((apex, quality))
     }
 
     /// Cones from points chosen by [`cones::assign`] among the candidates and two points inside
@@ -859,6 +1091,17 @@ impl Context<'_> {
         face::triangles(self, q, n, out, scratch)
     }
 }
+
+/// A cone tetrahedron's angles scored: the worst of its smallest dihedral angle and its
+/// largest one's supplement, scaled so that the goal's bounds, 10° and 165°, score alike.
+fn cone_quality(t: &[[f64; 3]; 3], apex: [f64; 3]) -> f64 {
+    let (lo, hi) = quality::dihedral_extremes([t[0], t[2], t[1], apex]);
+    lo.min((180.0 - hi) * (10.0 / 15.0))
+}
+
+/// A cone point whose tetrahedra score this well ([`cone_quality`]) is kept without looking
+/// further: beyond the goal's bounds with room to spare.
+const GOOD_CONE: f64 = 12.0;
 
 /// The closed parts of a cell's region boundary: triangles joined across their edges. An edge
 /// used once each way joins its two triangles; an edge where the region is pinched (a fold of

@@ -77,6 +77,40 @@ impl TetQuality {
     }
 }
 
+/// The smallest and largest dihedral angles of a tetrahedron, in degrees, as
+/// [`TetQuality::of`] finds them, with two arc cosines instead of six (the cone-point search
+/// scores many candidate tetrahedra).
+pub(super) fn dihedral_extremes(p: [[f64; 3]; 4]) -> (f64, f64) {
+    let face = |i: usize| {
+        let [a, b, c] = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4].map(|k| p[k]);
+        let n = cross(sub(b, a), sub(c, a));
+        let n = if dot(n, sub(p[i], a)) > 0.0 {
+            n.map(|x| -x)
+        } else {
+            n
+        };
+        let len = dot(n, n).sqrt();
+        if len > 0.0 {
+            n.map(|x| x / len)
+        } else {
+            n
+        }
+    };
+    let normals: [[f64; 3]; 4] = std::array::from_fn(face);
+    // The dihedral angle is 180° less the angle between outward normals: its cosine is
+    // minus their dot product.
+    let (mut hi_cos, mut lo_cos) = (f64::NEG_INFINITY, f64::INFINITY);
+    for i in 0..4 {
+        for j in i + 1..4 {
+            let c = -dot(normals[i], normals[j]);
+            hi_cos = hi_cos.max(c);
+            lo_cos = lo_cos.min(c);
+        }
+    }
+    let angle = |c: f64| c.clamp(-1.0, 1.0).acos().to_degrees();
+    (angle(hi_cos), angle(lo_cos))
+}
+
 /// A whole mesh's quality.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TetReport {

@@ -21,6 +21,21 @@ fn all_options() -> Vec<ExtractOptions> {
     out
 }
 
+/// [`all_options`] with ternary extraction (snapped points on their grid points) at snap
+/// distances 0.3 and 0.5.
+fn ternary_options() -> Vec<ExtractOptions> {
+    let mut out = Vec::new();
+    for snap in [0.3, 0.5] {
+        let method = Method::Ternary(
+            crate::extract::Snapping::default()
+                .with_snap(snap)
+                .with_position(SnapPosition::GridPoint),
+        );
+        out.extend(all_options().into_iter().map(|o| o.with_method(method)));
+    }
+    out
+}
+
 /// The grid's box volume.
 fn box_volume(grid: &Grid) -> f64 {
     let d = grid.dims();
@@ -125,7 +140,13 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
             })
             .collect();
         let grid = Grid::new(dims, values).unwrap();
-        for options in all_options() {
+        // Ternary on every third grid (the snapping choice is the slow part of a case).
+        let ternary = if case % 3 == 1 {
+            ternary_options()
+        } else {
+            Vec::new()
+        };
+        for options in all_options().into_iter().chain(ternary) {
             match tetmesh(&grid, &options) {
                 Ok(tets) => {
                     // Ties put crossings on grid points: the surface itself has flat triangles
@@ -151,6 +172,30 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
     }
     eprintln!("random grids: {meshed} meshed, {refused} refused");
     assert!(meshed > 0);
+}
+
+#[test]
+fn ternary_samples_give_valid_meshes_bounded_by_the_extracted_surface() {
+    for (sample, n) in [
+        (Sample::Sphere, 20),
+        (Sample::Gyroid, 20),
+        (Sample::Tangle, 24),
+        (Sample::Torus, 24),
+    ] {
+        let grid = sample.grid(n);
+        for options in ternary_options() {
+            let what = format!("{sample:?} {n} {options:?}");
+            let tets = tetmesh(&grid, &options).unwrap_or_else(|e| panic!("{what}: {e}"));
+            assert_valid(&tets, &what);
+            let (surface, _) = crate::extract::extract(&grid, &options).unwrap();
+            assert_eq!(surface.triangles, tets.surface, "{what}");
+            assert_eq!(
+                surface.positions[..],
+                tets.positions[..tets.surface_vertices],
+                "{what}"
+            );
+        }
+    }
 }
 
 #[test]
@@ -200,7 +245,7 @@ fn sample_sweep() {
 #[test]
 #[ignore]
 fn single_cell_refusals() {
-    for options in all_options() {
+    for options in all_options().into_iter().chain(ternary_options()) {
         let mut rng = crate::TestRng::new(3);
         let mut refused = 0;
         let mut reasons = std::collections::BTreeMap::new();
