@@ -39,11 +39,12 @@ for case in "${cases[@]}"; do
 done
 "$venv/bin/python" "$here/check_meshes.py" "$manifest"
 
-# Tetrahedral meshes: a closed region (sphere) and one reaching the grid's faces (gyroid's
-# other side), in every tetrahedral format.
+# Tetrahedral meshes: a closed region (sphere), one reaching the grid's faces (gyroid's
+# other side) and a ternary one, in every tetrahedral format.
 tets="$work/tets.txt"
 : > "$tets"
-for case in "sphere sample:sphere:32" "gyroid sample:gyroid:24 --flip"; do
+for case in "sphere sample:sphere:32" "gyroid sample:gyroid:24 --flip" \
+  "torus-ternary sample:torus:24 --method ternary --snap 0.5"; do
   read -r name volume flip <<< "$case"
   for ext in msh vtu mesh inp; do
     out="$work/tet-$name.$ext"
