@@ -57,6 +57,28 @@ for case in "sphere sample:sphere:32" "gyroid sample:gyroid:24 --flip" \
 done
 "$venv/bin/python" "$here/check_tets.py" "$tets"
 
+# Multi-material volume meshes (`tetmesh --labels`): three labels in a background, and packed
+# spheres with the pores between them as a second material; regions, boundaries and interfaces
+# counted and checked face to face by meshio and gmsh.
+"$venv/bin/python" "$here/make_labels.py" "$work/labels"
+labelled="$work/labelled.txt"
+: > "$labelled"
+for name in three packed; do
+  for ext in msh vtu mesh inp; do
+    out="$work/labels-$name.$ext"
+    summary=$("$isocube" tetmesh "$work/labels/$name.npy" --labels -o "$out" 2>&1)
+    first=${summary%%$'\n'*}
+    # "<file>: T tetrahedra, V vertices (...); boundary S surface + W wall triangles"
+    numbers=$(sed -E 's/.*: [0-9]+ tetrahedra, ([0-9]+) vertices.*boundary ([0-9]+) surface.*/\1 \2/' <<< "$first")
+    # "regions: label 1: N, label 2: M; I interface triangles"
+    regions=$(grep '^regions:' <<< "$summary")
+    interfaces=$(sed -E 's/.*; ([0-9]+) interface triangles/\1/' <<< "$regions")
+    counts=$(sed -E 's/^regions: //; s/;.*//; s/label ([-0-9]+): ([0-9]+)/\1:\2/g; s/,//g' <<< "$regions")
+    echo "$out $numbers $interfaces $counts" >> "$labelled"
+  done
+done
+"$venv/bin/python" "$here/check_labels.py" "$labelled"
+
 # A real consumer of the volume meshes: scikit-fem solves -Δu = 1 on the unit ball with P1 and
 # P2 elements; the L2 error against (1 - r²)/6 must fall like h² (README, Volume meshes).
 "$venv/bin/python" "$here/fem_poisson.py" "$isocube" "$work/fem"

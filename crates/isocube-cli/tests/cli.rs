@@ -1301,3 +1301,54 @@ fn tetmesh_ternary_keeps_the_angles_moderate() {
     let report = info(dir.path(), "s.ply");
     assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);
 }
+
+/// `tetmesh --labels`: one region per label, conforming; a label that does not occur exits 2
+/// with nothing written.
+#[test]
+fn tetmesh_labels_meshes_each_label() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 10usize;
+    let mut data = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let inside = (2..8).contains(&j) && (2..8).contains(&k);
+                data.push(match i {
+                    2..=4 if inside => 1u8,
+                    5..=7 if inside => 2,
+                    _ => 0,
+                });
+            }
+        }
+    }
+    std::fs::write(
+        dir.path().join("labels.npy"),
+        common::npy("|u1", &format!("({n}, {n}, {n})"), &data),
+    )
+    .unwrap();
+    let out = isocube(
+        dir.path(),
+        &["tetmesh", "labels.npy", "--labels", "-o", "l.msh"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("check: conforming, 0 inverted, 0 flat"),
+        "{err}"
+    );
+    let regions = err.lines().find(|l| l.starts_with("regions:")).unwrap();
+    assert!(
+        regions.contains("label 1: ") && regions.contains("label 2: "),
+        "{regions}"
+    );
+    let msh = std::fs::read_to_string(dir.path().join("l.msh")).unwrap();
+    assert!(msh.contains("\"label 1\"") && msh.contains("\"interface 1|2\""));
+
+    let out = isocube(
+        dir.path(),
+        &["tetmesh", "labels.npy", "--labels", "9", "-o", "none.msh"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("label 9 does not occur"));
+    assert!(!dir.path().join("none.msh").exists());
+}

@@ -3,7 +3,10 @@
 //!
 //! Every format carries the same groups: the region's tetrahedra (physical group 1, "region"),
 //! the isosurface's triangles (2, "surface") and the triangles on the grid's outer faces (3,
-//! "walls"). Vertex numbers are the mesh's, from 1 where the format counts from 1.
+//! "walls"). A multi-material mesh ([`isocube::volume::tetmesh_labels`]) has one 3-D group per
+//! label ("label L", numbered from 1 in increasing label order), then one 2-D group per label's
+//! boundary ("label L boundary") and per interface ("interface A|B"). Vertex numbers are the
+//! mesh's, from 1 where the format counts from 1.
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -21,10 +24,12 @@ pub enum TetFormat {
     Msh,
     /// VTK XML unstructured grid (`.vtu`), arrays appended raw; region, quality as cell data.
     Vtu,
-    /// MEDIT (`.mesh`, ASCII), references 1 (region), 2 (surface), 3 (walls).
+    /// MEDIT (`.mesh`, ASCII), references 1 (region), 2 (surface), 3 (walls), or the labels'
+    /// group numbers.
     Medit,
-    /// Abaqus input (`.inp`): C3D4 elements in the element set `REGION`, the boundary as the
-    /// element-based surfaces `SURFACE` and `WALLS`.
+    /// Abaqus input (`.inp`): C3D4 elements in the element set `REGION` (or `LABEL_<l>`), the
+    /// boundary as the element-based surfaces `SURFACE` and `WALLS` (or `BOUNDARY_<l>` and
+    /// `INTERFACE_<a>_<b>`).
     Inp,
 }
 
@@ -51,10 +56,127 @@ impl TetFormat {
 /// Items encoded per write in `.vtu` arrays.
 const STRETCH: usize = 1 << 16;
 
-/// Physical group numbers (and MEDIT references).
-const REGION: u32 = 1;
-const SURFACE: u32 = 2;
-const WALLS: u32 = 3;
+/// A mesh's physical groups: the 3-D ones (the region, or one per label) numbered from 1, then
+/// the 2-D ones (the surface and the walls, or each label's boundary and each interface), each
+/// with the 3-D group its triangles face out of.
+struct Groups<'a> {
+    mesh: &'a TetMesh,
+    /// Names of the 3-D groups: as written where names may hold anything, and for Abaqus.
+    volumes: Vec<(String, String)>,
+    surfaces: Vec<SurfaceGroup>,
+}
+
+struct SurfaceGroup {
+    name: String,
+    abaqus: String,
+    triangles: Vec<[u32; 3]>,
+    /// The 3-D group (index) the triangles face out of.
+    owner: u32,
+    /// For an interface, the 3-D group on the other side.
+    other: Option<u32>,
+}
+
+impl<'a> Groups<'a> {
+    fn of(mesh: &'a TetMesh) -> Groups<'a> {
+        let Some(labels) = &mesh.labels else {
+            let mut surfaces = vec![SurfaceGroup {
+                name: "surface".into(),
+                abaqus: "SURFACE".into(),
+                triangles: mesh.surface.clone(),
+                owner: 0,
+                other: None,
+            }];
+            if !mesh.walls.is_empty() {
+                surfaces.push(SurfaceGroup {
+                    name: "walls".into(),
+                    abaqus: "WALLS".into(),
+                    triangles: mesh.walls.clone(),
+                    owner: 0,
+                    other: None,
+                });
+            }
+            return Groups {
+                mesh,
+                volumes: vec![("region".into(), "REGION".into())],
+                surfaces,
+            };
+        };
+        // Abaqus names: letters, digits and underscores; a minus sign becomes M.
+        let abaqus = |l: i64| l.to_string().replace('-', "M");
+        let volumes = labels
+            .names
+            .iter()
+            .map(|&l| (format!("label {l}"), format!("LABEL_{}", abaqus(l))))
+            .collect();
+        let mut surfaces = Vec::new();
+        for (i, &l) in labels.names.iter().enumerate() {
+            let triangles: Vec<[u32; 3]> = mesh
+                .surface
+                .iter()
+                .zip(&labels.surface)
+                .filter(|(_, &s)| s as usize == i)
+                .map(|(t, _)| *t)
+                .collect();
+            if !triangles.is_empty() {
+                surfaces.push(SurfaceGroup {
+                    name: format!("label {l} boundary"),
+                    abaqus: format!("BOUNDARY_{}", abaqus(l)),
+                    triangles,
+                    owner: i as u32,
+                    other: None,
+                });
+            }
+        }
+        let mut pairs: Vec<[u32; 2]> = labels.pairs.clone();
+        pairs.sort_unstable();
+        pairs.dedup();
+        for pair in pairs {
+            let [a, b] = pair.map(|x| labels.names[x as usize]);
+            surfaces.push(SurfaceGroup {
+                name: format!("interface {a}|{b}"),
+                abaqus: format!("INTERFACE_{}_{}", abaqus(a), abaqus(b)),
+                triangles: labels
+                    .interfaces
+                    .iter()
+                    .zip(&labels.pairs)
+                    .filter(|(_, &p)| p == pair)
+                    .map(|(t, _)| *t)
+                    .collect(),
+                owner: pair[0],
+                other: Some(pair[1]),
+            });
+        }
+        Groups {
+            mesh,
+            volumes,
+            surfaces,
+        }
+    }
+
+    /// The 3-D group (index) of tetrahedron `t`.
+    fn tet_group(&self, t: usize) -> u32 {
+        self.mesh.labels.as_ref().map_or(0, |l| l.tets[t])
+    }
+
+    /// Tetrahedra (indices) by 3-D group, in mesh order within each.
+    fn tets_by_group(&self) -> Vec<Vec<u32>> {
+        let mut out = vec![Vec::new(); self.volumes.len()];
+        for t in 0..self.mesh.tets.len() {
+            out[self.tet_group(t) as usize].push(t as u32);
+        }
+        out
+    }
+
+    /// The tag (physical group number, MEDIT reference) of 3-D group `i`.
+    fn volume_tag(&self, i: usize) -> usize {
+        i + 1
+    }
+
+    /// The tag of 2-D group `i`: after the 3-D groups'.
+    fn surface_tag(&self, i: usize) -> usize {
+        self.volumes.len() + i + 1
+    }
+}
 
 /// Writes `mesh` to `path` in the format its extension names, atomically (a temporary file
 /// renamed over the target). `quality`, one entry per tetrahedron, is written as cell data where
@@ -83,41 +205,54 @@ pub fn write_tet_mesh(
     })
 }
 
-/// Gmsh MSH 4.1: entities surface 2 (the isosurface), surface 3 (the walls, when there are
-/// any) and volume 1, each in its physical group; all nodes on the volume entity.
+/// Gmsh MSH 4.1: one entity per physical group (surfaces, then volumes); all nodes on the first
+/// volume entity.
 fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
+    let groups = Groups::of(mesh);
     let n = mesh.positions.len();
     let (lo, hi) = bbox(&mesh.positions);
     let bounds = format!(
         "{} {} {} {} {} {}",
         lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
     );
-    let walls = !mesh.walls.is_empty();
+    let (v, s) = (groups.volumes.len(), groups.surfaces.len());
     writeln!(w, "$MeshFormat\n4.1 0 8\n$EndMeshFormat")?;
-    writeln!(w, "$PhysicalNames\n{}", if walls { 3 } else { 2 })?;
-    writeln!(w, "3 {REGION} \"region\"\n2 {SURFACE} \"surface\"")?;
-    if walls {
-        writeln!(w, "2 {WALLS} \"walls\"")?;
+    writeln!(w, "$PhysicalNames\n{}", v + s)?;
+    for (i, (name, _)) in groups.volumes.iter().enumerate() {
+        writeln!(w, "3 {} \"{name}\"", groups.volume_tag(i))?;
+    }
+    for (i, g) in groups.surfaces.iter().enumerate() {
+        writeln!(w, "2 {} \"{}\"", groups.surface_tag(i), g.name)?;
     }
     writeln!(w, "$EndPhysicalNames")?;
-    let surfaces: Vec<u32> = if walls {
-        vec![SURFACE, WALLS]
-    } else {
-        vec![SURFACE]
-    };
-    writeln!(w, "$Entities\n0 0 {} 1", surfaces.len())?;
-    for &s in &surfaces {
-        writeln!(w, "{s} {bounds} 1 {s} 0")?;
+    writeln!(w, "$Entities\n0 0 {s} {v}")?;
+    for i in 0..s {
+        let tag = groups.surface_tag(i);
+        writeln!(w, "{tag} {bounds} 1 {tag} 0")?;
     }
-    let bounding: Vec<String> = surfaces.iter().map(u32::to_string).collect();
-    writeln!(
-        w,
-        "{REGION} {bounds} 1 {REGION} {} {}",
-        surfaces.len(),
-        bounding.join(" ")
-    )?;
+    for i in 0..v {
+        // Bounding surfaces, signed by orientation: out of this volume, or into it.
+        let bounding: Vec<String> = groups
+            .surfaces
+            .iter()
+            .enumerate()
+            .filter_map(|(k, g)| {
+                let tag = groups.surface_tag(k) as i64;
+                if g.owner as usize == i {
+                    Some(tag.to_string())
+                } else if g.other == Some(i as u32) {
+                    Some((-tag).to_string())
+                } else {
+                    None
+                }
+            })
+            .collect();
+        let tag = groups.volume_tag(i);
+        let list: String = bounding.iter().map(|b| format!(" {b}")).collect();
+        writeln!(w, "{tag} {bounds} 1 {tag} {}{list}", bounding.len())?;
+    }
     writeln!(w, "$EndEntities")?;
-    writeln!(w, "$Nodes\n1 {n} 1 {n}\n3 {REGION} 0 {n}")?;
+    writeln!(w, "$Nodes\n1 {n} 1 {n}\n3 1 0 {n}")?;
     write_blocks(w, n, |out, r| {
         for tag in r {
             let _ = writeln!(out, "{}", tag + 1);
@@ -129,11 +264,13 @@ fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         }
     })?;
     writeln!(w, "$EndNodes")?;
-    let (s, f, t) = (mesh.surface.len(), mesh.walls.len(), mesh.tets.len());
-    let total = s + f + t;
-    writeln!(w, "$Elements\n{} {total} 1 {total}", 1 + surfaces.len())?;
-    let triangles = |w: &mut dyn Write, entity: u32, tris: &[[u32; 3]], first: usize| {
-        writeln!(w, "2 {entity} 2 {}", tris.len())?;
+    let triangles: usize = groups.surfaces.iter().map(|g| g.triangles.len()).sum();
+    let total = triangles + mesh.tets.len();
+    writeln!(w, "$Elements\n{} {total} 1 {total}", v + s)?;
+    let mut first = 0;
+    for (k, g) in groups.surfaces.iter().enumerate() {
+        let tris = &g.triangles;
+        writeln!(w, "2 {} 2 {}", groups.surface_tag(k), tris.len())?;
         write_blocks(w, tris.len(), |out, r| {
             for i in r {
                 let x = tris[i];
@@ -146,27 +283,27 @@ fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
                     x[2] + 1
                 );
             }
-        })
-    };
-    triangles(w, SURFACE, &mesh.surface, 0)?;
-    if walls {
-        triangles(w, WALLS, &mesh.walls, s)?;
+        })?;
+        first += tris.len();
     }
-    writeln!(w, "3 {REGION} 4 {t}")?;
-    write_blocks(w, t, |out, r| {
-        for i in r {
-            let x = mesh.tets[i];
-            let _ = writeln!(
-                out,
-                "{} {} {} {} {}",
-                s + f + i + 1,
-                x[0] + 1,
-                x[1] + 1,
-                x[2] + 1,
-                x[3] + 1
-            );
-        }
-    })?;
+    for (k, tets) in groups.tets_by_group().iter().enumerate() {
+        writeln!(w, "3 {} 4 {}", groups.volume_tag(k), tets.len())?;
+        write_blocks(w, tets.len(), |out, r| {
+            for i in r {
+                let x = mesh.tets[tets[i] as usize];
+                let _ = writeln!(
+                    out,
+                    "{} {} {} {} {}",
+                    first + i + 1,
+                    x[0] + 1,
+                    x[1] + 1,
+                    x[2] + 1,
+                    x[3] + 1
+                );
+            }
+        })?;
+        first += tets.len();
+    }
     writeln!(w, "$EndElements")
 }
 
@@ -191,6 +328,7 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
     let offsets = next(int_size * t as u64);
     let types = next(t as u64);
     let region = next(4 * t as u64);
+    let label = mesh.labels.as_ref().map(|_| next(8 * t as u64));
     let measures = quality.map(|_| [next(8 * t as u64), next(8 * t as u64), next(8 * t as u64)]);
     writeln!(w, r#"<?xml version="1.0"?>"#)?;
     writeln!(
@@ -204,6 +342,12 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
         w,
         r#"        <DataArray type="Int32" Name="region" format="appended" offset="{region}"/>"#
     )?;
+    if let Some(at) = label {
+        writeln!(
+            w,
+            r#"        <DataArray type="Int64" Name="label" format="appended" offset="{at}"/>"#
+        )?;
+    }
     if let Some(at) = measures {
         for (name, at) in ["min_dihedral", "max_dihedral", "radius_ratio"]
             .iter()
@@ -283,9 +427,17 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
         })?;
     }
     array(w, t, 1, &|_, b| b.push(10))?;
-    array(w, t, 4, &|_, b| {
-        b.extend_from_slice(&(REGION as i32).to_le_bytes())
+    // The region: 1, or the label's group number (as in the other formats).
+    let groups = mesh.labels.as_ref().map(|l| &l.tets);
+    array(w, t, 4, &|i, b| {
+        let group = groups.map_or(0, |g| g[i]) as i32 + 1;
+        b.extend_from_slice(&group.to_le_bytes())
     })?;
+    if let Some(l) = &mesh.labels {
+        array(w, t, 8, &|i, b| {
+            b.extend_from_slice(&l.names[l.tets[i] as usize].to_le_bytes())
+        })?;
+    }
     if let Some(q) = quality {
         let fields: [fn(&TetQuality) -> f64; 3] =
             [|q| q.min_dihedral, |q| q.max_dihedral, |q| q.radius_ratio];
@@ -299,8 +451,10 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
     writeln!(w, "</VTKFile>")
 }
 
-/// MEDIT `.mesh` (ASCII, version 2: single-precision coordinates' shortest forms).
+/// MEDIT `.mesh` (ASCII, version 2: single-precision coordinates' shortest forms); references
+/// are the physical group numbers.
 fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
+    let groups = Groups::of(mesh);
     let n = mesh.positions.len();
     writeln!(w, "MeshVersionFormatted 2\nDimension 3\nVertices\n{n}")?;
     write_blocks(w, n, |out, r| {
@@ -308,11 +462,12 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
             let _ = writeln!(out, "{} {} {} 0", p[0], p[1], p[2]);
         }
     })?;
-    let s = mesh.surface.len() + mesh.walls.len();
+    let s: usize = groups.surfaces.iter().map(|g| g.triangles.len()).sum();
     writeln!(w, "Triangles\n{s}")?;
-    for (tris, reference) in [(&mesh.surface, SURFACE), (&mesh.walls, WALLS)] {
-        write_blocks(w, tris.len(), |out, r| {
-            for x in &tris[r] {
+    for (k, g) in groups.surfaces.iter().enumerate() {
+        let reference = groups.surface_tag(k);
+        write_blocks(w, g.triangles.len(), |out, r| {
+            for x in &g.triangles[r] {
                 let _ = writeln!(out, "{} {} {} {reference}", x[0] + 1, x[1] + 1, x[2] + 1);
             }
         })?;
@@ -320,14 +475,16 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     let t = mesh.tets.len();
     writeln!(w, "Tetrahedra\n{t}")?;
     write_blocks(w, t, |out, r| {
-        for x in &mesh.tets[r] {
+        for i in r {
+            let x = mesh.tets[i];
             let _ = writeln!(
                 out,
-                "{} {} {} {} {REGION}",
+                "{} {} {} {} {}",
                 x[0] + 1,
                 x[1] + 1,
                 x[2] + 1,
-                x[3] + 1
+                x[3] + 1,
+                groups.volume_tag(groups.tet_group(i) as usize)
             );
         }
     })?;
@@ -339,15 +496,22 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
 const C3D4_FACES: [[usize; 3]; 4] = [[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]];
 
 /// Abaqus input: nodes, C3D4 elements (isocube's positive orientation is Abaqus's: the fourth
-/// node on the side of face 1-2-3 its right-hand normal points to), the element set `REGION`,
-/// and each boundary as an element-based surface: the element and side of every boundary
-/// triangle, sides gathered in element sets `SURFACE_S1` … `WALLS_S4`.
+/// node on the side of face 1-2-3 its right-hand normal points to) in an element set per 3-D
+/// group (`REGION`, or `LABEL_<label>`), and each 2-D group as an element-based surface: the
+/// element and side of every triangle (in the group it faces out of), sides gathered in element
+/// sets `<SURFACE>_S1` … `<SURFACE>_S4` (`SURFACE` and `WALLS`, or `BOUNDARY_<label>` and
+/// `INTERFACE_<a>_<b>`).
 fn write_inp(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
+    let groups = Groups::of(mesh);
     writeln!(w, "*Heading")?;
+    let volumes: Vec<&str> = groups.volumes.iter().map(|v| v.1.as_str()).collect();
+    let surfaces: Vec<&str> = groups.surfaces.iter().map(|g| g.abaqus.as_str()).collect();
     writeln!(
         w,
-        "isocube tetmesh: {} C3D4 elements (REGION); boundary surfaces SURFACE and WALLS",
-        mesh.tets.len()
+        "isocube tetmesh: {} C3D4 elements ({}); boundary surfaces {}",
+        mesh.tets.len(),
+        volumes.join(", "),
+        surfaces.join(", ")
     )?;
     writeln!(w, "*Node")?;
     write_blocks(w, mesh.positions.len(), |out, r| {
@@ -355,56 +519,71 @@ fn write_inp(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
             let _ = writeln!(out, "{}, {}, {}, {}", r.start + i + 1, p[0], p[1], p[2]);
         }
     })?;
-    writeln!(w, "*Element, type=C3D4, elset=REGION")?;
-    write_blocks(w, mesh.tets.len(), |out, r| {
-        for (k, t) in mesh.tets[r.clone()].iter().enumerate() {
-            let _ = writeln!(
-                out,
-                "{}, {}, {}, {}, {}",
-                r.start + k + 1,
-                t[0] + 1,
-                t[1] + 1,
-                t[2] + 1,
-                t[3] + 1
-            );
+    // Elements numbered group by group; `number[t]` is tetrahedron t's.
+    let mut number = vec![0usize; mesh.tets.len()];
+    let mut next = 1;
+    for (k, tets) in groups.tets_by_group().iter().enumerate() {
+        writeln!(w, "*Element, type=C3D4, elset={}", groups.volumes[k].1)?;
+        let first = next;
+        write_blocks(w, tets.len(), |out, r| {
+            for i in r {
+                let x = mesh.tets[tets[i] as usize];
+                let _ = writeln!(
+                    out,
+                    "{}, {}, {}, {}, {}",
+                    first + i,
+                    x[0] + 1,
+                    x[1] + 1,
+                    x[2] + 1,
+                    x[3] + 1
+                );
+            }
+        })?;
+        for &t in tets {
+            number[t as usize] = next;
+            next += 1;
         }
-    })?;
-    // Each boundary triangle's element and side: only faces whose corners all lie on the
-    // boundary are looked up.
-    let mut on_boundary = vec![false; mesh.positions.len()];
-    let mut boundary: std::collections::HashMap<[u32; 3], usize> = std::collections::HashMap::new();
-    for (group, tris) in [&mesh.surface, &mesh.walls].into_iter().enumerate() {
-        for t in tris {
+    }
+    // Each 2-D group's triangles by their element and side: only faces whose corners all lie
+    // on some group's triangles are looked up.
+    let mut on_surface = vec![false; mesh.positions.len()];
+    let mut owner: std::collections::HashMap<[u32; 3], usize> = std::collections::HashMap::new();
+    for (k, g) in groups.surfaces.iter().enumerate() {
+        for t in &g.triangles {
             let mut key = *t;
             key.sort_unstable();
-            boundary.insert(key, group);
+            owner.insert(key, k);
             for &v in t {
-                on_boundary[v as usize] = true;
+                on_surface[v as usize] = true;
             }
         }
     }
-    // sides[group][side]: element numbers (from 1).
-    let mut sides: [[Vec<usize>; 4]; 2] = Default::default();
-    for (k, t) in mesh.tets.iter().enumerate() {
+    // sides[group][side]: element numbers.
+    let mut sides: Vec<[Vec<usize>; 4]> = vec![Default::default(); groups.surfaces.len()];
+    for (t, tet) in mesh.tets.iter().enumerate() {
         for (side, face) in C3D4_FACES.iter().enumerate() {
-            let mut key = face.map(|c| t[c]);
-            if !key.iter().all(|&v| on_boundary[v as usize]) {
+            let mut key = face.map(|c| tet[c]);
+            if !key.iter().all(|&v| on_surface[v as usize]) {
                 continue;
             }
             key.sort_unstable();
-            if let Some(&group) = boundary.get(&key) {
-                sides[group][side].push(k + 1);
+            if let Some(&k) = owner.get(&key) {
+                if groups.surfaces[k].owner == groups.tet_group(t) {
+                    sides[k][side].push(number[t]);
+                }
             }
         }
     }
-    for (name, group) in ["SURFACE", "WALLS"].iter().zip(&sides) {
+    for (g, group) in groups.surfaces.iter().zip(&mut sides) {
+        let name = &g.abaqus;
         if group.iter().all(|s| s.is_empty()) {
             continue;
         }
-        for (side, elements) in group.iter().enumerate() {
+        for (side, elements) in group.iter_mut().enumerate() {
             if elements.is_empty() {
                 continue;
             }
+            elements.sort_unstable();
             writeln!(w, "*Elset, elset={name}_S{}", side + 1)?;
             for line in elements.chunks(16) {
                 let text: Vec<String> = line.iter().map(|e| e.to_string()).collect();

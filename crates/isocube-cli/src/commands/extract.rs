@@ -359,7 +359,7 @@ fn parse_chunk(s: &str) -> Result<[usize; 3], String> {
     }
 }
 
-fn parse_labels(s: &str) -> Result<LabelSelection, String> {
+pub(crate) fn parse_labels(s: &str) -> Result<LabelSelection, String> {
     if s == "all" {
         return Ok(LabelSelection::All);
     }

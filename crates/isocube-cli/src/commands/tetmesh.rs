@@ -5,10 +5,12 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{ExtractOptions, Method, SnapPosition, Snapping};
+use isocube::extract::{
+    ExtractOptions, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
+};
 use isocube::field::{Orientation, SampleSpec};
 use isocube::quality::Strategy;
-use isocube::volume::{tetmesh, TetError, TetReport};
+use isocube::volume::{tetmesh, tetmesh_labels, TetError, TetReport};
 use isocube_io::{write_tet_mesh, TetFormat};
 
 use crate::volume::VolumeArgs;
@@ -20,7 +22,9 @@ pub(crate) struct Args {
     volume: VolumeArgs,
     /// Output: .msh (Gmsh 4.1), .vtu (VTK unstructured grid, quality as cell data), .mesh
     /// (MEDIT) or .inp (Abaqus: C3D4 in REGION, element surfaces SURFACE and WALLS). Physical
-    /// groups: 1 the region, 2 the isosurface, 3 the grid's outer faces.
+    /// groups: 1 the region, 2 the isosurface, 3 the grid's outer faces; with --labels, one per
+    /// label (Abaqus LABEL_L), then each label's boundary (BOUNDARY_L) and each interface
+    /// (INTERFACE_A_B).
     #[arg(long, short)]
     output: PathBuf,
     /// The iso-value. The region is the values below it (values equal to it are outside).
@@ -47,6 +51,15 @@ pub(crate) struct Args {
     /// How the surface's cell polygons become triangles, as `extract --triangulate`.
     #[arg(long, default_value = "fan")]
     triangulate: Strategy,
+    /// The volume is a labelled image (a segmentation): mesh every label but the background
+    /// (`--labels`), or the listed ones (`--labels 1,4,7`), each its own region (physical group
+    /// "label L"), conforming where labels meet (groups "interface A|B"); the boundary is
+    /// `extract --labels --smooth 0`'s surfaces (groups "label L boundary").
+    #[arg(long, value_name = "LIST", num_args = 0..=1, default_missing_value = "all", value_parser = super::extract::parse_labels)]
+    labels: Option<LabelSelection>,
+    /// The label that is not meshed (with --labels).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    background: i64,
     /// Keep the mesh in grid index coordinates instead of the file's world coordinates.
     #[arg(long)]
     index_space: bool,
@@ -100,7 +113,17 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             _ => Method::MarchingCubes,
         });
     let loaded = started.elapsed();
-    let mesh = tetmesh(view, &options).map_err(|e| match e {
+    let meshed = match &args.labels {
+        Some(selection) => tetmesh_labels(
+            view,
+            &LabelOptions::default()
+                .with_smoothing(0)
+                .with_background(args.background)
+                .with_labels(selection.clone()),
+        ),
+        None => tetmesh(view, &options),
+    };
+    let mesh = meshed.map_err(|e| match e {
         TetError::Cell { .. } => Failure::other(e),
         e => Failure::input(e),
     })?;
@@ -126,6 +149,23 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         mesh.surface.len(),
         mesh.walls.len()
     );
+    if let Some(labels) = &mesh.labels {
+        let mut counts = vec![0usize; labels.names.len()];
+        for &l in &labels.tets {
+            counts[l as usize] += 1;
+        }
+        let each: Vec<String> = labels
+            .names
+            .iter()
+            .zip(&counts)
+            .map(|(name, count)| format!("label {name}: {count}"))
+            .collect();
+        eprintln!(
+            "regions: {}; {} interface triangles",
+            each.join(", "),
+            labels.interfaces.len()
+        );
+    }
     eprintln!(
         "quality: dihedral angles {:.2}°..{:.2}°, radius ratio mean {:.3}, worst {:.3}",
         report.min_dihedral, report.max_dihedral, report.mean_radius_ratio, report.max_radius_ratio

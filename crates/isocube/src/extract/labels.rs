@@ -66,6 +66,42 @@ impl Default for LabelOptions {
     }
 }
 
+impl LabelOptions {
+    /// With `sweeps` smoothing sweeps (0 keeps the voxels' staircase).
+    ///
+    /// ```
+    /// use isocube::extract::LabelOptions;
+    /// assert_eq!(LabelOptions::default().with_smoothing(0).smoothing, 0);
+    /// ```
+    pub fn with_smoothing(mut self, sweeps: usize) -> LabelOptions {
+        self.smoothing = sweeps;
+        self
+    }
+
+    /// With `labels` meshed.
+    ///
+    /// ```
+    /// use isocube::extract::{LabelOptions, LabelSelection};
+    /// let only = LabelOptions::default().with_labels(LabelSelection::Only(vec![2]));
+    /// assert_eq!(only.labels, LabelSelection::Only(vec![2]));
+    /// ```
+    pub fn with_labels(mut self, labels: LabelSelection) -> LabelOptions {
+        self.labels = labels;
+        self
+    }
+
+    /// With `background` as the label never meshed.
+    ///
+    /// ```
+    /// use isocube::extract::LabelOptions;
+    /// assert_eq!(LabelOptions::default().with_background(-1).background, -1);
+    /// ```
+    pub fn with_background(mut self, background: i64) -> LabelOptions {
+        self.background = background;
+        self
+    }
+}
+
 /// One label's surface.
 #[derive(Clone, Debug)]
 pub struct LabelSurface {
@@ -77,7 +113,7 @@ pub struct LabelSurface {
 
 /// The six tetrahedra of a cell, each a path 0 → e_a → e_a + e_b → (1, 1, 1) through the
 /// corners (as bit masks: 1 = +x, 2 = +y, 4 = +z).
-const TETS: [[u8; 4]; 6] = [
+pub(crate) const TETS: [[u8; 4]; 6] = [
     [0, 1, 3, 7],
     [0, 1, 5, 7],
     [0, 2, 3, 7],
@@ -114,13 +150,17 @@ pub fn extract_labels<'a>(
     options: &LabelOptions,
 ) -> Result<Vec<LabelSurface>, ExtractError> {
     let grid = grid.into();
-    let cells = label_cells(grid.dims());
+    extract_labels_boxes(grid, options, &label_slabs(grid.dims())?)
+}
+
+/// [`label_cells`] cut into slabs of a few layers, the unit of parallel work.
+pub(crate) fn label_slabs(dims: [usize; 3]) -> Result<Vec<CellBox>, ExtractError> {
+    let cells = label_cells(dims);
     let height = super::binary::slab_height(cells.max[0], cells.max[1], cells.max[2]);
-    let boxes = CellBox::tile(
+    CellBox::tile(
         cells.max.map(|c| c + 1),
         [cells.max[0], cells.max[1], height],
-    )?;
-    extract_labels_boxes(grid, options, &boxes)
+    )
 }
 
 /// The cells labelled meshing visits: the grid's cells and one more layer all round (the grid
@@ -162,20 +202,7 @@ pub fn extract_labels_boxes<'a>(
 ) -> Result<Vec<LabelSurface>, ExtractError> {
     let grid = grid.into();
     let labelled = Labelled::new(grid, options)?;
-    let chunks: Vec<ChunkMesh> = boxes
-        .par_iter()
-        .map(|&cells| labelled.mesh_box(cells))
-        .collect::<Result<_, _>>()?;
-    let mut all = Mesh::new();
-    let mut tags = Vec::new();
-    join_tagged(
-        labelled.dims,
-        chunks,
-        &mut all,
-        &mut tags,
-        None,
-        &mut |_| {},
-    )?;
+    let (mut all, tags) = labelled.surfaces(boxes, None)?;
     let mut triangles: Vec<Vec<[u32; 3]>> = vec![Vec::new(); labelled.names.len() + 1];
     for (t, &tag) in all.triangles.iter().zip(&tags) {
         triangles[tag as usize].push(*t);
@@ -217,21 +244,42 @@ pub fn extract_labels_boxes<'a>(
 
 /// A labelled grid ready for meshing boxes: dense label numbers on a grid padded by one layer
 /// of outside points.
-struct Labelled<'a> {
+pub(crate) struct Labelled<'a> {
     options: &'a LabelOptions,
     /// The labels met, by dense number − 1 (dense 0 is the outside layer).
-    names: Vec<i64>,
+    pub(crate) names: Vec<i64>,
     /// Dense numbers of the padded grid's points.
-    padded: Vec<u32>,
+    pub(crate) padded: Vec<u32>,
     /// The padded grid's points per axis.
-    dims: [usize; 3],
+    pub(crate) dims: [usize; 3],
     background: Option<u32>,
     spacing: [f64; 3],
     origin: [f64; 3],
 }
 
 impl<'a> Labelled<'a> {
-    fn new(grid: GridView, options: &'a LabelOptions) -> Result<Labelled<'a>, ExtractError> {
+    /// Every label's unsmoothed triangles over one joined vertex list (each triangle tagged
+    /// with its label's dense number, facing out of it), meshed in `boxes`; with `keys`, each
+    /// vertex's key.
+    pub(crate) fn surfaces(
+        &self,
+        boxes: &[CellBox],
+        keys: Option<&mut Vec<VertexKey>>,
+    ) -> Result<(Mesh, Vec<u32>), ExtractError> {
+        let chunks: Vec<ChunkMesh> = boxes
+            .par_iter()
+            .map(|&cells| self.mesh_box(cells))
+            .collect::<Result<_, _>>()?;
+        let mut all = Mesh::new();
+        let mut tags = Vec::new();
+        join_tagged(self.dims, chunks, &mut all, &mut tags, keys, &mut |_| {})?;
+        Ok((all, tags))
+    }
+
+    pub(crate) fn new(
+        grid: GridView,
+        options: &'a LabelOptions,
+    ) -> Result<Labelled<'a>, ExtractError> {
         let [nx, ny, nz] = grid.dims();
         let mut names: Vec<i64> = Vec::new();
         let mut dense: FxHashMap<i64, u32> = FxHashMap::default();
@@ -274,7 +322,7 @@ impl<'a> Labelled<'a> {
         })
     }
 
-    fn meshed(&self, id: u32) -> bool {
+    pub(crate) fn meshed(&self, id: u32) -> bool {
         id != 0
             && Some(id) != self.background
             && match &self.options.labels {
@@ -284,7 +332,7 @@ impl<'a> Labelled<'a> {
     }
 
     /// The padded point at `base` + the corner offset `bits` (1 = +x, 2 = +y, 4 = +z).
-    fn corner(&self, base: usize, bits: u8) -> usize {
+    pub(crate) fn corner(&self, base: usize, bits: u8) -> usize {
         let [px, py, _] = self.dims;
         let strides = [1usize, px, px * py];
         base + (0..3)
@@ -293,7 +341,7 @@ impl<'a> Labelled<'a> {
             .sum::<usize>()
     }
 
-    fn position(&self, p: usize) -> [f64; 3] {
+    pub(crate) fn position(&self, p: usize) -> [f64; 3] {
         let [px, py, _] = self.dims;
         let c = [p % px, p / px % py, p / (px * py)];
         // Padded index 0 is one step before the grid.
@@ -315,7 +363,7 @@ impl<'a> Labelled<'a> {
 
     /// The key of a simplex of a cell's Kuhn triangulation: its lowest point and the offsets
     /// of the others from it.
-    fn key(&self, simplex: &[usize]) -> VertexKey {
+    pub(crate) fn key(&self, simplex: &[usize]) -> VertexKey {
         let [px, py, _] = self.dims;
         let low = *simplex.iter().min().expect("a simplex has points");
         let mut corners = 0u8;

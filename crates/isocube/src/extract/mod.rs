@@ -92,6 +92,7 @@ pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
 pub use labels::{
     extract_labels, extract_labels_boxes, label_cells, LabelOptions, LabelSelection, LabelSurface,
 };
+pub(crate) use labels::{label_slabs, Labelled, TETS as KUHN_PATHS};
 pub use stream::{extract_streamed, streams_by_default, MeshSink, StreamError, STREAM_ABOVE_BYTES};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};

@@ -64,9 +64,11 @@ use crate::mesh::Mesh;
 mod check;
 mod cones;
 mod face;
+mod labels;
 mod quality;
 
 pub use check::{positive, TetCheck};
+pub use labels::{tetmesh_labels, TetLabels};
 pub use quality::{TetQuality, TetReport};
 
 /// A tetrahedral mesh of the region inside a surface.
@@ -89,6 +91,9 @@ pub struct TetMesh {
     pub surface_vertices: usize,
     /// Counts.
     pub stats: TetStats,
+    /// Multi-material meshes ([`tetmesh_labels`]): the label of each tetrahedron and boundary
+    /// triangle, and the interfaces between labels. `None` for one region.
+    pub labels: Option<TetLabels>,
 }
 
 /// Counts from [`tetmesh`].
@@ -122,8 +127,11 @@ pub enum TetError {
         value: f32,
     },
     /// No grid point lies inside the region.
-    #[error("no region to mesh: no grid point is on the inside of the level")]
+    #[error("no region to mesh: no grid point is on the inside of the level (or of a label)")]
     Empty,
+    /// A label asked for does not occur in the volume.
+    #[error("label {0} does not occur in the volume")]
+    NoLabel(i64),
     /// An option the volume mesher does not take.
     #[error("{0}")]
     Unsupported(&'static str),
@@ -391,6 +399,7 @@ pub fn tetmesh<'a>(
         beyond,
         surface_vertices: base,
         stats,
+        labels: None,
     };
     // Meshing ran in the grid's frame; its direction turns the mesh into the world.
     let orientation = grid.orientation();

@@ -537,3 +537,149 @@ fn chords_touching_a_face_keep_the_strip_inside() {
         assert_valid(&tets, &format!("{topology:?}"));
     }
 }
+
+/// The faces used once by `tets`, as sorted position triples with their orientation kept in a
+/// canonical rotation.
+fn open_face_positions(positions: &[[f32; 3]], tets: &[[u32; 4]]) -> Vec<[[u32; 3]; 3]> {
+    let mut faces: Vec<([u32; 3], [u32; 3])> = tets
+        .iter()
+        .flat_map(|&[a, b, c, d]| [[a, c, b], [a, b, d], [a, d, c], [b, c, d]])
+        .map(|f| {
+            let mut key = f;
+            key.sort_unstable();
+            (key, f)
+        })
+        .collect();
+    faces.sort_unstable();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < faces.len() {
+        let mut j = i + 1;
+        while j < faces.len() && faces[j].0 == faces[i].0 {
+            j += 1;
+        }
+        if j - i == 1 {
+            out.push(canonical_positions(
+                faces[i].1.map(|v| positions[v as usize]),
+            ));
+        }
+        i = j;
+    }
+    out.sort_unstable();
+    out
+}
+
+/// A triangle by its corners' bits, rotated to start at the smallest.
+fn canonical_positions(t: [[f32; 3]; 3]) -> [[u32; 3]; 3] {
+    let bits = t.map(|p| p.map(f32::to_bits));
+    let r = (0..3).min_by_key(|&r| bits[r]).unwrap();
+    [bits[r], bits[(r + 1) % 3], bits[(r + 2) % 3]]
+}
+
+/// Labelled volumes (three labels in a background, random and in blobs, with every selection):
+/// conforming, positive, each label's tetrahedra bounded exactly by its `extract_labels`
+/// surface and filling the volume it encloses; interfaces shared face to face.
+#[test]
+fn labelled_volumes_give_conforming_regions_bounded_by_the_label_surfaces() {
+    use crate::extract::{extract_labels, LabelOptions, LabelSelection};
+    let mut rng = crate::TestRng::new(11);
+    let (mut meshed, mut interfaces) = (0, 0);
+    for case in 0..24 {
+        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 6) as usize);
+        let blobs = case % 2 == 0;
+        let centres: Vec<[f64; 3]> = (0..3)
+            .map(|_| std::array::from_fn(|d| rng.unit() * dims[d] as f64))
+            .collect();
+        let mut values = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let v = if blobs {
+                        let p = [i, j, k].map(|c| c as f64);
+                        let d: Vec<f64> = centres
+                            .iter()
+                            .map(|c| (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>())
+                            .collect();
+                        let (best, dist) = d
+                            .iter()
+                            .enumerate()
+                            .min_by(|a, b| a.1.total_cmp(b.1))
+                            .unwrap();
+                        if *dist < 4.0 {
+                            best as f32 + 1.0
+                        } else {
+                            0.0
+                        }
+                    } else {
+                        (rng.next_u64() % 4) as f32
+                    };
+                    values.push(v);
+                }
+            }
+        }
+        let grid = Grid::new(dims, values).unwrap();
+        for selection in [LabelSelection::All, LabelSelection::Only(vec![2])] {
+            let options = LabelOptions::default()
+                .with_smoothing(0)
+                .with_labels(selection.clone());
+            let what = format!("case {case} {dims:?} {selection:?}");
+            let mesh = match tetmesh_labels(&grid, &options) {
+                Ok(m) => m,
+                Err(TetError::Empty | TetError::NoLabel(_)) => continue,
+                Err(e) => panic!("{what}: {e}"),
+            };
+            assert_valid(&mesh, &what);
+            let labels = mesh.labels.as_ref().unwrap();
+            meshed += 1;
+            interfaces += labels.interfaces.len();
+            assert_eq!(labels.tets.len(), mesh.tets.len());
+            let surfaces = extract_labels(&grid, &options).unwrap();
+            assert_eq!(
+                surfaces.iter().map(|s| s.label).collect::<Vec<_>>(),
+                labels.names,
+                "{what}"
+            );
+            for (index, s) in surfaces.iter().enumerate() {
+                let own: Vec<[u32; 4]> = mesh
+                    .tets
+                    .iter()
+                    .zip(&labels.tets)
+                    .filter(|(_, &l)| l as usize == index)
+                    .map(|(t, _)| *t)
+                    .collect();
+                let mut expected: Vec<[[u32; 3]; 3]> = s
+                    .mesh
+                    .triangles
+                    .iter()
+                    .map(|t| canonical_positions(t.map(|v| s.mesh.positions[v as usize])))
+                    .collect();
+                expected.sort_unstable();
+                assert_eq!(
+                    open_face_positions(&mesh.positions, &own),
+                    expected,
+                    "{what}: label {}",
+                    s.label
+                );
+            }
+            // Each interface triangle is a face of one tetrahedron of each of its labels.
+            for (t, pair) in labels.interfaces.iter().zip(&labels.pairs) {
+                let mut key = *t;
+                key.sort_unstable();
+                let holders: Vec<u32> = mesh
+                    .tets
+                    .iter()
+                    .zip(&labels.tets)
+                    .filter(|(tet, _)| key.iter().all(|v| tet.contains(v)))
+                    .map(|(_, &l)| l)
+                    .collect();
+                let mut sides = holders.clone();
+                sides.sort_unstable();
+                assert_eq!(sides, pair.to_vec(), "{what}");
+            }
+        }
+    }
+    assert!(
+        meshed >= 30 && interfaces > 0,
+        "{meshed} meshed, {interfaces} interfaces"
+    );
+}
