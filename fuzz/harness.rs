@@ -30,6 +30,9 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("contours_csv", "csv"),
     ("contours_json", "json"),
     ("contours_dxf", "dxf"),
+    ("tet_msh", "msh"),
+    ("tet_mesh", "mesh"),
+    ("tet_inp", "inp"),
 ];
 
 /// The memory a volume reader may use on a fuzz input: far below libFuzzer's `-malloc_limit_mb`,
@@ -72,6 +75,18 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
             same_outcome(&poly, &io::read_poly_mesh_bytes(data, read));
             if let Ok(poly) = poly {
                 check_poly(&poly);
+            }
+        }
+        n if n.starts_with("tet_") => {
+            let mesh = io::read_tet_mesh(read);
+            same_outcome(&mesh, &io::read_tet_mesh_bytes(data, read));
+            if let Ok(mesh) = mesh {
+                let n = mesh.positions.len();
+                assert!(mesh.positions.iter().flatten().all(|c| c.is_finite()));
+                assert!(mesh.tets.iter().flatten().all(|&i| (i as usize) < n));
+                // What `isocube quality` does next with a mesh it has read.
+                let _ = mesh.quality_report();
+                let _ = mesh.check();
             }
         }
         n if n.starts_with("contours") => {

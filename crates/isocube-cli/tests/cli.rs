@@ -1351,4 +1351,76 @@ fn tetmesh_labels_meshes_each_label() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("label 9 does not occur"));
     assert!(!dir.path().join("none.msh").exists());
+    let out = isocube(
+        dir.path(),
+        &[
+            "tetmesh",
+            "labels.npy",
+            "--labels",
+            "--max-memory",
+            "20K",
+            "-o",
+            "big.msh",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the volume mesh needs about"));
+    assert!(!dir.path().join("big.msh").exists());
+}
+
+/// `quality` on tetrahedral meshes: the counts and angles `tetmesh` reported, a histogram.
+#[test]
+fn quality_reads_tetrahedral_meshes() {
+    let dir = tempfile::tempdir().unwrap();
+    for ext in ["msh", "mesh", "inp"] {
+        let out = isocube(
+            dir.path(),
+            &[
+                "tetmesh",
+                "sample:sphere:16",
+                "--method",
+                "ternary",
+                "--snap",
+                "0.5",
+                "-o",
+                &format!("t.{ext}"),
+            ],
+        );
+        assert!(out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        let tets: u64 = err
+            .split(": ")
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        let out = isocube(
+            dir.path(),
+            &[
+                "quality",
+                &format!("t.{ext}"),
+                "--json",
+                "--histogram",
+                &format!("h-{ext}.svg"),
+            ],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(report["tetrahedra"].as_u64(), Some(tets));
+        assert_eq!(report["inverted"].as_u64(), Some(0));
+        assert!(report["min_dihedral"]["min"].as_f64().unwrap() > 10.0);
+        assert!(report["max_dihedral"]["max"].as_f64().unwrap() < 165.0);
+        let svg = std::fs::read_to_string(dir.path().join(format!("h-{ext}.svg"))).unwrap();
+        assert!(svg.contains(&format!("{tets} tetrahedra")));
+    }
+    let out = isocube(
+        dir.path(),
+        &["quality", "t.msh", "--field", "sample:sphere:16"],
+    );
+    assert_eq!(out.status.code(), Some(2));
 }

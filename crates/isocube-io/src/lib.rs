@@ -60,6 +60,7 @@ mod nrrd;
 mod poly;
 mod raw;
 mod tet_io;
+mod tet_read;
 #[cfg(feature = "tiff")]
 mod tiff_stack;
 mod vti;
@@ -92,6 +93,7 @@ pub use nrrd::{read_nrrd, read_nrrd_oriented};
 pub use poly::{read_poly_mesh, read_poly_mesh_bytes, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
 pub use tet_io::{write_tet_mesh, TetFormat};
+pub use tet_read::{read_tet_mesh, read_tet_mesh_bytes};
 #[cfg(feature = "tiff")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tiff")))]
 pub use tiff_stack::read_tiff_stack;

@@ -8,7 +8,8 @@ use isocube::mesh::Mesh;
 use isocube::quality::{
     level_set_distance, quality_report, Distance, Field, QualityReport, Range, Trilinear,
 };
-use isocube_io::{read_mesh, read_volume_oriented, VolumeOptions};
+use isocube::volume::TetReport;
+use isocube_io::{read_mesh, read_tet_mesh, read_volume_oriented, TetFormat, VolumeOptions};
 use serde_json::json;
 
 use crate::volume::{parse_memory, volume_failure, MemoryLimit};
@@ -16,7 +17,8 @@ use crate::Failure;
 
 #[derive(Debug, ClapArgs)]
 pub(crate) struct Args {
-    /// A .ply, .obj or .stl mesh.
+    /// A surface mesh (.ply, .obj, .stl, .off) or a tetrahedral one (.msh, .mesh, .inp): for
+    /// tetrahedra, dihedral angles, radius ratio and volumes.
     mesh: PathBuf,
     /// The field the mesh came from, to measure its distance from the level set: a built-in
     /// sample (`sample:NAME:N`, evaluated exactly) or a .npy/.nrrd/.nhdr volume (trilinear).
@@ -50,6 +52,16 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
             )));
         }
     }
+    match TetFormat::from_path(&args.mesh) {
+        Some(TetFormat::Vtu) => {
+            return Err(Failure::input(anyhow::anyhow!(
+                "{}: .vtu meshes are written, not read: give the tetrahedra as .msh, .mesh or .inp",
+                args.mesh.display()
+            )))
+        }
+        Some(_) => return run_tets(args),
+        None => {}
+    }
     let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
     let report = quality_report(&mesh);
     let distance = match &args.field {
@@ -72,6 +84,113 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
         println!("{}", to_json(&report, distance.as_ref()));
     } else {
         print!("{}", to_table(&report, distance.as_ref()));
+    }
+    Ok(())
+}
+
+/// `quality` on a tetrahedral mesh: dihedral angles, radius ratio and volumes of every
+/// tetrahedron, inverted and flat ones by the exact predicate.
+fn run_tets(args: &Args) -> Result<(), Failure> {
+    if args.field.is_some() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--field measures a surface's distance from a level set: {} holds tetrahedra",
+            args.mesh.display()
+        )));
+    }
+    let mesh = read_tet_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
+    let qualities = mesh.qualities();
+    let report = TetReport::of(&qualities);
+    let check = mesh.check();
+    let volumes: Vec<f64> = mesh
+        .tets
+        .iter()
+        .map(|t| {
+            let p = t.map(|v| mesh.positions[v as usize].map(f64::from));
+            let d: [[f64; 3]; 3] =
+                std::array::from_fn(|k| std::array::from_fn(|a| p[k + 1][a] - p[0][a]));
+            (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1])
+                - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0])
+                + d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0]))
+                / 6.0
+        })
+        .collect();
+    let stats = |xs: &mut dyn Iterator<Item = f64>| {
+        let (mut lo, mut hi, mut sum, mut n) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize);
+        for x in xs {
+            lo = lo.min(x);
+            hi = hi.max(x);
+            sum += x;
+            n += 1;
+        }
+        Range {
+            min: lo,
+            max: hi,
+            mean: sum / n.max(1) as f64,
+        }
+    };
+    let rows = [
+        (
+            "min_dihedral",
+            stats(&mut qualities.iter().map(|q| q.min_dihedral)),
+        ),
+        (
+            "max_dihedral",
+            stats(&mut qualities.iter().map(|q| q.max_dihedral)),
+        ),
+        (
+            "radius_ratio",
+            stats(&mut qualities.iter().map(|q| q.radius_ratio)),
+        ),
+        ("volume", stats(&mut volumes.iter().copied())),
+    ];
+    let outside = qualities
+        .iter()
+        .filter(|q| q.min_dihedral < 10.0 || q.max_dihedral > 165.0)
+        .count();
+    if let Some(path) = &args.histogram {
+        // Each tetrahedron's smallest and largest dihedral angle, in 5° bins.
+        let mut bins = [0usize; 36];
+        for q in &qualities {
+            for a in [q.min_dihedral, q.max_dihedral] {
+                bins[((a / 5.0) as usize).min(35)] += 1;
+            }
+        }
+        let title = format!(
+            "{}: {} tetrahedra, smallest and largest dihedral angles {:.1}°–{:.1}°",
+            args.mesh
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            report.tets,
+            report.min_dihedral,
+            report.max_dihedral
+        );
+        write_picture(path, &bins, &title)?;
+    }
+    let share = outside as f64 / report.tets.max(1) as f64;
+    if args.json {
+        let mut fields = serde_json::Map::new();
+        fields.insert("tetrahedra".into(), json!(report.tets));
+        fields.insert("inverted".into(), json!(check.inverted));
+        fields.insert("flat".into(), json!(check.flat));
+        fields.insert("volume".into(), number(check.volume));
+        for (name, r) in &rows {
+            fields.insert((*name).into(), range(r));
+        }
+        fields.insert("outside_10_165".into(), number(share));
+        println!("{}", serde_json::Value::Object(fields));
+    } else {
+        let mut s = format!(
+            "tetrahedra     {}\ninverted       {}\nflat           {}\ntotal volume   {:.6e}\n{:<14} {:>12} {:>12} {:>12}\n",
+            report.tets, check.inverted, check.flat, check.volume, "measure", "min", "mean", "max"
+        );
+        for (name, r) in &rows {
+            s += &format!(
+                "{name:<14} {:>12.6} {:>12.6} {:>12.6}\n",
+                r.min, r.mean, r.max
+            );
+        }
+        s += &format!("outside [10°, 165°]: {:.4} %\n", 100.0 * share);
+        print!("{s}");
     }
     Ok(())
 }

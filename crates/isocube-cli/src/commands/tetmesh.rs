@@ -120,6 +120,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                 .with_smoothing(0)
                 .with_background(args.background)
                 .with_labels(selection.clone()),
+            room,
         ),
         None => tetmesh(view, &options),
     };

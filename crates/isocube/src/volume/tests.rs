@@ -623,7 +623,7 @@ fn labelled_volumes_give_conforming_regions_bounded_by_the_label_surfaces() {
                 .with_smoothing(0)
                 .with_labels(selection.clone());
             let what = format!("case {case} {dims:?} {selection:?}");
-            let mesh = match tetmesh_labels(&grid, &options) {
+            let mesh = match tetmesh_labels(&grid, &options, None) {
                 Ok(m) => m,
                 Err(TetError::Empty | TetError::NoLabel(_)) => continue,
                 Err(e) => panic!("{what}: {e}"),
