@@ -19,20 +19,9 @@ import sys
 
 import meshio
 import numpy as np
+from check_tets import enclosed, signed_volumes
 
 FACES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
-
-
-def signed_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    p = points.astype(np.float64)
-    a, b, c, d = (p[tets[:, k]] for k in range(4))
-    return np.einsum("ij,ij->i", b - a, np.cross(c - a, d - a)) / 6.0
-
-
-def enclosed(points: np.ndarray, tris: np.ndarray) -> float:
-    p = points.astype(np.float64) - points[0].astype(np.float64)
-    a, b, c = (p[tris[:, k]] for k in range(3))
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
 def holders(tets: np.ndarray, labels: np.ndarray) -> dict[tuple[int, ...], list[int]]:

@@ -211,26 +211,7 @@ pub fn tetmesh_labels<'a>(
             pairs,
         }),
     };
-    let orientation = grid.orientation();
-    if !orientation.is_identity() {
-        let mut none: Vec<[f32; 3]> = Vec::new();
-        orientation.orient_parts(
-            &mut mesh.positions,
-            &mut none,
-            &mut mesh.surface,
-            grid.origin(),
-        );
-        if orientation.determinant() < 0.0 {
-            for t in &mut mesh.tets {
-                t.swap(2, 3);
-            }
-            if let Some(l) = &mut mesh.labels {
-                for t in &mut l.interfaces {
-                    t.swap(1, 2);
-                }
-            }
-        }
-    }
+    mesh.orient(&grid);
     Ok(mesh)
 }
 

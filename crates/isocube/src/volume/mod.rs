@@ -401,26 +401,39 @@ pub fn tetmesh<'a>(
         stats,
         labels: None,
     };
-    // Meshing ran in the grid's frame; its direction turns the mesh into the world.
-    let orientation = grid.orientation();
-    if !orientation.is_identity() {
+    mesh.orient(&grid);
+    Ok(mesh)
+}
+
+impl TetMesh {
+    /// Meshing runs in the grid's frame; its direction turns the mesh into the world (a
+    /// reflection turns every element and triangle over, to keep them positive and outward).
+    fn orient(&mut self, grid: &GridView) {
+        let orientation = grid.orientation();
+        if orientation.is_identity() {
+            return;
+        }
         let mut none: Vec<[f32; 3]> = Vec::new();
         orientation.orient_parts(
-            &mut mesh.positions,
+            &mut self.positions,
             &mut none,
-            &mut mesh.surface,
+            &mut self.surface,
             grid.origin(),
         );
         if orientation.determinant() < 0.0 {
-            for t in &mut mesh.walls {
+            let interfaces = self.labels.as_mut().map(|l| &mut l.interfaces);
+            for t in self
+                .walls
+                .iter_mut()
+                .chain(interfaces.into_iter().flatten())
+            {
                 t.swap(1, 2);
             }
-            for t in &mut mesh.tets {
+            for t in &mut self.tets {
                 t.swap(2, 3);
             }
         }
     }
-    Ok(mesh)
 }
 
 fn first_non_finite(grid: &GridView) -> Option<([usize; 3], f32)> {

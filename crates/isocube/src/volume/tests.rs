@@ -80,9 +80,9 @@ fn kuhn_tetrahedra_are_positive_and_fill_the_cube() {
     }
 }
 
-/// Smooth fields, every option: conforming, positive, the volume the boundary encloses, and
-/// the surface is `extract`'s, vertex for vertex and triangle for triangle. The two sides of
-/// the level fill the grid's box together.
+/// Smooth fields, every option (Marching Cubes and ternary): conforming, positive, the volume
+/// the boundary encloses, and the surface is `extract`'s, vertex for vertex and triangle for
+/// triangle. The two sides of the level fill the grid's box together.
 #[test]
 fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
     for (sample, n) in [
@@ -93,7 +93,7 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
     ] {
         let grid = sample.grid(n);
         let mut sides = Vec::new();
-        for options in all_options() {
+        for options in all_options().into_iter().chain(ternary_options()) {
             let what = format!("{sample:?} {n} {options:?}");
             let tets = tetmesh(&grid, &options).unwrap_or_else(|e| panic!("{what}: {e}"));
             let c = assert_valid(&tets, &what);
@@ -172,30 +172,6 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
     }
     eprintln!("random grids: {meshed} meshed, {refused} refused");
     assert!(meshed > 0);
-}
-
-#[test]
-fn ternary_samples_give_valid_meshes_bounded_by_the_extracted_surface() {
-    for (sample, n) in [
-        (Sample::Sphere, 20),
-        (Sample::Gyroid, 20),
-        (Sample::Tangle, 24),
-        (Sample::Torus, 24),
-    ] {
-        let grid = sample.grid(n);
-        for options in ternary_options() {
-            let what = format!("{sample:?} {n} {options:?}");
-            let tets = tetmesh(&grid, &options).unwrap_or_else(|e| panic!("{what}: {e}"));
-            assert_valid(&tets, &what);
-            let (surface, _) = crate::extract::extract(&grid, &options).unwrap();
-            assert_eq!(surface.triangles, tets.surface, "{what}");
-            assert_eq!(
-                surface.positions[..],
-                tets.positions[..tets.surface_vertices],
-                "{what}"
-            );
-        }
-    }
 }
 
 #[test]
@@ -682,4 +658,38 @@ fn labelled_volumes_give_conforming_regions_bounded_by_the_label_surfaces() {
         meshed >= 30 && interfaces > 0,
         "{meshed} meshed, {interfaces} interfaces"
     );
+}
+
+/// A reflected, rotated grid direction: the meshes stay positive, conforming and outward (one
+/// region and labels).
+#[test]
+fn oriented_grids_give_valid_meshes() {
+    use crate::extract::LabelOptions;
+    use crate::field::Orientation;
+    let (c, s) = (0.6f64, 0.8f64);
+    // A rotation about z followed by a reflection of x: determinant −1.
+    let reflect = Orientation::new([[-c, s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).unwrap();
+    assert!(reflect.determinant() < 0.0);
+    let grid = Sample::Torus.grid(16);
+    let view = grid.view().with_orientation(reflect);
+    for options in [
+        ExtractOptions::default(),
+        ExtractOptions::default().with_flip(true),
+    ] {
+        let tets = tetmesh(view, &options).unwrap();
+        let c = assert_valid(&tets, "torus reflected");
+        assert!(c.enclosed > 0.0);
+    }
+    let values = (0..512)
+        .map(|p| ((p % 8) / 3 + (p / 64) / 4) as f32)
+        .collect();
+    let labels = Grid::new([8, 8, 8], values).unwrap();
+    let mesh = tetmesh_labels(
+        labels.view().with_orientation(reflect),
+        &LabelOptions::default().with_smoothing(0),
+        None,
+    )
+    .unwrap();
+    let c = assert_valid(&mesh, "labels reflected");
+    assert!(c.enclosed > 0.0);
 }
