@@ -1,6 +1,6 @@
 """A real consumer of isocube's volume meshes: scikit-fem solves a Poisson problem on them.
 
-    python fem_poisson.py ISOCUBE WORKDIR [N ...]
+    python fem_poisson.py ISOCUBE WORKDIR [N ...] [-- TETMESH OPTIONS]
 
 For each N (default 16 24 32 48), `isocube tetmesh sample:sphere:N` meshes the ball of radius
 0.8 (the sample's sphere) as Gmsh MSH; meshio reads it back and the coordinates are scaled to
@@ -79,13 +79,17 @@ def rate(hs: list[float], errors: list[float]) -> float:
 
 def main() -> None:
     isocube, work = sys.argv[1], Path(sys.argv[2])
-    sizes = [int(n) for n in sys.argv[3:]] or [16, 24, 32, 48]
+    rest = sys.argv[3:]
+    # Options after `--` go to `isocube tetmesh` (e.g. `-- --method ternary --snap 0.5`).
+    extra = rest[rest.index("--") + 1 :] if "--" in rest else []
+    rest = rest[: rest.index("--")] if "--" in rest else rest
+    sizes = [int(n) for n in rest] or [16, 24, 32, 48]
     work.mkdir(parents=True, exist_ok=True)
     rows = []
     for n in sizes:
         path = work / f"ball-{n}.msh"
         subprocess.run(
-            [isocube, "tetmesh", f"sample:sphere:{n}", "-o", str(path)],
+            [isocube, "tetmesh", f"sample:sphere:{n}", "-o", str(path), *extra],
             check=True,
             capture_output=True,
         )

@@ -1,7 +1,8 @@
 //! Prints the volume-mesh quality table: dihedral angles and radius ratios of `tetmesh` for
-//! Marching Cubes and ternary extraction (snapped points on their grid points) at two snap
-//! distances, on the sphere, torus, tangle and packed spheres at 24, 40 and 64 points per axis,
-//! each sampled on grids moved by random sub-cell offsets (the worst over the offsets).
+//! Marching Cubes and ternary extraction (snapped points on their grid points, or on
+//! crossings) at two snap distances, on the sphere, torus, tangle and packed spheres at 24, 40
+//! and 64 points per axis, each sampled on grids moved by random sub-cell offsets (the worst
+//! over the offsets).
 //!
 //! `cargo run --release -p isocube --example tet_quality [OFFSETS]`
 
@@ -19,10 +20,12 @@ fn main() {
         Sample::Tangle,
         Sample::PackedSpheres { seed: 1 },
     ];
-    let methods: [(&str, ExtractOptions); 3] = [
+    let methods: [(&str, ExtractOptions); 5] = [
         ("mc", ExtractOptions::default()),
-        ("ternary 0.3", ternary(0.3)),
-        ("ternary 0.5", ternary(0.5)),
+        ("ternary 0.3", ternary(0.3, SnapPosition::GridPoint)),
+        ("ternary 0.5", ternary(0.5, SnapPosition::GridPoint)),
+        ("ternary 0.3 crossing", ternary(0.3, SnapPosition::NearestCrossing)),
+        ("ternary 0.5 crossing", ternary(0.5, SnapPosition::NearestCrossing)),
     ];
     println!(
         "| sample | N | method | tetrahedra | min dihedral | max dihedral | outside [10°, 165°] | \
@@ -95,11 +98,9 @@ fn main() {
     }
 }
 
-fn ternary(snap: f32) -> ExtractOptions {
+fn ternary(snap: f32, position: SnapPosition) -> ExtractOptions {
     ExtractOptions::default().with_method(Method::Ternary(
-        Snapping::default()
-            .with_snap(snap)
-            .with_position(SnapPosition::GridPoint),
+        Snapping::default().with_snap(snap).with_position(position),
     ))
 }
 

@@ -37,8 +37,7 @@ pub(crate) struct Args {
     #[arg(long, default_value = "mc33")]
     topology: Topology,
     /// `mc` (binary Marching Cubes) or `ternary`: grid points on or near the level become
-    /// surface vertices, on the grid point itself (as `extract --method ternary --snap-position
-    /// grid`), so no tetrahedron is squeezed against a crossing next to a corner.
+    /// surface vertices, so no tetrahedron is squeezed against a crossing next to a corner.
     #[arg(long, default_value = "mc", value_parser = ["mc", "ternary"])]
     method: String,
     /// Ternary: values within this distance of the level count as zero (on the surface).
@@ -48,6 +47,13 @@ pub(crate) struct Args {
     /// within this fraction of the edge (0 to 0.5).
     #[arg(long, default_value_t = 0.3)]
     snap: f32,
+    /// Ternary: where a snapped point's vertex goes, as `extract --snap-position`: `grid` (the
+    /// grid point itself: the surface moves by up to the snap distance, finite element errors
+    /// fall like h, not h²) or `crossing` (the nearest crossing on its edges, the cells around
+    /// it following the point there: Marching Cubes' accuracy, errors like h²; the side below
+    /// the level meshes on every sample, the side above, with --flip, is often refused).
+    #[arg(long, default_value = "grid")]
+    snap_position: SnapPosition,
     /// How the surface's cell polygons become triangles, as `extract --triangulate`.
     #[arg(long, default_value = "fan")]
     triangulate: Strategy,
@@ -108,7 +114,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                 Snapping::default()
                     .with_snap(args.snap)
                     .with_zero_threshold(args.zero_threshold)
-                    .with_position(SnapPosition::GridPoint),
+                    .with_position(args.snap_position),
             ),
             _ => Method::MarchingCubes,
         });

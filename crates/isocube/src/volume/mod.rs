@@ -17,7 +17,7 @@
 //!   anything else the triangulation with the largest smallest angle), so both cells sharing a
 //!   face cut it the same way and the mesh is conforming. Each connected part of the cell's
 //!   region is then coned from one point inside it (a Steiner point, never on the boundary).
-//! - **Ternary extraction** ([`Method::Ternary`] with [`SnapPosition::GridPoint`]): a zero
+//! - **Ternary extraction** ([`Method::Ternary`] with [`SnapPosition::GridPoint`][grid]): a zero
 //!   point is a corner on the surface, the surface's vertex there. A cell whose other corners
 //!   are inside, and which the surface only touches at such corners, is still six Kuhn
 //!   tetrahedra. As the crossings left keep at least the snap distance from the corners, the
@@ -26,7 +26,14 @@
 //!   compass search while its worst angle is under 12° (or 165° for the largest), or one of the
 //!   part's own corners when that does better (thin parts). With snap 0.3 or 0.5 the angles
 //!   stay within [10°, 165°] on smooth surfaces resolved by a few cells (the README's table).
-//!   Snapped vertices must stay on their grid points: the cells around them stay cubes.
+//!   Snapped onto a crossing ([`SnapPosition::NearestCrossing`][crossing]), a zero point's
+//!   vertex leaves its grid point and the cells around it follow it there (as in isosurface
+//!   stuffing): faces bend, every tetrahedron is still checked, and the surface keeps Marching
+//!   Cubes' accuracy. The side below the level meshes on every sample; the side above often
+//!   has folded parts no cone fills (refused, naming the cell).
+//!
+//! [grid]: crate::extract::SnapPosition::GridPoint
+//! [crossing]: crate::extract::SnapPosition::NearestCrossing
 //!
 //! Every cone tetrahedron is checked with an exact orientation predicate on the coordinates as
 //! stored (`f32`): all positive, over a closed boundary, means the cone tiles the part exactly.
@@ -56,7 +63,7 @@ use rustc_hash::FxHashMap as HashMap;
 
 use crate::extract::{
     join_tagged, slabs, ExtractError, ExtractOptions, ExtractStats, Extractor, KeyKind, Method,
-    SnapPosition, VertexKey,
+    VertexKey,
 };
 use crate::field::GridView;
 use crate::mesh::Mesh;
@@ -165,9 +172,7 @@ const BEYOND: u64 = u64::MAX - 1;
 
 /// Meshes the region inside the isosurface of `grid` with tetrahedra (see the module
 /// documentation). The options are [`crate::extract::extract`]'s; relaxation is refused (it
-/// moves surface vertices off the cell faces the construction relies on), and so is ternary
-/// snapping onto crossings ([`SnapPosition::NearestCrossing`] with a snap distance): the
-/// construction needs snapped vertices on their grid points.
+/// moves surface vertices off the cell faces the construction relies on).
 pub fn tetmesh<'a>(
     grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
@@ -177,14 +182,6 @@ pub fn tetmesh<'a>(
         return Err(TetError::Unsupported(
             "relaxation moves surface vertices off the cell faces: a volume mesh cannot keep it",
         ));
-    }
-    if let Method::Ternary(snapping) = options.method {
-        if snapping.position == SnapPosition::NearestCrossing && snapping.snap > 0.0 {
-            return Err(TetError::Unsupported(
-                "a volume mesh keeps snapped vertices on their grid points (the cells around \
-                 them must stay cubes): use the grid snap position",
-            ));
-        }
     }
     let dims = grid.dims();
     if let Some((point, value)) = first_non_finite(&grid) {
@@ -713,9 +710,18 @@ impl Context<'_> {
                 // when the rest are inside and the surface only touches it at those points;
                 // with zero corners only, it lies on the side where `g`, the level, counts.
                 let owns = zero > 0 && !self.cell_triangles([i, j, k]).is_empty();
+                // Snapped onto a crossing, a zero corner has left its grid point: the cell's
+                // Kuhn tetrahedra are checked like any other.
                 let whole = outside == 0
                     && (zero == 0
-                        || ((inside > 0 || self.flip) && !owns && !self.touches_faces([i, j, k])));
+                        || ((inside > 0 || self.flip)
+                            && !owns
+                            && !self.touches_faces([i, j, k])
+                            && KUHN.iter().all(|t| {
+                                let p =
+                                    t.map(|o| self.position(ids[usize::from(o)]).map(f64::from));
+                                check::positive(p[0], p[1], p[2], p[3])
+                            })));
                 if whole {
                     out.lattice_cells += 1;
                     out.tets

@@ -1,5 +1,6 @@
 use super::*;
 use crate::cube::Topology;
+use crate::extract::SnapPosition;
 use crate::field::{Grid, Sample};
 use crate::quality::Strategy;
 
@@ -21,17 +22,27 @@ fn all_options() -> Vec<ExtractOptions> {
     out
 }
 
-/// [`all_options`] with ternary extraction (snapped points on their grid points) at snap
-/// distances 0.3 and 0.5.
+/// [`all_options`] with ternary extraction at snap distances 0.3 and 0.5, snapped points on
+/// their grid points or on crossings (the side below the level only).
 fn ternary_options() -> Vec<ExtractOptions> {
     let mut out = Vec::new();
     for snap in [0.3, 0.5] {
-        let method = Method::Ternary(
-            crate::extract::Snapping::default()
-                .with_snap(snap)
-                .with_position(SnapPosition::GridPoint),
-        );
-        out.extend(all_options().into_iter().map(|o| o.with_method(method)));
+        for position in [SnapPosition::GridPoint, SnapPosition::NearestCrossing] {
+            let method = Method::Ternary(
+                crate::extract::Snapping::default()
+                    .with_snap(snap)
+                    .with_position(position),
+            );
+            // Snapped onto crossings, the cells around a snapped point follow it there; the
+            // side above the level then has folded parts no cone fills (70 of 84 sample runs
+            // refused, see the README), so only the side below is held to every sample.
+            out.extend(
+                all_options()
+                    .into_iter()
+                    .filter(|o| position == SnapPosition::GridPoint || !o.flip)
+                    .map(|o| o.with_method(method)),
+            );
+        }
     }
     out
 }
@@ -108,10 +119,11 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
                 tets.stats.lattice_cells > 0 && tets.stats.cut_cells > 0,
                 "{what}"
             );
-            sides.push((options.flip, c.volume));
+            sides.push((format!("{:?}", options.with_flip(false)), c.volume));
         }
         let total = box_volume(&grid);
-        for pair in sides.chunks(2) {
+        sides.sort_by(|a, b| a.0.cmp(&b.0));
+        for pair in sides.chunk_by(|a, b| a.0 == b.0).filter(|p| p.len() == 2) {
             let sum = pair[0].1 + pair[1].1;
             assert!(
                 (sum - total).abs() <= 1e-9 * total,
