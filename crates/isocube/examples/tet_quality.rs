@@ -24,8 +24,14 @@ fn main() {
         ("mc", ExtractOptions::default()),
         ("ternary 0.3", ternary(0.3, SnapPosition::GridPoint)),
         ("ternary 0.5", ternary(0.5, SnapPosition::GridPoint)),
-        ("ternary 0.3 crossing", ternary(0.3, SnapPosition::NearestCrossing)),
-        ("ternary 0.5 crossing", ternary(0.5, SnapPosition::NearestCrossing)),
+        (
+            "ternary 0.3 crossing",
+            ternary(0.3, SnapPosition::NearestCrossing),
+        ),
+        (
+            "ternary 0.5 crossing",
+            ternary(0.5, SnapPosition::NearestCrossing),
+        ),
     ];
     println!(
         "| sample | N | method | tetrahedra | min dihedral | max dihedral | outside [10°, 165°] | \
