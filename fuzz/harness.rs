@@ -33,6 +33,7 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("tet_msh", "msh"),
     ("tet_mesh", "mesh"),
     ("tet_inp", "inp"),
+    ("tet_vtu", "vtu"),
 ];
 
 /// The memory a volume reader may use on a fuzz input: far below libFuzzer's `-malloc_limit_mb`,

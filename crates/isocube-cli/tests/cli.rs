@@ -1372,7 +1372,7 @@ fn tetmesh_labels_meshes_each_label() {
 #[test]
 fn quality_reads_tetrahedral_meshes() {
     let dir = tempfile::tempdir().unwrap();
-    for ext in ["msh", "mesh", "inp"] {
+    for ext in ["msh", "vtu", "mesh", "inp"] {
         let out = isocube(
             dir.path(),
             &[

@@ -61,6 +61,7 @@ mod poly;
 mod raw;
 mod tet_io;
 mod tet_read;
+mod tet_vtu;
 #[cfg(feature = "tiff")]
 mod tiff_stack;
 mod vti;

@@ -1,6 +1,7 @@
-//! Reading tetrahedral meshes back: Gmsh MSH 4.1 (ASCII), MEDIT `.mesh` (ASCII) and Abaqus
-//! `.inp` — what `isocube tetmesh` writes, and what other meshers write in those formats. Only
-//! the vertices and the 4-node tetrahedra are kept; other elements are skipped.
+//! Reading tetrahedral meshes back: Gmsh MSH 4.1 (ASCII), VTK `.vtu` (uncompressed), MEDIT
+//! `.mesh` (ASCII) and Abaqus `.inp` — what `isocube tetmesh` writes, and what other meshers
+//! write in those formats. Only the vertices and the 4-node tetrahedra are kept; other
+//! elements are skipped.
 
 use std::path::Path;
 
@@ -8,7 +9,7 @@ use isocube::volume::TetMesh;
 
 use super::{IoError, Position};
 
-/// Reads the tetrahedra of a `.msh`, `.mesh` or `.inp` file.
+/// Reads the tetrahedra of a `.msh`, `.vtu`, `.mesh` or `.inp` file.
 ///
 /// ```no_run
 /// let mesh = isocube_io::read_tet_mesh("sphere.msh".as_ref()).unwrap();
@@ -34,6 +35,10 @@ pub fn read_tet_mesh_bytes(bytes: &[u8], name: &Path) -> Result<TetMesh, IoError
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
+    if ext == "vtu" {
+        let (positions, tets) = super::tet_vtu::vtu(bytes, name)?;
+        return finish(positions, tets, name);
+    }
     let text = std::str::from_utf8(bytes).map_err(|e| {
         IoError::unsupported(
             name,
@@ -49,10 +54,14 @@ pub fn read_tet_mesh_bytes(bytes: &[u8], name: &Path) -> Result<TetMesh, IoError
             return Err(IoError::unsupported(
                 name,
                 Position::File,
-                "tetrahedral mesh extension (expected .msh, .mesh or .inp)",
+                "tetrahedral mesh extension (expected .msh, .vtu, .mesh or .inp)",
             ))
         }
     };
+    finish(positions, tets, name)
+}
+
+fn finish(positions: Vec<[f32; 3]>, tets: Vec<[u32; 4]>, name: &Path) -> Result<TetMesh, IoError> {
     if tets.is_empty() {
         return Err(IoError::format(name, Position::File, "no tetrahedra"));
     }
@@ -141,7 +150,7 @@ fn corners(words: &Words, t: [u64; 4], n: usize) -> Result<[u32; 4], IoError> {
     Ok(out)
 }
 
-type Parsed = (Vec<[f32; 3]>, Vec<[u32; 4]>);
+pub(super) type Parsed = (Vec<[f32; 3]>, Vec<[u32; 4]>);
 
 /// Gmsh MSH 4.1, ASCII: `$Nodes` and the type-4 blocks of `$Elements`; other sections skipped.
 fn msh(text: &str, name: &Path) -> Result<Parsed, IoError> {
@@ -514,7 +523,7 @@ mod tests {
         let labelled =
             tetmesh_labels(&grid, &LabelOptions::default().with_smoothing(0), None).unwrap();
         for (name, mesh) in [("single", &single), ("labels", &labelled)] {
-            for ext in ["msh", "mesh", "inp"] {
+            for ext in ["msh", "vtu", "mesh", "inp"] {
                 let path = dir.path().join(format!("{name}.{ext}"));
                 write_tet_mesh(&path, mesh, None).unwrap();
                 let back = read_tet_mesh(&path).unwrap();
@@ -539,7 +548,40 @@ mod tests {
                    $EndElements\n";
         let good = read_tet_mesh_bytes(msh.as_bytes(), "a.msh".as_ref()).unwrap();
         assert_eq!(good.tets, vec![[0, 1, 2, 3]]);
+        let vtu = r#"<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian">
+  <UnstructuredGrid><Piece NumberOfPoints="4" NumberOfCells="2">
+    <Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">
+      0 0 0  1 0 0  0 1 0  0 0 1</DataArray></Points>
+    <Cells>
+      <DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 0 1 2 3</DataArray>
+      <DataArray type="Int32" Name="offsets" format="ascii">3 7</DataArray>
+      <DataArray type="UInt8" Name="types" format="ascii">5 10</DataArray>
+    </Cells>
+  </Piece></UnstructuredGrid>
+</VTKFile>"#;
+        let good = read_tet_mesh_bytes(vtu.as_bytes(), "a.vtu".as_ref()).unwrap();
+        assert_eq!((good.positions.len(), good.tets), (4, vec![[0, 1, 2, 3]]));
         let cases: Vec<(String, &str)> = vec![
+            (vtu.replace("0 1 2 0 1 2 3", "0 1 2 0 1 2 9"), "vtu"),
+            (vtu.replace("3 7", "3 6"), "vtu"),
+            (vtu.replace("3 7", "7 3"), "vtu"),
+            (
+                vtu.replace("NumberOfPoints=\"4\"", "NumberOfPoints=\"400000000\""),
+                "vtu",
+            ),
+            (
+                vtu.replace("type=\"UnstructuredGrid\"", "type=\"ImageData\""),
+                "vtu",
+            ),
+            (
+                vtu.replace(
+                    "byte_order",
+                    "compressor=\"vtkZLibDataCompressor\" byte_order",
+                ),
+                "vtu",
+            ),
+            (vtu[..vtu.len() / 2].to_string(), "vtu"),
             (msh.replace("1 1 2 3 4", "1 1 2 3 9"), "msh"),
             (msh.replace("4.1 0 8", "2.2 0 8"), "msh"),
             (msh.replace("4.1 0 8", "4.1 1 8"), "msh"),

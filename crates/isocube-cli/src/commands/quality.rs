@@ -17,8 +17,8 @@ use crate::Failure;
 
 #[derive(Debug, ClapArgs)]
 pub(crate) struct Args {
-    /// A surface mesh (.ply, .obj, .stl, .off) or a tetrahedral one (.msh, .mesh, .inp): for
-    /// tetrahedra, dihedral angles, radius ratio and volumes.
+    /// A surface mesh (.ply, .obj, .stl, .off) or a tetrahedral one (.msh, .vtu, .mesh, .inp):
+    /// for tetrahedra, dihedral angles, radius ratio and volumes.
     mesh: PathBuf,
     /// The field the mesh came from, to measure its distance from the level set: a built-in
     /// sample (`sample:NAME:N`, evaluated exactly) or a .npy/.nrrd/.nhdr volume (trilinear).
@@ -52,15 +52,8 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
             )));
         }
     }
-    match TetFormat::from_path(&args.mesh) {
-        Some(TetFormat::Vtu) => {
-            return Err(Failure::input(anyhow::anyhow!(
-                "{}: .vtu meshes are written, not read: give the tetrahedra as .msh, .mesh or .inp",
-                args.mesh.display()
-            )))
-        }
-        Some(_) => return run_tets(args),
-        None => {}
+    if TetFormat::from_path(&args.mesh).is_some() {
+        return run_tets(args);
     }
     let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
     let report = quality_report(&mesh);
