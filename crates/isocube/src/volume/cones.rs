@@ -497,6 +497,11 @@ pub(super) fn sees(t: &[[f64; 3]; 3], degenerate: bool, s: [f64; 3]) -> bool {
     check::positive(t[0], t[2], t[1], s) || (degenerate && !check::positive(t[0], t[1], t[2], s))
 }
 
+/// Whether `s` sees every triangle of a part from inside ([`sees`]).
+pub(super) fn sees_all(tris: &[[[f64; 3]; 3]], degenerate: &[bool], s: [f64; 3]) -> bool {
+    tris.iter().zip(degenerate).all(|(t, &d)| sees(t, d, s))
+}
+
 /// The faces of the tetrahedra, together with the part's triangles reversed, that do not cancel
 /// in pairs of opposite orientation: empty exactly when the tetrahedra's boundary is the part.
 pub(super) fn open_faces(tets: &[[u32; 4]], part: &[[u32; 3]]) -> Vec<[u32; 3]> {

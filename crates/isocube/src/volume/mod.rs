@@ -833,11 +833,7 @@ impl Context<'_> {
             return Ok(());
         }
         let candidates = self.candidates(cell, part);
-        let sees_all = |apex: [f64; 3]| {
-            tris.iter()
-                .zip(&degenerate)
-                .all(|(t, &d)| cones::sees(t, d, apex))
-        };
+        let sees_all = |apex: [f64; 3]| cones::sees_all(&tris, &degenerate, apex);
         let apex = self.best_apex(cell, &tris, &degenerate, &candidates);
         if let Some((apex, _)) = apex.filter(|a| !self.shape || a.1 >= GOOD_CONE) {
             out.push_tiled(cone(apex));
@@ -934,11 +930,7 @@ impl Context<'_> {
         degenerate: &[bool],
         candidates: &[[f64; 3]],
     ) -> Option<([f64; 3], f64)> {
-        let sees_all = |apex: [f64; 3]| {
-            tris.iter()
-                .zip(degenerate)
-                .all(|(t, &d)| cones::sees(t, d, apex))
-        };
+        let sees_all = |apex: [f64; 3]| cones::sees_all(tris, degenerate, apex);
         let score = |apex: [f64; 3]| {
             tris.iter()
                 .zip(degenerate)

@@ -526,33 +526,13 @@ fn chords_touching_a_face_keep_the_strip_inside() {
     }
 }
 
-/// The faces used once by `tets`, as sorted position triples with their orientation kept in a
-/// canonical rotation.
+/// The faces used once by `tets` ([`cones::open_faces`]), outward, as position triples in a
+/// canonical rotation, sorted.
 fn open_face_positions(positions: &[[f32; 3]], tets: &[[u32; 4]]) -> Vec<[[u32; 3]; 3]> {
-    let mut faces: Vec<([u32; 3], [u32; 3])> = tets
-        .iter()
-        .flat_map(|&[a, b, c, d]| [[a, c, b], [a, b, d], [a, d, c], [b, c, d]])
-        .map(|f| {
-            let mut key = f;
-            key.sort_unstable();
-            (key, f)
-        })
+    let mut out: Vec<[[u32; 3]; 3]> = cones::open_faces(tets, &[])
+        .into_iter()
+        .map(|f| canonical_positions(f.map(|v| positions[v as usize])))
         .collect();
-    faces.sort_unstable();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < faces.len() {
-        let mut j = i + 1;
-        while j < faces.len() && faces[j].0 == faces[i].0 {
-            j += 1;
-        }
-        if j - i == 1 {
-            out.push(canonical_positions(
-                faces[i].1.map(|v| positions[v as usize]),
-            ));
-        }
-        i = j;
-    }
     out.sort_unstable();
     out
 }
