@@ -153,6 +153,29 @@ pub fn band_with_interior(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3
     band_search(l1, l2, &midpoint, true)
 }
 
+/// Whether a rung between two crossings may be a diagonal of the face they share. Rungs of a
+/// band never cross in the band, but on an ambiguous face the two loops' segments can sit so
+/// that both of the face's diagonals are rungs: two edges of the surface lying in one face and
+/// crossing there (a self-intersection). Of a face's two diagonals only the one through its
+/// lowest-numbered edge is allowed; a band that needs the other passes through an interior
+/// point instead. Any other chord in a face joins crossings next to each other round it and
+/// crosses nothing.
+fn diagonal_allowed(a: Corner, b: Corner) -> bool {
+    let (Some(ea), Some(eb)) = (a.as_edge(), b.as_edge()) else {
+        return true;
+    };
+    let shared = a.faces() & b.faces();
+    let [p, q] = EDGES[usize::from(ea)];
+    let [r, s] = EDGES[usize::from(eb)];
+    if shared == 0 || ea == eb || [p, q].iter().any(|v| *v == r || *v == s) {
+        return true;
+    }
+    let lowest = (0..12u8)
+        .find(|&e| Corner::edge(e).faces() & shared != 0)
+        .expect("a face has edges");
+    ea == lowest || eb == lowest
+}
+
 /// The search behind [`band`] and [`band_with_interior`]: the cheapest monotone path across the
 /// (n1+1)×(n2+1) grid of rungs, for every start rung. Each step advances one loop and adds a
 /// triangle. With `through_interior`, the path passes once through a stretch where rungs go via
@@ -187,7 +210,7 @@ fn band_search(
         false => Vec::new(),
     };
     let joinable: Vec<bool> = (0..n1 * n2)
-        .map(|k| may_join(l1[k / n2], l2[k % n2]))
+        .map(|k| may_join(l1[k / n2], l2[k % n2]) && diagonal_allowed(l1[k / n2], l2[k % n2]))
         .collect();
     let inf = f64::INFINITY;
     let size = phases * (n1 + 1) * (n2 + 1);
