@@ -1140,7 +1140,13 @@ fn overlapping_and_outside_boxes_are_refused() {
 
 /// Pairs of the mesh's edges that lie in one cell face and cross there, properly (each through
 /// the other's interior): the surface would pass through itself.
-fn edges_crossing_in_faces(mesh: &Mesh) -> Vec<([f32; 3], [f32; 3], [f32; 3], [f32; 3])> {
+/// Two edges' end points.
+type EdgePair = [[f32; 3]; 4];
+
+/// A cell face: (axis, plane, the cell's other two coordinates).
+type FaceKey = (usize, i64, i64, i64);
+
+fn edges_crossing_in_faces(mesh: &Mesh) -> Vec<EdgePair> {
     let mut edges: Vec<(u32, u32)> = mesh
         .triangles
         .iter()
@@ -1148,9 +1154,7 @@ fn edges_crossing_in_faces(mesh: &Mesh) -> Vec<([f32; 3], [f32; 3], [f32; 3], [f
         .collect();
     edges.sort_unstable();
     edges.dedup();
-    // By face: (axis, plane, the cell's other two coordinates).
-    let mut by_face: std::collections::BTreeMap<(usize, i64, i64, i64), Vec<(u32, u32)>> =
-        Default::default();
+    let mut by_face: std::collections::BTreeMap<FaceKey, Vec<(u32, u32)>> = Default::default();
     for &(a, b) in &edges {
         let (p, q) = (mesh.positions[a as usize], mesh.positions[b as usize]);
         for d in 0..3 {
@@ -1188,7 +1192,7 @@ fn edges_crossing_in_faces(mesh: &Mesh) -> Vec<([f32; 3], [f32; 3], [f32; 3], [f
                     && side(c, e, a) * side(c, e, b) < 0.0
                 {
                     let p = |x: u32| mesh.positions[x as usize];
-                    out.push((p(a), p(b), p(c), p(e)));
+                    out.push([p(a), p(b), p(c), p(e)]);
                 }
             }
         }

@@ -70,6 +70,7 @@ use crate::mesh::Mesh;
 
 mod check;
 mod cones;
+mod cycles;
 mod face;
 mod labels;
 mod quality;
@@ -797,7 +798,7 @@ impl Context<'_> {
             }
         }
         for part in parts(&boundary, &|v| self.position(v))? {
-            self.fill(cell, &part, out)?;
+            self.fill(cell, &part, out, SPLIT_DEPTH, &mut SPLIT_BUDGET.clone())?;
         }
         Ok(())
     }
@@ -813,6 +814,8 @@ impl Context<'_> {
         cell: [usize; 3],
         part: &[[u32; 3]],
         out: &mut Layer,
+        depth: u32,
+        budget: &mut u32,
     ) -> Result<(), &'static str> {
         let tris: Vec<[[f64; 3]; 3]> = part
             .iter()
@@ -829,6 +832,10 @@ impl Context<'_> {
             (vec![apex], tets)
         };
         if check::coplanar(&tris) {
+            // A side of a split with no volume: the disc lies in the part's boundary.
+            if depth < SPLIT_DEPTH {
+                return Err(FOLDED);
+            }
             out.push_tiled(cone(tris[0][0]));
             return Ok(());
         }
@@ -879,12 +886,22 @@ impl Context<'_> {
             }
             (None, None) => {}
         }
-        if let Some(apex) = check::kernel_point(&tris)
+        // (The largest ball's centre costs a linear program: not for the many parts splits try.)
+        if let Some(apex) = (depth == SPLIT_DEPTH)
+            .then(|| check::kernel_point(&tris))
+            .flatten()
             .map(|a| a.map(f64::from))
             .filter(|&a| sees_all(a))
         {
             out.push_tiled(cone(apex));
             return Ok(());
+        }
+        // Parts split off a larger one get only the quick attempts above and further splits.
+        if depth < SPLIT_DEPTH {
+            if depth > 0 && self.split(cell, part, out, depth - 1, budget) {
+                return Ok(());
+            }
+            return Err(FOLDED);
         }
         // Two, then three points, each triangle coned to the first that sees it.
         let n = candidates.len();
@@ -917,7 +934,44 @@ impl Context<'_> {
             out.push_tiled(tiled);
             return Ok(());
         }
-        Err("no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)")
+        if depth > 0 && self.split(cell, part, out, depth - 1, budget) {
+            return Ok(());
+        }
+        Err(FOLDED)
+    }
+
+    /// Splits a part no cone fills into two along a disc spanning a short cycle of its edges
+    /// (through a reflex edge first), the disc a fan from one of the cycle's vertices, and fills
+    /// each side ([`Context::fill`], which may split again while `depth` and `budget` last). The sides'
+    /// tetrahedra add up, as chains, to the part's boundary (the disc cancels), so all positive
+    /// they tile it. On failure `out` is left as it was.
+    fn split(
+        &self,
+        cell: [usize; 3],
+        part: &[[u32; 3]],
+        out: &mut Layer,
+        depth: u32,
+        budget: &mut u32,
+    ) -> bool {
+        let position = |v: u32| self.position(v).map(f64::from);
+        let Some(split) = cycles::Splitter::new(part, &position) else {
+            return false;
+        };
+        let (tets, steiner) = (out.tets.len(), out.steiner.len());
+        for (a, b) in split.sides() {
+            if *budget == 0 {
+                return false;
+            }
+            *budget -= 1;
+            if self.fill(cell, &a, out, depth, budget).is_ok()
+                && (b.is_empty() || self.fill(cell, &b, out, depth, budget).is_ok())
+            {
+                return true;
+            }
+            out.tets.truncate(tets);
+            out.steiner.truncate(steiner);
+        }
+        false
     }
 
     /// Among the candidates that see every triangle, the apex whose cone has the best angles,
@@ -1118,6 +1172,16 @@ fn cone_quality(t: &[[f64; 3]; 3], apex: [f64; 3]) -> f64 {
     let (lo, hi) = quality::dihedral_extremes([t[0], t[2], t[1], apex]);
     lo.min((180.0 - hi) * (10.0 / 15.0))
 }
+
+/// Why a part could not be filled.
+const FOLDED: &str =
+    "no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)";
+
+/// How many times [`Context::fill`] may split a part in two ([`Context::split`]), and how many
+/// splits it tries in all for one part of a cell (the search is exhaustive within them: a part
+/// that no split fills costs the whole budget).
+const SPLIT_DEPTH: u32 = 2;
+const SPLIT_BUDGET: u32 = 600;
 
 /// A cone point whose tetrahedra score this well ([`cone_quality`]) is kept without looking
 /// further: beyond the goal's bounds with room to spare.

@@ -238,17 +238,25 @@ fn single_cell_refusals() {
         let mut refused = 0;
         let mut reasons = std::collections::BTreeMap::new();
         let n = 4000;
+        let start = std::time::Instant::now();
+        let mut slowest = 0.0f64;
         for _ in 0..n {
             let values: Vec<f32> = (0..8).map(|_| rng.unit() as f32 * 2.0 - 1.0).collect();
             let grid = Grid::new([2, 2, 2], values).unwrap();
+            let one = std::time::Instant::now();
             if let Err(TetError::Cell { reason, .. }) = tetmesh(&grid, &options) {
                 refused += 1;
                 *reasons.entry(reason).or_insert(0) += 1;
             }
+            slowest = slowest.max(one.elapsed().as_secs_f64());
         }
         eprintln!(
-            "{:?} {:?} flip {}: {refused} / {n} {reasons:?}",
-            options.topology, options.triangulation, options.flip
+            "{:?} {:?} flip {}: {refused} / {n} {reasons:?} in {:.1} s, slowest cell {:.3} s",
+            options.topology,
+            options.triangulation,
+            options.flip,
+            start.elapsed().as_secs_f64(),
+            slowest
         );
     }
 }
