@@ -37,7 +37,9 @@
 //!
 //! Every cone tetrahedron is checked with an exact orientation predicate on the coordinates as
 //! stored (`f32`): all positive, over a closed boundary, means the cone tiles the part exactly.
-//! A part that no tried point sees whole is reported as an error naming the cell rather than
+//! Where no point sees a part whole (the surface folds in the cell), it is coned from several
+//! points, or split in two along a disc spanning a short cycle of its edges and each side
+//! filled. A part that none of this fills is reported as an error naming the cell rather than
 //! meshed wrongly.
 //!
 //! ```
@@ -806,7 +808,9 @@ impl Context<'_> {
     /// Fills a closed part with tetrahedra, trying in turn: a cone from one candidate point that
     /// sees every triangle from inside; from one of the part's own corners; from the centre of
     /// the largest ball in its kernel; from two or three candidates; from points chosen by a
-    /// search ([`Context::spread_cones`]). Every tetrahedron is checked positive on the stored
+    /// search ([`Context::spread_cones`]); splitting the part in two along a disc and filling
+    /// each side ([`Context::split`], at most [`SPLIT_DEPTH`] times, the sides with the quick
+    /// attempts only). Every tetrahedron is checked positive on the stored
     /// coordinates: with a closed boundary, that makes the tetrahedra tile the part exactly
     /// (their signed indicators add up to its winding number).
     fn fill(
