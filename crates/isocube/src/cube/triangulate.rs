@@ -326,34 +326,18 @@ fn band_search(
 /// [`band_with_interior`] exists: a band from the first loop to the ring and one from the ring
 /// to the second loop. Interior points touch no face, so both bands always exist. Returns the
 /// triangles and, for interior point `k`, the loop corners whose centroid places it (an evenly
-/// spaced corner of the first loop and the nearest corner of the second on no face with it, so
-/// the ring sits halfway along the tunnel and off the cell's faces). `n1 + n2 + 6` triangles.
+/// spaced corner of the first loop and the nearest corner of the second, so the ring sits halfway
+/// along the tunnel). `n1 + n2 + 6` triangles.
 pub fn band_through_ring(l1: &[Corner], l2: &[Corner]) -> (Vec<[Corner; 3]>, Vec<Vec<Corner>>) {
     let n1 = l1.len();
     let supports: Vec<Vec<Corner>> = (0..3)
         .map(|k| {
             let a = l1[k * n1 / 3];
-            // The nearest corner on no face with `a`: two crossings on one face would put
-            // their midpoint, an interior point, in that face. Failing one, a third corner off
-            // their common face.
-            let by_distance =
-                |x: &&Corner, y: &&Corner| distance(a, **x).total_cmp(&distance(a, **y));
-            if let Some(&b) = l2
+            let nearest = *l2
                 .iter()
-                .filter(|x| x.faces() & a.faces() == 0)
-                .min_by(by_distance)
-            {
-                return vec![a, b];
-            }
-            let nearest = *l2.iter().min_by(by_distance).expect("loops have corners");
-            let common = a.faces() & nearest.faces();
-            let third = l1
-                .iter()
-                .chain(l2)
-                .find(|x| x.faces() & common == 0)
-                .copied()
-                .expect("two loops do not lie on one face");
-            vec![a, nearest, third]
+                .min_by(|&&x, &&y| distance(a, x).total_cmp(&distance(a, y)))
+                .expect("loops have corners");
+            vec![a, nearest]
         })
         .collect();
     let ring: Vec<Corner> = (0..3).map(Corner::interior).collect();

@@ -429,9 +429,17 @@ impl<'a> BinaryCells<'a> {
         out.stats.tunnels += usize::from(tunnel.is_some());
         if options.triangulation != Strategy::Fan && tunnel.is_none() {
             let [i, j, k] = at.cell;
-            let bounds = (
+            let (a, b) = (
                 self.grid.point(i, j, k),
                 self.grid.point(i + 1, j + 1, k + 1),
+            );
+            // Interior vertices stay a hundredth of the cell clear of its faces: one in a face
+            // would lie in the neighbouring cell's face too, where the surface there does not
+            // expect it (and the region could not be tetrahedralised around it).
+            let margin = |d: usize| 0.01 * (b[d] - a[d]).abs();
+            let bounds = (
+                std::array::from_fn(|d| a[d].min(b[d]) + margin(d)),
+                std::array::from_fn(|d| a[d].max(b[d]) - margin(d)),
             );
             for (l, polygon) in table.polygons(config, decisions).enumerate() {
                 self.emit_polygon(cache, out, at, l, polygon, bounds)?;
