@@ -800,7 +800,8 @@ impl Context<'_> {
             }
         }
         for part in parts(&boundary, &|v| self.position(v))? {
-            self.fill(cell, &part, out, SPLIT_DEPTH, &mut SPLIT_BUDGET.clone())?;
+            let mut budget = SPLIT_BUDGET;
+            self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
         }
         Ok(())
     }
@@ -901,12 +902,28 @@ impl Context<'_> {
             return Ok(());
         }
         // Parts split off a larger one get only the quick attempts above and further splits.
-        if depth < SPLIT_DEPTH {
-            if depth > 0 && self.split(cell, part, out, depth - 1, budget) {
+        if depth == SPLIT_DEPTH {
+            if let Some(tiled) = self.several_cones(cell, part, &tris, &degenerate, &candidates) {
+                out.push_tiled(tiled);
                 return Ok(());
             }
-            return Err(FOLDED);
         }
+        if depth > 0 && self.split(cell, part, out, depth - 1, budget) {
+            return Ok(());
+        }
+        Err(FOLDED)
+    }
+
+    /// Cones from two, then three candidates, then from points chosen by
+    /// [`Context::spread_cones`].
+    fn several_cones(
+        &self,
+        cell: [usize; 3],
+        part: &[[u32; 3]],
+        tris: &[[[f64; 3]; 3]],
+        degenerate: &[bool],
+        candidates: &[[f64; 3]],
+    ) -> Option<cones::Tiled> {
         // Two, then three points, each triangle coned to the first that sees it.
         let n = candidates.len();
         let pairs = (0..n).flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| vec![i, j]));
@@ -918,7 +935,7 @@ impl Context<'_> {
             // Each triangle to the first point that sees it.
             let group: Option<Vec<u32>> = tris
                 .iter()
-                .zip(&degenerate)
+                .zip(degenerate)
                 .map(|(t, &d)| {
                     points
                         .iter()
@@ -927,21 +944,12 @@ impl Context<'_> {
                 })
                 .collect();
             let Some(group) = group else { continue };
-            if let Ok(tiled) =
-                cones::tile(part, &tris, &degenerate, &points, &group, &position, None)
+            if let Ok(tiled) = cones::tile(part, tris, degenerate, &points, &group, &position, None)
             {
-                out.push_tiled(tiled);
-                return Ok(());
+                return Some(tiled);
             }
         }
-        if let Some(tiled) = self.spread_cones(cell, part, &tris, &degenerate, &candidates) {
-            out.push_tiled(tiled);
-            return Ok(());
-        }
-        if depth > 0 && self.split(cell, part, out, depth - 1, budget) {
-            return Ok(());
-        }
-        Err(FOLDED)
+        self.spread_cones(cell, part, tris, degenerate, candidates)
     }
 
     /// Splits a part no cone fills into two along a disc spanning a short cycle of its edges
