@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
-use super::place::Placer;
+use super::place::{interior_bounds, Bounds, Placer};
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
@@ -428,19 +428,7 @@ impl<'a> BinaryCells<'a> {
         };
         out.stats.tunnels += usize::from(tunnel.is_some());
         if options.triangulation != Strategy::Fan && tunnel.is_none() {
-            let [i, j, k] = at.cell;
-            let (a, b) = (
-                self.grid.point(i, j, k),
-                self.grid.point(i + 1, j + 1, k + 1),
-            );
-            // Interior vertices stay a hundredth of the cell clear of its faces: one in a face
-            // would lie in the neighbouring cell's face too, where the surface there does not
-            // expect it (and the region could not be tetrahedralised around it).
-            let margin = |d: usize| 0.01 * (b[d] - a[d]).abs();
-            let bounds = (
-                std::array::from_fn(|d| a[d].min(b[d]) + margin(d)),
-                std::array::from_fn(|d| a[d].max(b[d]) - margin(d)),
-            );
+            let bounds = self.interior_bounds(at.cell);
             for (l, polygon) in table.polygons(config, decisions).enumerate() {
                 self.emit_polygon(cache, out, at, l, polygon, bounds)?;
             }
@@ -462,8 +450,9 @@ impl<'a> BinaryCells<'a> {
                     if interior[p] == u32::MAX {
                         let support = triangles.interior_support(p);
                         let ids = self.corner_ids(cache, out, at, support)?;
+                        let bounds = self.interior_bounds(at.cell);
                         interior[p] = self.interior(out, at.cell, p, |placer, mesh| {
-                            placer.centroid_vertex(&ids, mesh)
+                            placer.centroid_vertex(&ids, &bounds, mesh)
                         })?;
                     }
                     interior[p]
@@ -500,7 +489,7 @@ impl<'a> BinaryCells<'a> {
         at: At,
         l: usize,
         polygon: &[Corner],
-        bounds: ([f64; 3], [f64; 3]),
+        bounds: Bounds,
     ) -> Result<(), ExtractError> {
         let n = polygon.len();
         if n > MAX_CORNERS {
@@ -541,6 +530,13 @@ impl<'a> BinaryCells<'a> {
         }
     }
 
+    fn interior_bounds(&self, [i, j, k]: [usize; 3]) -> Bounds {
+        interior_bounds(
+            self.grid.point(i, j, k),
+            self.grid.point(i + 1, j + 1, k + 1),
+        )
+    }
+
     /// The table's triangulation of loop `l` (or a star around its centroid if it has none).
     fn table_triangles(
         &self,
@@ -559,8 +555,9 @@ impl<'a> BinaryCells<'a> {
                 }
             }
             None => {
+                let bounds = self.interior_bounds(cell);
                 let centre = self.interior(out, cell, INTERIOR_LOOPS + l, |placer, mesh| {
-                    placer.centroid_vertex(ids, mesh)
+                    placer.centroid_vertex(ids, &bounds, mesh)
                 })?;
                 for a in 0..ids.len() {
                     self.push(out, [ids[a], ids[(a + 1) % ids.len()], centre]);

@@ -100,10 +100,12 @@ impl<'a> Placer<'a> {
         Ok(id)
     }
 
-    /// Creates a vertex at the centroid of existing vertices (a cell's interior point).
+    /// Creates a vertex at the centroid of existing vertices (a cell's interior point), kept
+    /// within `bounds` (see [`interior_bounds`]).
     pub(super) fn centroid_vertex(
         &self,
         ids: &[u32],
+        bounds: &Bounds,
         mesh: &mut Mesh,
     ) -> Result<u32, ExtractError> {
         let n = ids.len() as f64;
@@ -113,7 +115,7 @@ impl<'a> Placer<'a> {
                 *c += f64::from(x) / n;
             }
         }
-        self.interior_vertex(p, ids, mesh)
+        self.interior_vertex(clamp_into(p, bounds), ids, mesh)
     }
 
     /// Creates a vertex at `p` inside a cell, its normal the mean of the normals of `ids`.
@@ -188,4 +190,25 @@ fn next_id(mesh: &Mesh) -> Result<u32, ExtractError> {
         Ok(id) if id != u32::MAX => Ok(id),
         _ => Err(ExtractError::TooManyVertices),
     }
+}
+
+/// A box, lower and upper corner, in the grid's own frame.
+pub(super) type Bounds = ([f64; 3], [f64; 3]);
+
+/// The box a cell's interior vertices keep to: the cell between grid points `a` and `b` shrunk
+/// by a hundredth of its size per side. A vertex in a face would lie in the neighbouring cell's
+/// face too, where that cell's surface does not expect it: two surface edges could cross there
+/// (the centroid of two crossings on one face lies in that face), and the region inside could
+/// not be tetrahedralised around it.
+pub(super) fn interior_bounds(a: [f64; 3], b: [f64; 3]) -> Bounds {
+    let margin = |d: usize| 0.01 * (b[d] - a[d]).abs();
+    (
+        std::array::from_fn(|d| a[d].min(b[d]) + margin(d)),
+        std::array::from_fn(|d| a[d].max(b[d]) - margin(d)),
+    )
+}
+
+/// `p` moved into `bounds`, coordinate by coordinate.
+pub(super) fn clamp_into(p: [f64; 3], (lo, hi): &Bounds) -> [f64; 3] {
+    std::array::from_fn(|d| p[d].clamp(lo[d], hi[d]))
 }

@@ -58,7 +58,7 @@ use crate::quality::{triangulate, Strategy};
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::classify::{cell_config, face_decisions};
-use super::place::Placer;
+use super::place::{clamp_into, interior_bounds, Bounds, Placer};
 use super::{choose_tunnel, ExtractError, ExtractOptions};
 
 /// The smallest distance, as a fraction of the edge, between a crossing that was not snapped and
@@ -578,6 +578,7 @@ impl<'a> Ternary<'a> {
             for (l, polygon) in table.polygons(config, decisions).enumerate() {
                 self.emit_polygon(base, l, polygon, &key, patch);
             }
+            self.face_diagonals(first, over, patch);
             self.improve_cell(base, first, patch);
             return false;
         }
@@ -603,10 +604,70 @@ impl<'a> Ternary<'a> {
                 at: None,
             });
         }
+        self.face_diagonals(first, over, patch);
         if flips {
             self.improve_cell(base, first, patch);
         }
         tunnel.is_some()
+    }
+
+    /// Makes every diagonal of a face of four zero points that the cell's triangles use the one
+    /// through the face's lowest point, by flipping the other where two of the cell's
+    /// triangles share it. The cell on the other side of the face may use that diagonal too (or
+    /// cover the face: a sheet of zero thickness when both sides lie below the level), and the
+    /// tables of the two cells, each collapsing its own configuration, need not agree: two
+    /// surface edges would cross in the face.
+    fn face_diagonals(&self, first: usize, over: Option<usize>, patch: &mut Patch) {
+        let n = patch.triangles.len();
+        for i in first..n {
+            for e in 0..3 {
+                let ti = patch.triangles[i];
+                let (a, c, b) = (ti[e], ti[(e + 1) % 3], ti[(e + 2) % 3]);
+                if tag(a) != POINT || tag(c) != POINT || !self.off_canonical(a, c, over) {
+                    continue;
+                }
+                // The triangle on the other side of a → c, in this cell.
+                let Some((j, d)) = (first..n).filter(|&j| j != i).find_map(|j| {
+                    let tj = patch.triangles[j];
+                    (0..3)
+                        .find(|&f| tj[f] == c && tj[(f + 1) % 3] == a)
+                        .map(|f| (j, tj[(f + 2) % 3]))
+                }) else {
+                    continue;
+                };
+                let has_edge = patch.triangles[first..n].iter().any(|t| {
+                    (0..3).any(|k| {
+                        t[k] == b && t[(k + 1) % 3] == d || t[k] == d && t[(k + 1) % 3] == b
+                    })
+                });
+                if b == d || has_edge {
+                    continue;
+                }
+                // The quad runs c → b → a → d; the other diagonal is b–d.
+                patch.triangles[i] = [c, b, d];
+                patch.triangles[j] = [b, a, d];
+            }
+        }
+    }
+
+    /// Whether zero points `a` and `c` are opposite corners of a cell face whose four points
+    /// are all zero, and the face's lowest point is not one of them.
+    fn off_canonical(&self, a: Key, c: Key, over: Option<usize>) -> bool {
+        let (pa, pc) = ((a & PAYLOAD) as usize, (c & PAYLOAD) as usize);
+        let (xa, xc) = (self.coords(pa), self.coords(pc));
+        let apart: Vec<usize> = (0..3).filter(|&d| xa[d] != xc[d]).collect();
+        if apart.len() != 2 || apart.iter().any(|&d| xa[d].abs_diff(xc[d]) != 1) {
+            return false;
+        }
+        let corner = |d: usize| {
+            if xc[d] > xa[d] {
+                pa + self.strides[d]
+            } else {
+                pa - self.strides[d]
+            }
+        };
+        let (pb, pd) = (corner(apart[0]), corner(apart[1]));
+        self.is_zero(pb, over) && self.is_zero(pd, over) && pb.min(pd) < pa.min(pc)
     }
 
     /// One loop of a cell by the triangulation strategy, after collapse onto zero points. A loop
@@ -1296,6 +1357,15 @@ impl<'a> Ternary<'a> {
         }
     }
 
+    /// The box interior points of the cell at point `base` keep to.
+    fn interior_bounds(&self, base: usize) -> Bounds {
+        let [i, j, k] = self.coords(base);
+        interior_bounds(
+            self.grid.point(i, j, k),
+            self.grid.point(i + 1, j + 1, k + 1),
+        )
+    }
+
     fn edge_t(&self, a: usize, axis: usize) -> f64 {
         let v0 = f64::from(self.g(a));
         let v1 = f64::from(self.g(a + self.strides[axis]));
@@ -1327,7 +1397,8 @@ impl<'a> Ternary<'a> {
                         x[d] += f64::from(q[d]) / n;
                     }
                 }
-                x.map(|c| c as f32)
+                // As `Placer::centroid_vertex` will place it.
+                clamp_into(x, &self.interior_bounds(payload / 8)).map(|c| c as f32)
             }
         }
     }
@@ -1446,7 +1517,11 @@ impl<'a> Ternary<'a> {
                 out.stats.interior_vertices += 1;
                 match interior.at {
                     Some(x) => placer.interior_vertex(x, &corner_ids, &mut out.mesh)?,
-                    None => placer.centroid_vertex(&corner_ids, &mut out.mesh)?,
+                    None => placer.centroid_vertex(
+                        &corner_ids,
+                        &self.interior_bounds(payload / 8),
+                        &mut out.mesh,
+                    )?,
                 }
             }
         };

@@ -1204,11 +1204,9 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// Edges of the surface lying in a cell face never cross there. (MC33's tunnels once put
-    /// both diagonals of an ambiguous face into one band.) Ignored while open defects remain
-    /// that it finds on larger random grids: MC33 ring points placed in a face, and ternary
-    /// faces of four zero points with both diagonals in the surface (run with `--ignored`).
+    /// both diagonals of an ambiguous face into one band; MC33 ring points placed in a face;
+    /// ternary faces of four zero points whose two cells chose different diagonals.)
     #[test]
-    #[ignore]
     fn surface_edges_in_a_face_never_cross(grid in any_grid(), options in any_options()) {
         let (mesh, _) = extract(&grid, &options).unwrap();
         let crossing = edges_crossing_in_faces(&mesh);
