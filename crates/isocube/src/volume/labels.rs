@@ -188,8 +188,17 @@ pub fn tetmesh_labels<'a>(
             i += 1;
         }
     }
+    let grid_end = positions.len() as u32;
+    let improve = super::improve::improve(
+        &mut positions,
+        &mut tets,
+        Some(&mut tet_labels),
+        base as u32..grid_end,
+        grid_end..grid_end,
+    );
     let stats = TetStats {
-        grid_points: positions.len() - base,
+        grid_points: grid_end as usize - base,
+        improve,
         ..TetStats::default()
     };
     let mut mesh = TetMesh {

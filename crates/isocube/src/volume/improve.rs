@@ -1,0 +1,688 @@
+//! Quality improvement after the cells are filled. Where the surface cuts a cell thinly, the
+//! cone points and splits of a single cell cannot always avoid flat tetrahedra; across cells, a
+//! face or edge shared with a neighbour's tetrahedra often can be flipped away, and a Steiner
+//! point moved. Three operations, each taken only when it raises the worst dihedral score of the
+//! tetrahedra it replaces and every new tetrahedron is positive by the exact predicate:
+//!
+//! - **2 → 3**: two tetrahedra sharing an interior face become three around the segment joining
+//!   their far corners;
+//! - **3 → 2**: three tetrahedra around an interior edge become two sharing the face of their
+//!   far corners;
+//! - **move**: a Steiner point, or a grid point no lattice tetrahedron holds, walks (a pattern
+//!   search) to where its worst tetrahedron is best;
+//! - **insert**: the poor tetrahedron and its neighbours across its faces become a star of
+//!   tetrahedra from a new Steiner point, placed by the same search.
+//!
+//! Boundary triangles (the surface, the grid's walls) are faces of one tetrahedron only, so no
+//! flip touches them and no vertex on them moves; tetrahedra of grid points only (the lattice)
+//! are kept as they are, corners included; tetrahedra of different labels never merge. The union of the tetrahedra is unchanged, so the
+//! mesh stays conforming with the same boundary and volume. The work is sequential over the
+//! poor tetrahedra in a fixed order, so the result does not depend on the thread count.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+use rustc_hash::FxHashMap as HashMap;
+
+use super::check::positive;
+use super::quality::dihedral_extremes;
+
+/// Tetrahedra scoring under this are worked on: a score of 10 is the edge of the range the
+/// volume meshes aim at, dihedral angles in [10°, 165°] (with a little margin).
+const POOR: f64 = 10.5;
+
+/// Sweeps over the poor tetrahedra (each sweep also takes those the last one made).
+const SWEEPS: usize = 4;
+
+/// Halvings of a Steiner point's step before its search stops.
+const STEPS: usize = 10;
+
+/// What [`improve`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImproveStats {
+    /// Tetrahedra scoring under the threshold before.
+    pub poor: usize,
+    /// Two-to-three flips.
+    pub flips_23: usize,
+    /// Three-to-two flips.
+    pub flips_32: usize,
+    /// Steiner points moved.
+    pub moves: usize,
+    /// Steiner points added (a few tetrahedra round a poor one re-made as a star from a new
+    /// point).
+    pub inserted: usize,
+}
+
+/// The score a tetrahedron is improved by: its smallest dihedral angle in degrees, or two thirds
+/// of 180° less its largest, whichever is smaller — so that both ends of [10°, 165°] score 10.
+fn score(p: [[f64; 3]; 4]) -> f64 {
+    let (lo, hi) = dihedral_extremes(p);
+    lo.min((180.0 - hi) * (2.0 / 3.0))
+}
+
+/// Improves the tetrahedra `tets` over `positions` in place (see the module documentation).
+/// `grid` numbers the grid points (tetrahedra of grid points only are kept, and so are their
+/// corners), `steiner` the Steiner points; `labels`, if given, holds each tetrahedron's
+/// label and is kept in step.
+pub(super) fn improve(
+    positions: &mut Vec<[f32; 3]>,
+    tets: &mut Vec<[u32; 4]>,
+    labels: Option<&mut Vec<u32>>,
+    grid: Range<u32>,
+    steiner: Range<u32>,
+) -> ImproveStats {
+    let at = |p: &[[f32; 3]], t: &[u32; 4]| t.map(|v| p[v as usize].map(f64::from));
+    let lattice = |t: &[u32; 4]| t.iter().all(|v| grid.contains(v));
+    let poor: Vec<u32> = tets
+        .par_iter()
+        .enumerate()
+        .filter(|(_, t)| !lattice(t) && score(at(positions, t)) < POOR)
+        .map(|(i, _)| i as u32)
+        .collect();
+    let mut stats = ImproveStats {
+        poor: poor.len(),
+        ..ImproveStats::default()
+    };
+    if poor.is_empty() {
+        return stats;
+    }
+    // The vertices of poor tetrahedra and of their neighbours are "known": every tetrahedron
+    // holding one is listed with it, so faces and edges there can be looked up.
+    let n = positions.len();
+    let mut known = vec![false; n];
+    let mut near = vec![false; n];
+    for &t in &poor {
+        for v in tets[t as usize] {
+            near[v as usize] = true;
+        }
+    }
+    for t in tets.iter() {
+        if t.iter().any(|&v| near[v as usize]) {
+            for v in t {
+                known[*v as usize] = true;
+            }
+        }
+    }
+    let mut incident: HashMap<u32, Vec<u32>> = HashMap::default();
+    for (i, t) in tets.iter().enumerate() {
+        for v in t {
+            if known[*v as usize] {
+                incident.entry(*v).or_default().push(i as u32);
+            }
+        }
+    }
+    let mut labels = labels;
+    let mut work = Work {
+        positions,
+        tets,
+        labels: labels.as_deref_mut(),
+        alive: Vec::new(),
+        known,
+        incident,
+        grid,
+        steiner,
+    };
+    work.alive = vec![true; work.tets.len()];
+    let mut queue = poor;
+    for _ in 0..SWEEPS {
+        let mut scored: Vec<(f64, u32)> = queue
+            .iter()
+            .filter(|&&t| work.alive[t as usize])
+            .map(|&t| (work.score_of(t), t))
+            .filter(|e| e.0 < POOR)
+            .collect();
+        if scored.is_empty() {
+            break;
+        }
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let first_new = work.tets.len();
+        for &(_, t) in &scored {
+            if work.alive[t as usize] {
+                work.improve_tet(t, &mut stats);
+            }
+        }
+        queue = scored
+            .iter()
+            .map(|e| e.1)
+            .chain(first_new as u32..work.tets.len() as u32)
+            .collect();
+        queue.sort_unstable();
+        queue.dedup();
+    }
+    // Dead slots out, in order.
+    let alive = std::mem::take(&mut work.alive);
+    drop(work);
+    let mut k = 0;
+    tets.retain(|_| {
+        k += 1;
+        alive[k - 1]
+    });
+    if let Some(labels) = labels {
+        let mut k = 0;
+        labels.retain(|_| {
+            k += 1;
+            alive[k - 1]
+        });
+    }
+    stats
+}
+
+struct Work<'a> {
+    positions: &'a mut Vec<[f32; 3]>,
+    tets: &'a mut Vec<[u32; 4]>,
+    labels: Option<&'a mut Vec<u32>>,
+    alive: Vec<bool>,
+    known: Vec<bool>,
+    incident: HashMap<u32, Vec<u32>>,
+    grid: Range<u32>,
+    steiner: Range<u32>,
+}
+
+impl Work<'_> {
+    fn point(&self, v: u32) -> [f64; 3] {
+        self.positions[v as usize].map(f64::from)
+    }
+
+    fn score_of(&self, t: u32) -> f64 {
+        score(self.tets[t as usize].map(|v| self.point(v)))
+    }
+
+    fn label(&self, t: u32) -> u32 {
+        self.labels.as_ref().map_or(0, |l| l[t as usize])
+    }
+
+    fn frozen(&self, t: u32) -> bool {
+        self.tets[t as usize].iter().all(|v| self.grid.contains(v))
+    }
+
+    /// The living tetrahedra holding all of `vs`, looked up through a known vertex among them
+    /// (`None` if none is known).
+    fn holding(&self, vs: &[u32]) -> Option<Vec<u32>> {
+        let &x = vs.iter().find(|&&v| self.known[v as usize])?;
+        Some(
+            self.incident
+                .get(&x)
+                .map(|list| {
+                    list.iter()
+                        .copied()
+                        .filter(|&t| {
+                            self.alive[t as usize]
+                                && vs.iter().all(|v| self.tets[t as usize].contains(v))
+                        })
+                        .collect()
+                })
+                .unwrap_or_default(),
+        )
+    }
+
+    fn improve_tet(&mut self, t: u32, stats: &mut ImproveStats) {
+        let tet = self.tets[t as usize];
+        for d in tet {
+            if self.flip_23(t, d) {
+                stats.flips_23 += 1;
+                return;
+            }
+        }
+        for i in 0..4 {
+            for j in i + 1..4 {
+                if self.flip_32(tet[i], tet[j]) {
+                    stats.flips_32 += 1;
+                    return;
+                }
+            }
+        }
+        for v in tet {
+            let free = self.steiner.contains(&v) || self.grid.contains(&v);
+            if free && self.known[v as usize] && self.move_point(v) {
+                stats.moves += 1;
+                return;
+            }
+        }
+        if self.insert(t) {
+            stats.inserted += 1;
+        }
+    }
+
+    /// Re-makes tetrahedron `t` and its neighbours across its faces as a star from a new
+    /// Steiner point, if one can be placed where every new tetrahedron is positive and the worst
+    /// of them beats the worst of the old.
+    fn insert(&mut self, t: u32) -> bool {
+        let tet = self.tets[t as usize];
+        let mut cavity = vec![t];
+        for d in tet {
+            let face: Vec<u32> = tet.iter().copied().filter(|&v| v != d).collect();
+            if let Some(across) = self.holding(&face) {
+                if let [a, b] = across[..] {
+                    cavity.push(if a == t { b } else { a });
+                }
+            }
+        }
+        if !self.may_replace(&cavity) {
+            return false;
+        }
+        // The cavity's outer faces, each turned so the cavity lies on its positive side.
+        let mut faces: Vec<([u32; 3], [u32; 3])> = Vec::new();
+        for &c in &cavity {
+            let tet = self.tets[c as usize];
+            for k in 0..4 {
+                let mut f = [0u32; 3];
+                let mut m = 0;
+                for (i, &w) in tet.iter().enumerate() {
+                    if i != k {
+                        f[m] = w;
+                        m += 1;
+                    }
+                }
+                let p = |v: u32| self.point(v);
+                if !positive(p(f[0]), p(f[1]), p(f[2]), p(tet[k])) {
+                    f.swap(1, 2);
+                }
+                let mut sorted = f;
+                sorted.sort_unstable();
+                faces.push((sorted, f));
+            }
+        }
+        faces.sort_unstable();
+        let mut outer: Vec<[u32; 3]> = Vec::new();
+        let mut i = 0;
+        while i < faces.len() {
+            if i + 1 < faces.len() && faces[i].0 == faces[i + 1].0 {
+                i += 2;
+            } else {
+                outer.push(faces[i].1);
+                i += 1;
+            }
+        }
+        let old_worst = cavity
+            .iter()
+            .map(|&c| self.score_of(c))
+            .fold(f64::INFINITY, f64::min);
+        // The new point, first at the centroid of the poor tetrahedron and of the cavity.
+        let v = self.positions.len() as u32;
+        let mut star: Vec<[u32; 4]> = outer.iter().map(|f| [f[0], f[1], f[2], v]).collect();
+        let centroid = |vs: &mut dyn Iterator<Item = u32>, me: &Self| {
+            let mut c = [0.0f64; 3];
+            let mut n = 0.0;
+            for w in vs {
+                let p = me.point(w);
+                for d in 0..3 {
+                    c[d] += p[d];
+                }
+                n += 1.0;
+            }
+            c.map(|x| (x / n) as f32)
+        };
+        let starts = [
+            centroid(&mut tet.iter().copied(), self),
+            centroid(&mut outer.iter().flatten().copied(), self),
+        ];
+        self.positions.push(starts[0]);
+        self.known.push(true);
+        let mut best: Option<([f32; 3], f64)> = None;
+        for start in starts {
+            self.positions[v as usize] = start;
+            if let Some(w) = self.worst(&star) {
+                if best.is_none_or(|b| w > b.1) {
+                    best = Some((start, w));
+                }
+            }
+        }
+        let Some((at, worst)) = best else {
+            self.positions.pop();
+            self.known.pop();
+            return false;
+        };
+        let (at, worst) = self.search(v, &star, at, worst);
+        if worst <= old_worst {
+            self.positions.pop();
+            self.known.pop();
+            return false;
+        }
+        self.positions[v as usize] = at;
+        self.steiner.end = self.steiner.end.max(v + 1);
+        star.sort_unstable();
+        self.replace(&cavity, &star);
+        true
+    }
+
+    /// Replaces tetrahedra `old` by `new` (all of one label), reusing their slots.
+    fn replace(&mut self, old: &[u32], new: &[[u32; 4]]) {
+        let label = self.label(old[0]);
+        for &t in old {
+            self.alive[t as usize] = false;
+        }
+        for (k, &tet) in new.iter().enumerate() {
+            let slot = if let Some(&t) = old.get(k) {
+                self.tets[t as usize] = tet;
+                self.alive[t as usize] = true;
+                t
+            } else {
+                self.tets.push(tet);
+                self.alive.push(true);
+                if let Some(l) = self.labels.as_mut() {
+                    l.push(label);
+                }
+                (self.tets.len() - 1) as u32
+            };
+            for v in tet {
+                if self.known[v as usize] {
+                    let list = self.incident.entry(v).or_default();
+                    if !list.contains(&slot) {
+                        list.push(slot);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether tetrahedra `old` may be replaced: none of the lattice, all of one label.
+    fn may_replace(&self, old: &[u32]) -> bool {
+        let label = self.label(old[0]);
+        old.iter()
+            .all(|&t| !self.frozen(t) && self.label(t) == label)
+    }
+
+    /// The worst score of `tets`, or `None` if one is not positive.
+    fn worst(&self, tets: &[[u32; 4]]) -> Option<f64> {
+        let mut worst = f64::INFINITY;
+        for t in tets {
+            let p = t.map(|v| self.point(v));
+            if !positive(p[0], p[1], p[2], p[3]) {
+                return None;
+            }
+            worst = worst.min(score(p));
+        }
+        Some(worst)
+    }
+
+    /// Flips the face of `t` opposite its corner `d` to the three tetrahedra around the segment
+    /// from `d` to the far corner of the tetrahedron across it.
+    fn flip_23(&mut self, t: u32, d: u32) -> bool {
+        let tet = self.tets[t as usize];
+        let mut face: Vec<u32> = tet.iter().copied().filter(|&v| v != d).collect();
+        let Some(across) = self.holding(&face) else {
+            return false;
+        };
+        let [first, second] = across[..] else {
+            return false;
+        };
+        let s = if first == t { second } else { first };
+        if !self.may_replace(&[t, s]) {
+            return false;
+        }
+        let e = *self.tets[s as usize]
+            .iter()
+            .find(|v| !face.contains(v))
+            .expect("a tetrahedron has a corner off its face");
+        let p = |v: u32| self.point(v);
+        if !positive(p(face[0]), p(face[1]), p(face[2]), p(d)) {
+            face.swap(1, 2);
+        }
+        let new: Vec<[u32; 4]> = (0..3).map(|k| [face[k], face[(k + 1) % 3], e, d]).collect();
+        let old_worst = self.score_of(t).min(self.score_of(s));
+        match self.worst(&new) {
+            Some(w) if w > old_worst => {
+                self.replace(&[t, s], &new);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Flips the edge `a`–`b`, if exactly three tetrahedra surround it, to the two sharing the
+    /// face of their far corners.
+    fn flip_32(&mut self, a: u32, b: u32) -> bool {
+        let Some(ring) = self.holding(&[a, b]) else {
+            return false;
+        };
+        if ring.len() != 3 || !self.may_replace(&ring) {
+            return false;
+        }
+        // Closed around the edge: three far corners, each in two of the tetrahedra.
+        let mut far: Vec<u32> = ring
+            .iter()
+            .flat_map(|&t| self.tets[t as usize])
+            .filter(|&v| v != a && v != b)
+            .collect();
+        far.sort_unstable();
+        if far.len() != 6 || far.chunks(2).any(|c| c[0] != c[1]) {
+            return false;
+        }
+        let (mut x, y, mut z) = (far[0], far[2], far[4]);
+        let p = |v: u32| self.point(v);
+        if !positive(p(x), p(y), p(z), p(a)) {
+            std::mem::swap(&mut x, &mut z);
+        }
+        let new = [[x, y, z, a], [x, z, y, b]];
+        let old_worst = ring
+            .iter()
+            .map(|&t| self.score_of(t))
+            .fold(f64::INFINITY, f64::min);
+        match self.worst(&new) {
+            Some(w) if w > old_worst => {
+                self.replace(&ring, &new);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Moves Steiner point `v` by a pattern search to where the worst of its tetrahedra scores
+    /// best, every one of them staying positive.
+    fn move_point(&mut self, v: u32) -> bool {
+        let Some(star) = self.holding(&[v]) else {
+            return false;
+        };
+        // A grid point moves only if no lattice tetrahedron holds it; no point on an interface
+        // between labels moves.
+        let Some(&first) = star.first() else {
+            return false;
+        };
+        let label = self.label(first);
+        if star.iter().any(|&t| self.label(t) != label)
+            || self.grid.contains(&v) && star.iter().any(|&t| self.frozen(t))
+        {
+            return false;
+        }
+        let star: Vec<[u32; 4]> = star.iter().map(|&t| self.tets[t as usize]).collect();
+        // Only a point inside the mesh moves: every face at it is shared by two tetrahedra
+        // (one on a wall or the surface would move the boundary).
+        let mut faces: Vec<[u32; 3]> = star
+            .iter()
+            .flat_map(|t| {
+                (0..4).filter(|&k| t[k] != v).map(move |k| {
+                    let mut f = [0u32; 3];
+                    let mut m = 0;
+                    for (i, &w) in t.iter().enumerate() {
+                        if i != k {
+                            f[m] = w;
+                            m += 1;
+                        }
+                    }
+                    f.sort_unstable();
+                    f
+                })
+            })
+            .collect();
+        faces.sort_unstable();
+        if faces.len() % 2 != 0 || faces.chunks(2).any(|c| c[0] != c[1]) {
+            return false;
+        }
+        let start = self.positions[v as usize];
+        let Some(before) = self.worst(&star) else {
+            return false;
+        };
+        let (here, _) = self.search(v, &star, start, before);
+        here != start
+    }
+
+    /// A pattern search for `v`'s position, from `start` (where the worst of `star` scores
+    /// `before`): steps along the axes, a quarter of the mean edge length at first, halved when
+    /// no step helps. Returns the best position and its score; leaves `v` there.
+    fn search(
+        &mut self,
+        v: u32,
+        star: &[[u32; 4]],
+        start: [f32; 3],
+        before: f64,
+    ) -> ([f32; 3], f64) {
+        self.positions[v as usize] = start;
+        let mut length = 0.0f64;
+        let mut count = 0.0f64;
+        for t in star {
+            for &w in t {
+                if w != v {
+                    let d = super::check::sub(self.point(w), self.point(v));
+                    length += super::check::dot(d, d).sqrt();
+                    count += 1.0;
+                }
+            }
+        }
+        let mut step = 0.25 * length / count.max(1.0);
+        let mut best = before;
+        let mut here = start;
+        for _ in 0..STEPS {
+            let mut moved = false;
+            for dir in 0..6 {
+                let mut q = here.map(f64::from);
+                q[dir / 2] += if dir % 2 == 0 { step } else { -step };
+                let q = q.map(|c| c as f32);
+                self.positions[v as usize] = q;
+                if let Some(w) = self.worst(star) {
+                    if w > best {
+                        best = w;
+                        here = q;
+                        moved = true;
+                    }
+                }
+            }
+            if !moved {
+                step *= 0.5;
+            }
+        }
+        self.positions[v as usize] = here;
+        (here, best)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The faces used by one tetrahedron only, each sorted: the boundary of the union.
+    fn boundary(tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
+        let mut faces: Vec<[u32; 3]> = tets
+            .iter()
+            .flat_map(|t| {
+                (0..4).map(move |k| {
+                    let mut f = [t[(k + 1) % 4], t[(k + 2) % 4], t[(k + 3) % 4]];
+                    f.sort_unstable();
+                    f
+                })
+            })
+            .collect();
+        faces.sort_unstable();
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < faces.len() {
+            if faces.get(i + 1) == Some(&faces[i]) {
+                i += 2;
+            } else {
+                out.push(faces[i]);
+                i += 1;
+            }
+        }
+        out
+    }
+
+    fn worst(positions: &[[f32; 3]], tets: &[[u32; 4]]) -> f64 {
+        tets.iter()
+            .map(|t| score(t.map(|v| positions[v as usize].map(f64::from))))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    fn volume(positions: &[[f32; 3]], tets: &[[u32; 4]]) -> f64 {
+        tets.iter()
+            .map(|t| {
+                let p = t.map(|v| positions[v as usize].map(f64::from));
+                let [a, b, c] = [1, 2, 3].map(|k| super::super::check::sub(p[k], p[0]));
+                super::super::check::dot(a, super::super::check::cross(b, c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// A triangle `c, d, e` in the plane z = 0 with `a` just above it (off centre) and `b`
+    /// well below.
+    fn bipyramid() -> Vec<[f32; 3]> {
+        vec![
+            [0.3, 0.0, 0.1],
+            [0.0, 0.0, -1.0],
+            [1.0, 0.0, 0.0],
+            [-0.5, 0.866, 0.0],
+            [-0.5, -0.866, 0.0],
+        ]
+    }
+
+    #[test]
+    fn two_flat_tetrahedra_become_three_better_ones() {
+        let mut positions = bipyramid();
+        let (a, b, c, d, e) = (0, 1, 2, 3, 4);
+        let mut tets = vec![[c, d, e, a], [c, e, d, b]];
+        let before = worst(&positions, &tets);
+        assert!(before < POOR, "{before}");
+        let (outline, volume_before) = (boundary(&tets), volume(&positions, &tets));
+        let stats = improve(&mut positions, &mut tets, None, 0..0, 5..5);
+        assert_eq!((stats.flips_23, tets.len()), (1, 3), "{stats:?}");
+        let after = worst(&positions, &tets);
+        assert!(after > 15.0, "{after}");
+        assert_eq!(boundary(&tets), outline);
+        assert!((volume(&positions, &tets) - volume_before).abs() < 1e-12);
+        assert!(tets.iter().all(|t| {
+            let p = t.map(|v| positions[v as usize].map(f64::from));
+            positive(p[0], p[1], p[2], p[3])
+        }));
+    }
+
+    #[test]
+    fn a_flip_that_would_make_things_worse_is_not_taken() {
+        // Around the edge a–b: three tetrahedra scoring about 10.7°; the two of the 3 → 2 flip
+        // would score 2.6°.
+        let mut positions = bipyramid();
+        positions[0] = [0.6, 0.0, 0.05];
+        let (a, b, c, d, e) = (0, 1, 2, 3, 4);
+        let mut tets = vec![[a, b, c, d], [a, b, d, e], [a, b, e, c]];
+        let p = |v: usize| positions[v].map(f64::from);
+        for t in &mut tets {
+            if !positive(
+                p(t[0] as usize),
+                p(t[1] as usize),
+                p(t[2] as usize),
+                p(t[3] as usize),
+            ) {
+                t.swap(0, 1);
+            }
+        }
+        let before = worst(&positions, &tets);
+        let volume_before = volume(&positions, &tets);
+        let stats = improve(&mut positions, &mut tets, None, 0..0, 5..5);
+        assert_eq!(stats.flips_32, 0, "{stats:?}");
+        assert!(worst(&positions, &tets) >= before);
+        assert!((volume(&positions, &tets) - volume_before).abs() < 1e-9);
+    }
+
+    #[test]
+    fn tetrahedra_of_grid_points_and_interfaces_stay() {
+        let mut positions = bipyramid();
+        let (a, b, c, d, e) = (0, 1, 2, 3, 4);
+        let original = vec![[c, d, e, a], [c, e, d, b]];
+        // Every vertex a grid point: the lattice is kept.
+        let mut tets = original.clone();
+        let stats = improve(&mut positions, &mut tets, None, 0..5, 5..5);
+        assert_eq!((stats.poor, tets.clone()), (0, original.clone()));
+        // Two labels: the face between them is an interface.
+        let mut tets = original.clone();
+        let mut labels = vec![0, 1];
+        improve(&mut positions, &mut tets, Some(&mut labels), 0..0, 5..5);
+        assert_eq!((tets, labels), (original, vec![0, 1]));
+    }
+}
