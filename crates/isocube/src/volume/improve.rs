@@ -37,7 +37,8 @@ const SWEEPS: usize = 4;
 /// Halvings of a Steiner point's step before its search stops.
 const STEPS: usize = 10;
 
-/// What [`improve`] did.
+/// What the improvement step of [`super::tetmesh`] and [`super::tetmesh_labels`] did (see
+/// [`super::TetStats::improve`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ImproveStats {
     /// Tetrahedra scoring under the threshold before.
