@@ -173,6 +173,14 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             labels.interfaces.len()
         );
     }
+    let improve = &s.improve;
+    if improve.poor > 0 {
+        eprintln!(
+            "improved: {} elements under 12° (or over 162°) worked on: {} + {} flips, {} points \
+             moved, {} added",
+            improve.poor, improve.flips_23, improve.flips_32, improve.moves, improve.inserted
+        );
+    }
     eprintln!(
         "quality: dihedral angles {:.2}°..{:.2}°, radius ratio mean {:.3}, worst {:.3}",
         report.min_dihedral, report.max_dihedral, report.mean_radius_ratio, report.max_radius_ratio

@@ -27,9 +27,10 @@ use rustc_hash::FxHashMap as HashMap;
 use super::check::positive;
 use super::quality::dihedral_extremes;
 
-/// Tetrahedra scoring under this are worked on: a score of 10 is the edge of the range the
-/// volume meshes aim at, dihedral angles in [10°, 165°] (with a little margin).
-const POOR: f64 = 10.5;
+/// Tetrahedra scoring under this are worked on (a dihedral angle under 12° or over 162°): a score
+/// of 10 is the edge of the range the volume meshes aim at, dihedral angles in [10°, 165°], and
+/// a margin lets flips and moves around a poor element make room.
+const POOR: f64 = 12.0;
 
 /// Sweeps over the poor tetrahedra (each sweep also takes those the last one made).
 const SWEEPS: usize = 4;
