@@ -62,6 +62,11 @@ fn score(p: [[f64; 3]; 4]) -> f64 {
     lo.min((180.0 - hi) * (2.0 / 3.0))
 }
 
+/// The corners of tetrahedron `t` other than its `k`-th, in order.
+fn face(t: [u32; 4], k: usize) -> [u32; 3] {
+    std::array::from_fn(|i| t[if i < k { i } else { i + 1 }])
+}
+
 /// Improves the tetrahedra `tets` over `positions` in place (see the module documentation).
 /// `grid` numbers the grid points (tetrahedra of grid points only are kept, and so are their
 /// corners), `steiner` the Steiner points; `labels`, if given, holds each tetrahedron's
@@ -267,14 +272,7 @@ impl Work<'_> {
         for &c in &cavity {
             let tet = self.tets[c as usize];
             for k in 0..4 {
-                let mut f = [0u32; 3];
-                let mut m = 0;
-                for (i, &w) in tet.iter().enumerate() {
-                    if i != k {
-                        f[m] = w;
-                        m += 1;
-                    }
-                }
+                let mut f = face(tet, k);
                 let p = |v: u32| self.point(v);
                 if !positive(p(f[0]), p(f[1]), p(f[2]), p(tet[k])) {
                     f.swap(1, 2);
@@ -493,14 +491,7 @@ impl Work<'_> {
             .iter()
             .flat_map(|t| {
                 (0..4).filter(|&k| t[k] != v).map(move |k| {
-                    let mut f = [0u32; 3];
-                    let mut m = 0;
-                    for (i, &w) in t.iter().enumerate() {
-                        if i != k {
-                            f[m] = w;
-                            m += 1;
-                        }
-                    }
+                    let mut f = face(*t, k);
                     f.sort_unstable();
                     f
                 })
