@@ -51,6 +51,41 @@ pub(crate) fn write_blocks<W: Write + ?Sized>(
     Ok(())
 }
 
+/// Appends the integers in decimal separated by `sep`, then a newline. Large ASCII meshes are
+/// mostly such lines: each is built on the stack and appended at once, many times faster than
+/// `write!` (or than appending number by number, a library copy call each).
+pub(crate) fn put_ints(out: &mut Vec<u8>, xs: &[usize], sep: &[u8]) {
+    let mut line = [0u8; 256];
+    let mut len = 0;
+    let mut digits = itoa::Buffer::new();
+    for (i, &x) in xs.iter().enumerate() {
+        if i > 0 {
+            for &b in sep {
+                line[len] = b;
+                len += 1;
+            }
+        }
+        // At most 20 digits: a fixed-size copy, no library call.
+        let text = digits.format(x).as_bytes();
+        let mut padded = [0u8; 20];
+        padded[..text.len()].copy_from_slice(text);
+        line[len..len + 20].copy_from_slice(&padded);
+        len += text.len();
+    }
+    line[len] = b'\n';
+    out.extend_from_slice(&line[..=len]);
+}
+
+/// Appends `x` in decimal.
+pub(crate) fn put_int(out: &mut Vec<u8>, x: usize) {
+    out.extend_from_slice(itoa::Buffer::new().format(x).as_bytes());
+}
+
+/// Appends `x` in its shortest form that reads back as the same `f32` (`zmij`; `1.0`, `2.5e-8`).
+pub(crate) fn put_float(out: &mut Vec<u8>, x: f32) {
+    out.extend_from_slice(zmij::Buffer::new().format(x).as_bytes());
+}
+
 /// Appends `xs` as little-endian bytes.
 pub(crate) fn put_le(out: &mut Vec<u8>, xs: &[f32]) {
     for x in xs {
@@ -61,6 +96,15 @@ pub(crate) fn put_le(out: &mut Vec<u8>, xs: &[f32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn integer_lines_read_back() {
+        let xs = [0, 9, 10, 99, 100, 4_294_967_295, usize::MAX, 123_456_789];
+        let mut out = Vec::new();
+        put_ints(&mut out, &xs, b", ");
+        let expected: Vec<String> = xs.iter().map(|x| x.to_string()).collect();
+        assert_eq!(String::from_utf8(out).unwrap(), expected.join(", ") + "\n");
+    }
 
     #[test]
     fn blocks_write_the_bytes_of_one_pass_in_order() {

@@ -9,9 +9,10 @@
 //! mesh's, from 1 where the format counts from 1.
 
 use std::io::{self, Write};
+use std::ops::Range;
 use std::path::Path;
 
-use super::blocks::write_blocks;
+use super::blocks::{put_float, put_int, put_ints, put_le, write_blocks};
 use super::export::bbox;
 use super::mesh_io::write_atomic;
 use super::IoError;
@@ -205,6 +206,15 @@ pub fn write_tet_mesh(
     })
 }
 
+/// Appends a point's three coordinates separated by `sep`.
+fn put_coordinates(out: &mut Vec<u8>, p: &[f32; 3], sep: &[u8]) {
+    put_float(out, p[0]);
+    out.extend_from_slice(sep);
+    put_float(out, p[1]);
+    out.extend_from_slice(sep);
+    put_float(out, p[2]);
+}
+
 /// Gmsh MSH 4.1: one entity per physical group (surfaces, then volumes); all nodes on the first
 /// volume entity.
 fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
@@ -255,12 +265,13 @@ fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     writeln!(w, "$Nodes\n1 {n} 1 {n}\n3 1 0 {n}")?;
     write_blocks(w, n, |out, r| {
         for tag in r {
-            let _ = writeln!(out, "{}", tag + 1);
+            put_ints(out, &[tag + 1], b"");
         }
     })?;
     write_blocks(w, n, |out, r| {
         for p in &mesh.positions[r] {
-            let _ = writeln!(out, "{} {} {}", p[0], p[1], p[2]);
+            put_coordinates(out, p, b" ");
+            out.push(b'\n');
         }
     })?;
     writeln!(w, "$EndNodes")?;
@@ -273,15 +284,8 @@ fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         writeln!(w, "2 {} 2 {}", groups.surface_tag(k), tris.len())?;
         write_blocks(w, tris.len(), |out, r| {
             for i in r {
-                let x = tris[i];
-                let _ = writeln!(
-                    out,
-                    "{} {} {} {}",
-                    first + i + 1,
-                    x[0] + 1,
-                    x[1] + 1,
-                    x[2] + 1
-                );
+                let x = tris[i].map(|v| v as usize + 1);
+                put_ints(out, &[first + i + 1, x[0], x[1], x[2]], b" ");
             }
         })?;
         first += tris.len();
@@ -290,16 +294,8 @@ fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         writeln!(w, "3 {} 4 {}", groups.volume_tag(k), tets.len())?;
         write_blocks(w, tets.len(), |out, r| {
             for i in r {
-                let x = mesh.tets[tets[i] as usize];
-                let _ = writeln!(
-                    out,
-                    "{} {} {} {} {}",
-                    first + i + 1,
-                    x[0] + 1,
-                    x[1] + 1,
-                    x[2] + 1,
-                    x[3] + 1
-                );
+                let x = mesh.tets[tets[i] as usize].map(|v| v as usize + 1);
+                put_ints(out, &[first + i + 1, x[0], x[1], x[2], x[3]], b" ");
             }
         })?;
         first += tets.len();
@@ -385,65 +381,91 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
     write!(w, r#"  <AppendedData encoding="raw">"#)?;
     w.write_all(b"\n   _")?;
     // Each array: its byte count, then its items, encoded a stretch at a time so that no array
-    // is ever held whole a second time.
+    // is ever held whole a second time (arrays whose bytes are the mesh's own on a
+    // little-endian machine go out as they are).
     let array = |w: &mut dyn Write,
                  count: usize,
                  size: usize,
-                 item: &dyn Fn(usize, &mut Vec<u8>)|
+                 fill: &dyn Fn(Range<usize>, &mut Vec<u8>)|
      -> io::Result<()> {
         w.write_all(&((count * size) as u64).to_le_bytes())?;
         let mut buf = Vec::with_capacity(STRETCH * size);
         for start in (0..count).step_by(STRETCH) {
             buf.clear();
-            for i in start..(start + STRETCH).min(count) {
-                item(i, &mut buf);
-            }
+            fill(start..(start + STRETCH).min(count), &mut buf);
             w.write_all(&buf)?;
         }
         Ok(())
     };
-    array(w, n, 12, &|i, b| {
-        for x in mesh.positions[i] {
-            b.extend_from_slice(&x.to_le_bytes());
-        }
-    })?;
-    if wide {
-        array(w, t, 32, &|i, b| {
-            for v in mesh.tets[i] {
-                b.extend_from_slice(&i64::from(v).to_le_bytes());
-            }
-        })?;
-        array(w, t, 8, &|i, b| {
-            b.extend_from_slice(&(4 * (i as i64 + 1)).to_le_bytes())
-        })?;
+    let raw = |w: &mut dyn Write, bytes: &[u8]| -> io::Result<()> {
+        w.write_all(&(bytes.len() as u64).to_le_bytes())?;
+        w.write_all(bytes)
+    };
+    if cfg!(target_endian = "little") {
+        raw(w, bytemuck::cast_slice(&mesh.positions))?;
     } else {
-        array(w, t, 16, &|i, b| {
-            for v in mesh.tets[i] {
-                b.extend_from_slice(&(v as i32).to_le_bytes());
+        array(w, n, 12, &|r, b| {
+            for p in &mesh.positions[r] {
+                put_le(b, p);
             }
-        })?;
-        array(w, t, 4, &|i, b| {
-            b.extend_from_slice(&(4 * (i as i32 + 1)).to_le_bytes())
         })?;
     }
-    array(w, t, 1, &|_, b| b.push(10))?;
+    if wide {
+        array(w, t, 32, &|r, b| {
+            for tet in &mesh.tets[r] {
+                for v in tet {
+                    b.extend_from_slice(&i64::from(*v).to_le_bytes());
+                }
+            }
+        })?;
+        array(w, t, 8, &|r, b| {
+            for i in r {
+                b.extend_from_slice(&(4 * (i as i64 + 1)).to_le_bytes());
+            }
+        })?;
+    } else {
+        // Indices below 2³¹: the same bytes as `Int32`.
+        if cfg!(target_endian = "little") {
+            raw(w, bytemuck::cast_slice(&mesh.tets))?;
+        } else {
+            array(w, t, 16, &|r, b| {
+                for tet in &mesh.tets[r] {
+                    for v in tet {
+                        b.extend_from_slice(&(*v as i32).to_le_bytes());
+                    }
+                }
+            })?;
+        }
+        array(w, t, 4, &|r, b| {
+            for i in r {
+                b.extend_from_slice(&(4 * (i as i32 + 1)).to_le_bytes());
+            }
+        })?;
+    }
+    array(w, t, 1, &|r, b| b.resize(b.len() + r.len(), 10))?;
     // The region: 1, or the label's group number (as in the other formats).
     let groups = mesh.labels.as_ref().map(|l| &l.tets);
-    array(w, t, 4, &|i, b| {
-        let group = groups.map_or(0, |g| g[i]) as i32 + 1;
-        b.extend_from_slice(&group.to_le_bytes())
+    array(w, t, 4, &|r, b| {
+        for i in r {
+            let group = groups.map_or(0, |g| g[i]) as i32 + 1;
+            b.extend_from_slice(&group.to_le_bytes());
+        }
     })?;
     if let Some(l) = &mesh.labels {
-        array(w, t, 8, &|i, b| {
-            b.extend_from_slice(&l.names[l.tets[i] as usize].to_le_bytes())
+        array(w, t, 8, &|r, b| {
+            for &label in &l.tets[r] {
+                b.extend_from_slice(&l.names[label as usize].to_le_bytes());
+            }
         })?;
     }
     if let Some(q) = quality {
         let fields: [fn(&TetQuality) -> f64; 3] =
             [|q| q.min_dihedral, |q| q.max_dihedral, |q| q.radius_ratio];
         for field in fields {
-            array(w, t, 8, &|i, b| {
-                b.extend_from_slice(&field(&q[i]).to_le_bytes())
+            array(w, t, 8, &|r, b| {
+                for q in &q[r] {
+                    b.extend_from_slice(&field(q).to_le_bytes());
+                }
             })?;
         }
     }
@@ -459,7 +481,8 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     writeln!(w, "MeshVersionFormatted 2\nDimension 3\nVertices\n{n}")?;
     write_blocks(w, n, |out, r| {
         for p in &mesh.positions[r] {
-            let _ = writeln!(out, "{} {} {} 0", p[0], p[1], p[2]);
+            put_coordinates(out, p, b" ");
+            out.extend_from_slice(b" 0\n");
         }
     })?;
     let s: usize = groups.surfaces.iter().map(|g| g.triangles.len()).sum();
@@ -468,7 +491,8 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         let reference = groups.surface_tag(k);
         write_blocks(w, g.triangles.len(), |out, r| {
             for x in &g.triangles[r] {
-                let _ = writeln!(out, "{} {} {} {reference}", x[0] + 1, x[1] + 1, x[2] + 1);
+                let x = x.map(|v| v as usize + 1);
+                put_ints(out, &[x[0], x[1], x[2], reference], b" ");
             }
         })?;
     }
@@ -476,16 +500,9 @@ fn write_medit(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     writeln!(w, "Tetrahedra\n{t}")?;
     write_blocks(w, t, |out, r| {
         for i in r {
-            let x = mesh.tets[i];
-            let _ = writeln!(
-                out,
-                "{} {} {} {} {}",
-                x[0] + 1,
-                x[1] + 1,
-                x[2] + 1,
-                x[3] + 1,
-                groups.volume_tag(groups.tet_group(i) as usize)
-            );
+            let x = mesh.tets[i].map(|v| v as usize + 1);
+            let reference = groups.volume_tag(groups.tet_group(i) as usize);
+            put_ints(out, &[x[0], x[1], x[2], x[3], reference], b" ");
         }
     })?;
     writeln!(w, "End")
@@ -516,7 +533,10 @@ fn write_inp(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     writeln!(w, "*Node")?;
     write_blocks(w, mesh.positions.len(), |out, r| {
         for (i, p) in mesh.positions[r.clone()].iter().enumerate() {
-            let _ = writeln!(out, "{}, {}, {}, {}", r.start + i + 1, p[0], p[1], p[2]);
+            put_int(out, r.start + i + 1);
+            out.extend_from_slice(b", ");
+            put_coordinates(out, p, b", ");
+            out.push(b'\n');
         }
     })?;
     // Elements numbered group by group; `number[t]` is tetrahedron t's.
@@ -527,16 +547,8 @@ fn write_inp(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         let first = next;
         write_blocks(w, tets.len(), |out, r| {
             for i in r {
-                let x = mesh.tets[tets[i] as usize];
-                let _ = writeln!(
-                    out,
-                    "{}, {}, {}, {}, {}",
-                    first + i,
-                    x[0] + 1,
-                    x[1] + 1,
-                    x[2] + 1,
-                    x[3] + 1
-                );
+                let x = mesh.tets[tets[i] as usize].map(|v| v as usize + 1);
+                put_ints(out, &[first + i, x[0], x[1], x[2], x[3]], b", ");
             }
         })?;
         for &t in tets {

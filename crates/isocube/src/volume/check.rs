@@ -179,6 +179,26 @@ pub struct TetCheck {
 
 impl TetMesh {
     /// Checks conformity, orientation and volume (see [`TetCheck`]).
+    ///
+    /// Conformity is first decided by a signature of the boundary chain: every oriented face
+    /// of every tetrahedron is hashed (a 64-bit mix of its sorted corners, negated when its
+    /// orientation is odd) and summed, and the sum must equal that of the boundary triangles.
+    /// Faces shared by two tetrahedra the opposite ways cancel; any face left over or missing
+    /// changes the sum except with probability about 2⁻⁶⁴. With every tetrahedron positive this
+    /// is the whole of conformity: the tetrahedra's winding number is then 1 inside the
+    /// boundary and 0 outside, so no two overlap and no face is used more than twice. Only when
+    /// the signatures differ are the faces matched one by one to count what is wrong.
+    ///
+    /// ```
+    /// use isocube::extract::ExtractOptions;
+    /// use isocube::field::Sample;
+    /// use isocube::volume::tetmesh;
+    /// let mut mesh = tetmesh(&Sample::Sphere.grid(12), &ExtractOptions::default()).unwrap();
+    /// assert!(mesh.check().conforming);
+    /// mesh.tets.pop();
+    /// let c = mesh.check();
+    /// assert!(!c.conforming && c.boundary_mismatch == 4);
+    /// ```
     pub fn check(&self) -> TetCheck {
         // Volumes are measured from a vertex of the mesh, not from a far origin.
         let o = self
@@ -186,34 +206,75 @@ impl TetMesh {
             .first()
             .map_or([0.0; 3], |x| x.map(f64::from));
         let p = |v: u32| sub(self.positions[v as usize].map(f64::from), o);
-        let (inverted, flat, volume) = self
+        let (inverted, flat, volume, chain) = self
             .tets
             .par_iter()
             .map(|t| {
                 let [a, b, c, d] = t.map(p);
-                let pos = positive(a, b, c, d);
-                let neg = positive(a, c, b, d);
                 let vol = dot(sub(b, a), cross(sub(c, a), sub(d, a))) / 6.0;
-                (usize::from(!pos && neg), usize::from(!pos && !neg), vol)
+                let sign = orientation(a, b, c, d);
+                let [i, j, k, l] = *t;
+                let chain = [[i, k, j], [i, j, l], [i, l, k], [j, k, l]]
+                    .into_iter()
+                    .fold(0u64, |s, f| s.wrapping_add(face_signature(f)));
+                (
+                    usize::from(sign < 0.0),
+                    usize::from(sign == 0.0),
+                    vol,
+                    chain,
+                )
             })
-            .reduce(|| (0, 0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
-        let (bad_faces, open) = match_faces(&self.tets, self.positions.len());
-        let canonical = |f: [u32; 3]| {
-            let r = (0..3).min_by_key(|&r| f[r]).expect("three");
-            [f[r], f[(r + 1) % 3], f[(r + 2) % 3]]
-        };
-        let mut open: Vec<[u32; 3]> = open.into_iter().map(canonical).collect();
+            .reduce(
+                || (0, 0, 0.0, 0),
+                |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2, x.3.wrapping_add(y.3)),
+            );
         let mut beyond = self.beyond.clone();
         beyond.sort_unstable();
-        let mut boundary: Vec<[u32; 3]> = self
+        let boundary: Vec<[u32; 3]> = self
             .surface
             .iter()
             .enumerate()
             .filter(|(t, _)| beyond.binary_search(&(*t as u32)).is_err())
             .map(|(_, &f)| f)
             .chain(self.walls.iter().copied())
-            .map(canonical)
             .collect();
+        let expected = boundary
+            .par_iter()
+            .map(|&f| face_signature(f))
+            .reduce(|| 0, u64::wrapping_add);
+        let (bad_faces, boundary_mismatch) = if chain == expected {
+            (0, 0)
+        } else {
+            self.match_boundary(&boundary)
+        };
+        let enclosed = boundary
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(p);
+                dot(a, cross(b, c)) / 6.0
+            })
+            .sum();
+        TetCheck {
+            conforming: bad_faces == 0 && boundary_mismatch == 0,
+            bad_faces,
+            boundary_mismatch,
+            inverted,
+            flat,
+            volume,
+            enclosed,
+        }
+    }
+
+    /// Matches the tetrahedra's faces one by one: the faces used otherwise than once each way,
+    /// and the mismatches between the faces used once and `boundary`.
+    fn match_boundary(&self, boundary: &[[u32; 3]]) -> (usize, usize) {
+        let canonical = |f: [u32; 3]| {
+            let r = (0..3).min_by_key(|&r| f[r]).expect("three");
+            [f[r], f[(r + 1) % 3], f[(r + 2) % 3]]
+        };
+        let (bad_faces, open) = match_faces(&self.tets, self.positions.len());
+        let mut open: Vec<[u32; 3]> = open.into_iter().map(canonical).collect();
+        let mut boundary: Vec<[u32; 3]> = boundary.iter().map(|&f| canonical(f)).collect();
         open.par_sort_unstable();
         boundary.par_sort_unstable();
         let mut boundary_mismatch = 0;
@@ -238,23 +299,52 @@ impl TetMesh {
                 }
             }
         }
-        let enclosed = boundary
-            .par_iter()
-            .map(|t| {
-                let [a, b, c] = t.map(p);
-                dot(a, cross(b, c)) / 6.0
-            })
-            .sum();
-        TetCheck {
-            conforming: bad_faces == 0 && boundary_mismatch == 0,
-            bad_faces,
-            boundary_mismatch,
-            inverted,
-            flat,
-            volume,
-            enclosed,
-        }
+        (bad_faces, boundary_mismatch)
     }
+}
+
+/// The sign of the tetrahedron's orientation, decided exactly: positive, negative or zero (flat).
+fn orientation(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 {
+    let q = |x: [f64; 3]| robust::Coord3D {
+        x: x[0],
+        y: x[1],
+        z: x[2],
+    };
+    -robust::orient3d(q(a), q(b), q(c), q(d))
+}
+
+/// An oriented face's term in the boundary-chain signature: a hash of its corners in increasing
+/// order, negated (mod 2⁶⁴) when sorting them takes an odd permutation, so that a face and its
+/// reverse cancel.
+fn face_signature(f: [u32; 3]) -> u64 {
+    let [mut a, mut b, mut c] = f;
+    let mut odd = false;
+    if a > b {
+        std::mem::swap(&mut a, &mut b);
+        odd = !odd;
+    }
+    if b > c {
+        std::mem::swap(&mut b, &mut c);
+        odd = !odd;
+    }
+    if a > b {
+        std::mem::swap(&mut a, &mut b);
+        odd = !odd;
+    }
+    let h = mix(mix((u64::from(a) << 32) | u64::from(b)) ^ u64::from(c));
+    if odd {
+        h.wrapping_neg()
+    } else {
+        h
+    }
+}
+
+/// SplitMix64's finaliser: a bijective mix of 64 bits.
+fn mix(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
 }
 
 /// Matches the tetrahedra's outward faces: each face is filed under its lowest vertex (a

@@ -103,18 +103,24 @@ pub(super) fn improve(
             near[v as usize] = true;
         }
     }
-    for t in tets.iter() {
-        if t.iter().any(|&v| near[v as usize]) {
-            for v in t {
-                known[*v as usize] = true;
-            }
+    // Few tetrahedra are near the poor ones: found in parallel, listed in order.
+    let touching = |flags: &[bool]| -> Vec<u32> {
+        tets.par_iter()
+            .enumerate()
+            .filter(|(_, t)| t.iter().any(|&v| flags[v as usize]))
+            .map(|(i, _)| i as u32)
+            .collect()
+    };
+    for t in touching(&near) {
+        for v in tets[t as usize] {
+            known[v as usize] = true;
         }
     }
     let mut incident: HashMap<u32, Vec<u32>> = HashMap::default();
-    for (i, t) in tets.iter().enumerate() {
-        for v in t {
-            if known[*v as usize] {
-                incident.entry(*v).or_default().push(i as u32);
+    for i in touching(&known) {
+        for v in tets[i as usize] {
+            if known[v as usize] {
+                incident.entry(v).or_default().push(i);
             }
         }
     }

@@ -227,41 +227,51 @@ pub fn tetmesh<'a>(
         }
     }
     let ternary = matches!(options.method, Method::Ternary(_));
-    let mut inside_points: Vec<u32> = Vec::new();
     let base = surface.positions.len();
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = i + dims[0] * (j + dims[1] * k);
-                let is_in = if ternary && extractor.is_zero_point([i, j, k]) {
-                    // A zero point the surface does not pass through: the surface around it
-                    // vanished as the point reached the level, leaving it on the side of its
-                    // neighbours.
-                    rank[p] == u32::MAX && {
-                        let c = [i, j, k];
-                        let sides: Vec<bool> = (0..6)
-                            .filter_map(|e| {
-                                let mut q = c;
-                                q[e / 2] = (c[e / 2] + 1).checked_sub(2 * (e % 2))?;
-                                (q[e / 2] < dims[e / 2] && !extractor.is_zero_point(q))
-                                    .then(|| inside(grid.value(q[0], q[1], q[2])))
-                            })
-                            .collect();
-                        if sides.is_empty() {
-                            flip
-                        } else {
-                            sides.contains(&true)
-                        }
-                    }
+    let is_in = |[i, j, k]: [usize; 3]| {
+        let p = i + dims[0] * (j + dims[1] * k);
+        if ternary && extractor.is_zero_point([i, j, k]) {
+            // A zero point the surface does not pass through: the surface around it vanished
+            // as the point reached the level, leaving it on the side of its neighbours.
+            rank[p] == u32::MAX && {
+                let c = [i, j, k];
+                let sides: Vec<bool> = (0..6)
+                    .filter_map(|e| {
+                        let mut q = c;
+                        q[e / 2] = (c[e / 2] + 1).checked_sub(2 * (e % 2))?;
+                        (q[e / 2] < dims[e / 2] && !extractor.is_zero_point(q))
+                            .then(|| inside(grid.value(q[0], q[1], q[2])))
+                    })
+                    .collect();
+                if sides.is_empty() {
+                    flip
                 } else {
-                    inside(grid.value(i, j, k))
-                };
-                if is_in {
-                    rank[p] = (base + inside_points.len()) as u32;
-                    inside_points.push(p as u32);
+                    sides.contains(&true)
                 }
             }
+        } else {
+            inside(grid.value(i, j, k))
         }
+    };
+    // Classified slice by slice in parallel, numbered in grid order.
+    let slices: Vec<Vec<u32>> = (0..dims[2])
+        .into_par_iter()
+        .map(|k| {
+            let mut points = Vec::new();
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    if is_in([i, j, k]) {
+                        points.push((i + dims[0] * (j + dims[1] * k)) as u32);
+                    }
+                }
+            }
+            points
+        })
+        .collect();
+    let inside_points: Vec<u32> = slices.concat();
+    drop(slices);
+    for (r, &p) in inside_points.iter().enumerate() {
+        rank[p as usize] = (base + r) as u32;
     }
     if inside_points.is_empty() {
         return Err(TetError::Empty);
@@ -377,24 +387,31 @@ pub fn tetmesh<'a>(
         extract: extract_stats,
         ..TetStats::default()
     };
-    let mut tets = Vec::with_capacity(layers.iter().map(|l| l.tets.len()).sum());
+    // Each layer's Steiner points are numbered from `offset`; its tetrahedra are copied into
+    // their place in parallel.
+    let mut tets = vec![[0u32; 4]; layers.iter().map(|l| l.tets.len()).sum()];
     let mut walls = Vec::new();
     let mut offset = steiner_base as u32;
-    for layer in layers {
-        let map = |v: u32| {
-            if v & STEINER != 0 {
-                offset + (v & !STEINER)
-            } else {
-                v
-            }
-        };
-        tets.extend(layer.tets.iter().map(|t| t.map(map)));
+    let mut places = Vec::with_capacity(layers.len());
+    let mut rest = tets.as_mut_slice();
+    for layer in &layers {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(layer.tets.len());
+        places.push((layer, head, offset));
+        rest = tail;
+        let map = steiner_map(offset);
         walls.extend(layer.walls.iter().map(|t| t.map(map)));
         positions.extend_from_slice(&layer.steiner);
         offset += layer.steiner.len() as u32;
         stats.lattice_cells += layer.lattice_cells;
         stats.cut_cells += layer.cut_cells;
     }
+    places.into_par_iter().for_each(|(layer, place, offset)| {
+        let map = steiner_map(offset);
+        for (to, from) in place.iter_mut().zip(&layer.tets) {
+            *to = from.map(map);
+        }
+    });
+    drop(layers);
     // Ternary meshes are held to the dihedral angle range: what the cells could not reach,
     // flips and moves across cells often can. With plain Marching Cubes the slivers come with
     // the surface (its triangles' corners fixed), several per cent of the elements, and the
@@ -422,6 +439,18 @@ pub fn tetmesh<'a>(
     };
     mesh.orient(&grid);
     Ok(mesh)
+}
+
+/// A layer's vertex numbers in the mesh: its Steiner points (`STEINER | k`) numbered from
+/// `offset`, the rest as they are.
+fn steiner_map(offset: u32) -> impl Fn(u32) -> u32 + Copy {
+    move |v| {
+        if v & STEINER != 0 {
+            offset + (v & !STEINER)
+        } else {
+            v
+        }
+    }
 }
 
 impl TetMesh {
@@ -1016,12 +1045,17 @@ impl Context<'_> {
         candidates: &[[f64; 3]],
     ) -> Option<([f64; 3], f64)> {
         let sees_all = |apex: [f64; 3]| cones::sees_all(tris, degenerate, apex);
-        let score = |apex: [f64; 3]| {
-            tris.iter()
-                .zip(degenerate)
-                .filter(|(_, &d)| !d)
-                .map(|(t, _)| cone_quality(t, apex))
-                .fold(f64::INFINITY, f64::min)
+        // The cone's worst score, or None as soon as a tetrahedron scores `bound` or less (the
+        // cone cannot win).
+        let score = |apex: [f64; 3], bound: f64| {
+            let mut worst = f64::INFINITY;
+            for (t, _) in tris.iter().zip(degenerate).filter(|(_, &d)| !d) {
+                worst = worst.min(cone_quality(t, apex));
+                if worst <= bound {
+                    return None;
+                }
+            }
+            Some(worst)
         };
         if !self.shape {
             return candidates
@@ -1034,13 +1068,13 @@ impl Context<'_> {
         let mut best: Option<([f64; 3], f64)> = None;
         for &c in candidates {
             if sees_all(c) {
-                let q = score(c);
+                let Some(q) = score(c, best.map_or(f64::NEG_INFINITY, |b| b.1)) else {
+                    continue;
+                };
                 if q >= GOOD {
                     return Some((c, q));
                 }
-                if best.is_none_or(|b| q > b.1) {
-                    best = Some((c, q));
-                }
+                best = Some((c, q));
             }
         }
         let (mut apex, mut quality) = best?;
@@ -1054,8 +1088,7 @@ impl Context<'_> {
                 p[axis / 2] += if axis % 2 == 0 { step } else { -step };
                 let p = p.map(|x| f64::from(x as f32));
                 if sees_all(p) {
-                    let q = score(p);
-                    if q > quality {
+                    if let Some(q) = score(p, quality) {
                         (apex, quality, moved) = (p, q, true);
                     }
                 }

@@ -28,35 +28,16 @@ impl TetQuality {
     /// assert!((q.min_dihedral - 70.528779).abs() < 1e-5 && (q.radius_ratio - 1.0).abs() < 1e-12);
     /// ```
     pub fn of(p: [[f64; 3]; 4]) -> TetQuality {
-        // Outward-or-inward normals of the faces opposite each corner, all the same way.
-        let face = |i: usize| {
-            let [a, b, c] = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4].map(|k| p[k]);
-            let n = cross(sub(b, a), sub(c, a));
-            // Point away from the opposite corner.
-            if dot(n, sub(p[i], a)) > 0.0 {
-                n.map(|x| -x)
-            } else {
-                n
-            }
-        };
-        let normals: [[f64; 3]; 4] = std::array::from_fn(face);
-        let areas: [f64; 4] = normals.map(|n| 0.5 * dot(n, n).sqrt());
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for i in 0..4 {
-            for j in i + 1..4 {
-                let (a, b) = (normals[i], normals[j]);
-                let len = (dot(a, a) * dot(b, b)).sqrt();
-                // The dihedral angle at the edge the two faces share.
-                let angle = if len > 0.0 {
-                    180.0 - (dot(a, b) / len).clamp(-1.0, 1.0).acos().to_degrees()
-                } else {
-                    0.0
-                };
-                lo = lo.min(angle);
-                hi = hi.max(angle);
-            }
-        }
-        let [a, b, c] = [0, 1, 2].map(|k| sub(p[k], p[3]));
+        TetQuality::of_edges(edges(p))
+    }
+
+    /// The quality of the tetrahedron whose corners are 0 and these three edge vectors: a
+    /// function of the vectors alone, so translates whose vectors are the same bits have the
+    /// same quality, bit for bit.
+    fn of_edges(e: [[f64; 3]; 3]) -> TetQuality {
+        let (normals, lengths) = face_normals(e);
+        let (min_dihedral, max_dihedral) = extremes(&normals, &lengths);
+        let [a, b, c] = e;
         let six_volume = dot(a, cross(b, c)).abs();
         let radius_ratio = if six_volume > 0.0 {
             let w = [cross(b, c), cross(c, a), cross(a, b)];
@@ -64,51 +45,71 @@ impl TetQuality {
             let m: [f64; 3] =
                 std::array::from_fn(|d| s[0] * w[0][d] + s[1] * w[1][d] + s[2] * w[2][d]);
             let circumradius = dot(m, m).sqrt() / (2.0 * six_volume);
-            let inradius = 0.5 * six_volume / areas.iter().sum::<f64>();
+            // Face areas are half the normals' lengths.
+            let inradius = six_volume / lengths.iter().sum::<f64>();
             circumradius / (3.0 * inradius)
         } else {
             f64::INFINITY
         };
         TetQuality {
-            min_dihedral: lo,
-            max_dihedral: hi,
+            min_dihedral,
+            max_dihedral,
             radius_ratio,
         }
     }
 }
 
-/// The smallest and largest dihedral angles of a tetrahedron, in degrees, as
-/// [`TetQuality::of`] finds them, with two arc cosines instead of six (the cone-point search
-/// scores many candidate tetrahedra).
-pub(super) fn dihedral_extremes(p: [[f64; 3]; 4]) -> (f64, f64) {
-    let face = |i: usize| {
-        let [a, b, c] = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4].map(|k| p[k]);
-        let n = cross(sub(b, a), sub(c, a));
-        let n = if dot(n, sub(p[i], a)) > 0.0 {
-            n.map(|x| -x)
-        } else {
-            n
-        };
-        let len = dot(n, n).sqrt();
-        if len > 0.0 {
-            n.map(|x| x / len)
-        } else {
-            n
-        }
-    };
-    let normals: [[f64; 3]; 4] = std::array::from_fn(face);
-    // The dihedral angle is 180° less the angle between outward normals: its cosine is
-    // minus their dot product.
+/// The edge vectors from the first corner to the others.
+#[inline(always)]
+fn edges(p: [[f64; 3]; 4]) -> [[f64; 3]; 3] {
+    [sub(p[1], p[0]), sub(p[2], p[0]), sub(p[3], p[0])]
+}
+
+/// The normals of the faces opposite each corner (twice the faces' areas long), all pointing
+/// out of the tetrahedron when it is positive and all into it when it is negative (the dihedral
+/// angles depend only on their pairwise products, which do not see the difference), and their
+/// lengths; from the edge vectors of the first corner.
+#[inline(always)]
+fn face_normals([e1, e2, e3]: [[f64; 3]; 3]) -> ([[f64; 3]; 4], [f64; 4]) {
+    let normals = [
+        cross(sub(e2, e1), sub(e3, e1)),
+        cross(e3, e2),
+        cross(e1, e3),
+        cross(e2, e1),
+    ];
+    let lengths = normals.map(|n| dot(n, n).sqrt());
+    (normals, lengths)
+}
+
+/// The smallest and largest dihedral angles, in degrees, from the outward face normals: the
+/// dihedral angle at the edge two faces share is 180° less the angle between their normals, so
+/// its cosine is minus their normalised dot product; only the two extreme cosines need an arc
+/// cosine. A face of no area makes the smallest angle 0°.
+#[inline(always)]
+fn extremes(normals: &[[f64; 3]; 4], lengths: &[f64; 4]) -> (f64, f64) {
     let (mut hi_cos, mut lo_cos) = (f64::NEG_INFINITY, f64::INFINITY);
     for i in 0..4 {
         for j in i + 1..4 {
-            let c = -dot(normals[i], normals[j]);
+            let len = lengths[i] * lengths[j];
+            let c = if len > 0.0 {
+                -dot(normals[i], normals[j]) / len
+            } else {
+                1.0
+            };
             hi_cos = hi_cos.max(c);
             lo_cos = lo_cos.min(c);
         }
     }
     let angle = |c: f64| c.clamp(-1.0, 1.0).acos().to_degrees();
     (angle(hi_cos), angle(lo_cos))
+}
+
+/// The smallest and largest dihedral angles of a tetrahedron, in degrees, as
+/// [`TetQuality::of`] finds them (the cone-point search and the improvement step score many
+/// candidate tetrahedra).
+pub(super) fn dihedral_extremes(p: [[f64; 3]; 4]) -> (f64, f64) {
+    let (normals, lengths) = face_normals(edges(p));
+    extremes(&normals, &lengths)
 }
 
 /// A whole mesh's quality.
@@ -131,11 +132,37 @@ pub struct TetReport {
 
 impl TetMesh {
     /// Every tetrahedron's quality, in order.
+    ///
+    /// Most elements of a volume mesh are lattice tetrahedra, translates of a few shapes: a
+    /// small cache per stretch of elements, keyed by the exact bits of the edge vectors (the
+    /// differences of `f32` coordinates are exact in `f64`), computes each shape once. The
+    /// result is the same, bit for bit, as computing every element.
     pub fn qualities(&self) -> Vec<TetQuality> {
-        self.tets
-            .par_iter()
-            .map(|t| TetQuality::of(t.map(|v| self.positions[v as usize].map(f64::from))))
-            .collect()
+        const STRETCH: usize = 1 << 14;
+        const SLOTS: usize = 1 << 10;
+        let mut out = vec![TetQuality::default(); self.tets.len()];
+        out.par_chunks_mut(STRETCH)
+            .zip(self.tets.par_chunks(STRETCH))
+            .for_each(|(out, tets)| {
+                let mut cache: Vec<Option<([u64; 9], TetQuality)>> = vec![None; SLOTS];
+                for (q, t) in out.iter_mut().zip(tets) {
+                    let e = edges(t.map(|v| self.positions[v as usize].map(f64::from)));
+                    let key: [u64; 9] = std::array::from_fn(|i| e[i / 3][i % 3].to_bits());
+                    let slot = key.iter().fold(0u64, |h, &x| {
+                        (h.rotate_left(5) ^ x).wrapping_mul(0x517c_c1b7_2722_0a95)
+                    }) >> (64 - SLOTS.trailing_zeros());
+                    let entry = &mut cache[slot as usize];
+                    *q = match entry {
+                        Some((k, quality)) if *k == key => *quality,
+                        _ => {
+                            let quality = TetQuality::of_edges(e);
+                            *entry = Some((key, quality));
+                            quality
+                        }
+                    };
+                }
+            });
+        out
     }
 
     /// The mesh's quality summary.

@@ -393,6 +393,28 @@ fn the_check_catches_broken_meshes() {
     turned.tets[3].swap(0, 1);
     let c = turned.check();
     assert!(!c.conforming && c.inverted == 1, "{c:?}");
+    // A tetrahedron split into three at a point inside one of its faces: every piece positive,
+    // the volume the same, but the face no longer meets its neighbour's.
+    let mut split = good.clone();
+    let t = split.tets.swap_remove(split.tets.len() / 3);
+    let centre: [f32; 3] = std::array::from_fn(|d| {
+        (0..3)
+            .map(|k| split.positions[t[k] as usize][d])
+            .sum::<f32>()
+            / 3.0
+    });
+    let m = split.positions.len() as u32;
+    split.positions.push(centre);
+    let [a, b, c, d] = t;
+    split
+        .tets
+        .extend([[a, b, m, d], [b, c, m, d], [c, a, m, d]]);
+    let c = split.check();
+    assert!(!c.conforming && c.inverted == 0, "{c:?}");
+    assert!(
+        (c.volume - good.check().volume).abs() < 1e-9 * c.volume,
+        "{c:?}"
+    );
 }
 
 /// Refusals on packed spheres at the resolutions, every option set (run with
@@ -692,4 +714,22 @@ fn oriented_grids_give_valid_meshes() {
     .unwrap();
     let c = assert_valid(&mesh, "labels reflected");
     assert!(c.enclosed > 0.0);
+}
+
+/// The mesh's qualities (shapes computed once per run of translates) are, bit for bit, those of
+/// every element computed on its own.
+#[test]
+fn qualities_match_each_element() {
+    for options in ternary_options().into_iter().take(2) {
+        let mesh = tetmesh(&Sample::Tangle.grid(28), &options).unwrap();
+        let all = mesh.qualities();
+        assert_eq!(all.len(), mesh.tets.len());
+        for (q, t) in all.iter().zip(&mesh.tets) {
+            let own = TetQuality::of(t.map(|v| mesh.positions[v as usize].map(f64::from)));
+            assert_eq!(
+                [q.min_dihedral, q.max_dihedral, q.radius_ratio].map(f64::to_bits),
+                [own.min_dihedral, own.max_dihedral, own.radius_ratio].map(f64::to_bits)
+            );
+        }
+    }
 }
