@@ -51,29 +51,17 @@ pub(crate) fn write_blocks<W: Write + ?Sized>(
     Ok(())
 }
 
-/// Appends the integers in decimal separated by `sep`, then a newline. Large ASCII meshes are
-/// mostly such lines: each is built on the stack and appended at once, many times faster than
-/// `write!` (or than appending number by number, a library copy call each).
+/// Appends the integers in decimal separated by `sep`, then a newline (`itoa`: large ASCII
+/// meshes are mostly such lines, and `write!` spends most of its time on its machinery).
 pub(crate) fn put_ints(out: &mut Vec<u8>, xs: &[usize], sep: &[u8]) {
-    let mut line = [0u8; 256];
-    let mut len = 0;
     let mut digits = itoa::Buffer::new();
     for (i, &x) in xs.iter().enumerate() {
         if i > 0 {
-            for &b in sep {
-                line[len] = b;
-                len += 1;
-            }
+            out.extend_from_slice(sep);
         }
-        // At most 20 digits: a fixed-size copy, no library call.
-        let text = digits.format(x).as_bytes();
-        let mut padded = [0u8; 20];
-        padded[..text.len()].copy_from_slice(text);
-        line[len..len + 20].copy_from_slice(&padded);
-        len += text.len();
+        out.extend_from_slice(digits.format(x).as_bytes());
     }
-    line[len] = b'\n';
-    out.extend_from_slice(&line[..=len]);
+    out.push(b'\n');
 }
 
 /// Appends `x` in decimal.

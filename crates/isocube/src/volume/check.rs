@@ -16,14 +16,22 @@ use super::TetMesh;
 /// assert!(!positive(a, b, c, [0.5, 0.5, 0.0])); // flat
 /// ```
 pub fn positive(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> bool {
-    let p = |x: [f64; 3]| robust::Coord3D {
+    orientation(a, b, c, d) > 0.0
+}
+
+/// The sign of the tetrahedron's orientation, decided exactly: positive, negative or zero (flat).
+fn orientation(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 {
+    // `robust` measures the other way round: positive when d lies below the plane of a, b, c
+    // seen counterclockwise.
+    -robust::orient3d(coord(a), coord(b), coord(c), coord(d))
+}
+
+fn coord(x: [f64; 3]) -> robust::Coord3D<f64> {
+    robust::Coord3D {
         x: x[0],
         y: x[1],
         z: x[2],
-    };
-    // `robust` measures the other way round: positive when d lies below the plane of a, b, c
-    // seen counterclockwise.
-    robust::orient3d(p(a), p(b), p(c), p(d)) < 0.0
+    }
 }
 
 /// Whether a triangle's corners lie on one line (exactly).
@@ -40,14 +48,9 @@ pub(super) fn coplanar(tris: &[[[f64; 3]; 3]]) -> bool {
     let Some(base) = tris.iter().find(|t| !collinear(**t)) else {
         return true;
     };
-    let q = |x: [f64; 3]| robust::Coord3D {
-        x: x[0],
-        y: x[1],
-        z: x[2],
-    };
     points
         .iter()
-        .all(|&x| robust::orient3d(q(base[0]), q(base[1]), q(base[2]), q(x)) == 0.0)
+        .all(|&x| orientation(base[0], base[1], base[2], x) == 0.0)
 }
 
 /// A point, rounded to `f32`, from which all of a closed part's outward triangles are seen from
@@ -301,16 +304,6 @@ impl TetMesh {
         }
         (bad_faces, boundary_mismatch)
     }
-}
-
-/// The sign of the tetrahedron's orientation, decided exactly: positive, negative or zero (flat).
-fn orientation(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 {
-    let q = |x: [f64; 3]| robust::Coord3D {
-        x: x[0],
-        y: x[1],
-        z: x[2],
-    };
-    -robust::orient3d(q(a), q(b), q(c), q(d))
 }
 
 /// An oriented face's term in the boundary-chain signature: a hash of its corners in increasing
