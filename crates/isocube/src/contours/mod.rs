@@ -27,6 +27,7 @@ mod plane;
 mod reconstruct;
 mod sectional;
 mod sparse;
+mod volume;
 
 pub use field::{inside_flags, section_field, stacked_field, SectionField};
 pub use plane::PlaneGrid;
@@ -35,6 +36,7 @@ pub use reconstruct::{
     ReconstructOptions, Reconstruction,
 };
 pub use sectional::Fidelity;
+pub use volume::tetmesh;
 
 use thiserror::Error;
 

@@ -280,6 +280,11 @@ impl<'a> Labelled<'a> {
         grid: GridView,
         options: &'a LabelOptions,
     ) -> Result<Labelled<'a>, ExtractError> {
+        if grid.heights().is_some() {
+            return Err(ExtractError::Unsupported(
+                "labelled volumes are meshed on evenly spaced planes only",
+            ));
+        }
         let [nx, ny, nz] = grid.dims();
         let mut names: Vec<i64> = Vec::new();
         let mut dense: FxHashMap<i64, u32> = FxHashMap::default();

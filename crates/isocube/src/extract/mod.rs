@@ -276,6 +276,9 @@ pub enum ExtractError {
         /// The value given.
         value: f32,
     },
+    /// A combination of inputs this path does not handle.
+    #[error("{0}")]
+    Unsupported(&'static str),
     /// The ends of a contour reconstruction could not be closed flat.
     #[error(
         "cannot close the ends flat: section at z = {z}: the boundary on the end plane {reason}"
@@ -478,7 +481,7 @@ pub fn extract_boxes_into<'a>(
         mesh.normals = normals;
     }
     if options.relax > 0 {
-        let spacing = grid.spacing().iter().copied().fold(f64::INFINITY, f64::min);
+        let spacing = grid.min_spacing();
         let level = f64::from(options.level);
         // A built-in sample relaxes on its exact function: the level set the grid approximates.
         match grid.exact() {

@@ -51,9 +51,7 @@ impl<'a> Placer<'a> {
 
     /// The position at fraction `t` along the grid edge from `p0` along `axis`.
     pub(super) fn edge_point(&self, p0: [usize; 3], axis: usize, t: f64) -> [f32; 3] {
-        let mut x = self.grid.point(p0[0], p0[1], p0[2]);
-        x[axis] += t * self.grid.spacing()[axis];
-        x.map(|c| c as f32)
+        self.grid.edge_point(p0, axis, t).map(|c| c as f32)
     }
 
     /// Creates the vertex at fraction `t` along the grid edge from `p0` along `axis`.
@@ -155,7 +153,6 @@ impl<'a> Placer<'a> {
     /// non-finite value.
     fn gradient(&self, p: [usize; 3]) -> [f64; 3] {
         let dims = self.grid.dims();
-        let h = self.grid.spacing();
         let at = |q: [usize; 3]| f64::from(self.grid.value(q[0], q[1], q[2]));
         let centre = at(p);
         // A plain loop, not `array::map`: this runs for every vertex, and the closures of a map
@@ -174,10 +171,18 @@ impl<'a> Placer<'a> {
                 q[d] += 1;
                 after = Some(at(q)).filter(|v| v.is_finite());
             }
+            // Uneven planes: the distances on each side (equal on a regular grid, where this is
+            // the usual central difference).
+            let below = || {
+                let mut q = p;
+                q[d] -= 1;
+                self.grid.edge_length(q, d)
+            };
+            let above = || self.grid.edge_length(p, d);
             g[d] = match (before, after) {
-                (Some(a), Some(b)) => (b - a) / (2.0 * h[d]),
-                (None, Some(b)) => (b - centre) / h[d],
-                (Some(a), None) => (centre - a) / h[d],
+                (Some(a), Some(b)) => (b - a) / (below() + above()),
+                (None, Some(b)) => (b - centre) / above(),
+                (Some(a), None) => (centre - a) / below(),
                 (None, None) => 0.0,
             };
         }

@@ -150,7 +150,7 @@ pub fn extract_streamed<S: MeshSink>(
                 let p1 = (cells.max[2] + 1).min(nz - 1);
                 buffer.resize((p1 + 1 - p0) * nx * ny, 0.0);
                 source.read_planes(p0, buffer);
-                let window = Window::new(dims, spacing, origin, p0, buffer);
+                let window = Window::new(dims, spacing, origin, None, p0, buffer);
                 BinaryCells::new(window, options).mesh_box(cache, cells)
             })
             .collect::<Vec<Result<ChunkMesh, ExtractError>>>()

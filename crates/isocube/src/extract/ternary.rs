@@ -248,7 +248,14 @@ impl<'a> Ternary<'a> {
     /// The values as the binary mesher's window reads them (`x` fastest).
     pub(super) fn window(&self) -> Window<'_> {
         let g = &self.grid;
-        Window::new(g.dims(), g.spacing(), g.origin(), 0, &self.values)
+        Window::new(
+            g.dims(),
+            g.spacing(),
+            g.origin(),
+            g.heights(),
+            0,
+            &self.values,
+        )
     }
 
     /// Number of point `(i, j, k)`: its place in [`Ternary::values`].
@@ -1324,17 +1331,13 @@ impl<'a> Ternary<'a> {
     /// Position of the vertex of zero point `p` at coordinates `c`.
     fn point_position(&self, p: usize, c: [usize; 3]) -> [f32; 3] {
         let (c0, axis, t) = self.snapped_place_at(p, c);
-        let mut x = self.grid.point(c0[0], c0[1], c0[2]);
-        x[axis] += t * self.grid.spacing()[axis];
-        x.map(|c| c as f32)
+        self.grid.edge_point(c0, axis, t).map(|c| c as f32)
     }
 
     /// Position of the crossing on the edge from point `a` (at coordinates `c`) along `axis`.
     fn edge_position(&self, a: usize, c: [usize; 3], axis: usize) -> [f32; 3] {
         let t = self.edge_t(a, axis);
-        let mut x = self.grid.point(c[0], c[1], c[2]);
-        x[axis] += t * self.grid.spacing()[axis];
-        x.map(|c| c as f32)
+        self.grid.edge_point(c, axis, t).map(|c| c as f32)
     }
 
     /// Position of the vertex at local doubled coordinates `code` (see [`Known`]) around point

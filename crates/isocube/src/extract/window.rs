@@ -24,12 +24,13 @@ impl<'a> Window<'a> {
         dims: [usize; 3],
         spacing: [f64; 3],
         origin: [f64; 3],
+        heights: Option<&'a [f64]>,
         first: usize,
         values: &'a [f32],
     ) -> Window<'a> {
         debug_assert_eq!(values.len() % (dims[0] * dims[1]), 0);
         Window {
-            view: GridView::planes(values, dims, spacing, origin),
+            view: GridView::planes(values, dims, spacing, origin, heights),
             skipped: first * dims[0] * dims[1],
         }
     }
@@ -40,9 +41,16 @@ impl<'a> Window<'a> {
         self.view.dims()
     }
 
+    /// See [`GridView::edge_point`].
     #[inline]
-    pub(super) fn spacing(&self) -> [f64; 3] {
-        self.view.spacing()
+    pub(super) fn edge_point(&self, p: [usize; 3], axis: usize, t: f64) -> [f64; 3] {
+        self.view.edge_point(p, axis, t)
+    }
+
+    /// See [`GridView::edge_length`].
+    #[inline]
+    pub(super) fn edge_length(&self, p: [usize; 3], axis: usize) -> f64 {
+        self.view.edge_length(p, axis)
     }
 
     /// Elements between neighbouring points along each axis.

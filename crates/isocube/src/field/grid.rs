@@ -34,6 +34,14 @@ pub enum GridError {
         /// The spacing given.
         spacing: [f64; 3],
     },
+    /// Plane heights that are not one per plane, finite and increasing.
+    #[error("invalid geometry: {heights} plane heights for {planes} planes (they must be one per plane, finite and strictly increasing)")]
+    Heights {
+        /// Planes along z.
+        planes: usize,
+        /// Heights given.
+        heights: usize,
+    },
     /// An origin that is not finite.
     #[error("invalid geometry: origin {origin:?} must be finite")]
     Origin {
@@ -258,7 +266,7 @@ impl Grid {
     /// The grid as a borrowed view (what every extraction entry point takes).
     #[inline]
     pub fn view(&self) -> GridView<'_> {
-        let view = GridView::planes(&self.values, self.dims, self.spacing, self.origin);
+        let view = GridView::planes(&self.values, self.dims, self.spacing, self.origin, None);
         match self.exact {
             Some(sample) => view.with_exact(sample),
             None => view,

@@ -43,6 +43,8 @@ pub struct GridView<'a> {
     origin: [f64; 3],
     orientation: Orientation,
     exact: Option<Sample>,
+    /// The planes' `z` (before the origin) when they are unevenly spaced.
+    heights: Option<&'a [f64]>,
 }
 
 impl<'a> GridView<'a> {
@@ -96,6 +98,7 @@ impl<'a> GridView<'a> {
             origin: [0.0; 3],
             orientation: Orientation::IDENTITY,
             exact: None,
+            heights: None,
         })
     }
 
@@ -107,6 +110,7 @@ impl<'a> GridView<'a> {
         dims: [usize; 3],
         spacing: [f64; 3],
         origin: [f64; 3],
+        heights: Option<&'a [f64]>,
     ) -> GridView<'a> {
         GridView {
             values,
@@ -117,6 +121,7 @@ impl<'a> GridView<'a> {
             origin,
             orientation: Orientation::IDENTITY,
             exact: None,
+            heights,
         }
     }
 
@@ -138,6 +143,38 @@ impl<'a> GridView<'a> {
         self.origin = origin;
         self.exact = None;
         Ok(self)
+    }
+
+    /// Places the `z` planes at `heights` (added to the origin's `z`) instead of `spacing[2]`
+    /// apart: a rectilinear grid, as sections at uneven heights or an image series with uneven
+    /// slice gaps are. One height per plane, finite and strictly increasing.
+    ///
+    /// ```
+    /// use isocube::extract::{extract, ExtractOptions};
+    /// use isocube::field::{GridView, Sample};
+    /// let grid = Sample::Sphere.grid(12);
+    /// let heights: Vec<f64> = (0..12).map(|k| (k as f64 / 11.0).powi(2)).collect();
+    /// let view = grid.view().with_heights(&heights).unwrap();
+    /// assert_eq!(view.point(0, 0, 11)[2], grid.origin()[2] + 1.0);
+    /// let mesh = extract(view, &ExtractOptions::default()).unwrap();
+    /// assert!(mesh.positions.iter().all(|p| p[2] >= -1.0 && p[2] <= 1.0));
+    /// ```
+    pub fn with_heights(mut self, heights: &'a [f64]) -> Result<GridView<'a>, GridError> {
+        let increasing = heights.windows(2).all(|w| w[0] < w[1]);
+        if heights.len() != self.dims[2] || !increasing || heights.iter().any(|h| !h.is_finite()) {
+            return Err(GridError::Heights {
+                planes: self.dims[2],
+                heights: heights.len(),
+            });
+        }
+        self.heights = Some(heights);
+        self.exact = None;
+        Ok(self)
+    }
+
+    /// The `z` planes' heights, if set ([`GridView::with_heights`]).
+    pub fn heights(&self) -> Option<&'a [f64]> {
+        self.heights
     }
 
     /// Sets how the grid's axes lie in the world.
@@ -208,11 +245,44 @@ impl<'a> GridView<'a> {
     /// [`Grid::point`] is this.
     #[inline]
     pub fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
+        let z = match self.heights {
+            None => k as f64 * self.spacing[2],
+            Some(h) => h[k],
+        };
         [
             self.origin[0] + i as f64 * self.spacing[0],
             self.origin[1] + j as f64 * self.spacing[1],
-            self.origin[2] + k as f64 * self.spacing[2],
+            self.origin[2] + z,
         ]
+    }
+
+    /// The point at fraction `t` of the way along the grid edge from point `p` along `axis`.
+    #[inline]
+    pub fn edge_point(&self, p: [usize; 3], axis: usize, t: f64) -> [f64; 3] {
+        let mut x = self.point(p[0], p[1], p[2]);
+        x[axis] += t * self.edge_length(p, axis);
+        x
+    }
+
+    /// The length of the grid edge from point `p` along `axis`.
+    #[inline]
+    pub fn edge_length(&self, p: [usize; 3], axis: usize) -> f64 {
+        match self.heights {
+            Some(h) if axis == 2 => h[p[2] + 1] - h[p[2]],
+            _ => self.spacing[axis],
+        }
+    }
+
+    /// The shortest distance between neighbouring planes along any axis.
+    pub fn min_spacing(&self) -> f64 {
+        let z = match self.heights {
+            Some(h) => h
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .fold(f64::INFINITY, f64::min),
+            None => self.spacing[2],
+        };
+        self.spacing[..2].iter().copied().fold(z, f64::min)
     }
 
     /// Whether the values lie `x` fastest with no gap, as in a [`Grid`].
@@ -242,7 +312,8 @@ impl<'a> GridView<'a> {
         std::borrow::Cow::Owned(out)
     }
 
-    /// An owned copy, `x` fastest, with the same spacing and origin.
+    /// An owned copy, `x` fastest, with the same spacing and origin (not the heights: a [`Grid`]
+    /// is regular).
     pub fn to_grid(&self) -> Grid {
         Grid::new(self.dims, self.x_fastest().into_owned())
             .and_then(|g| g.with_spacing(self.spacing))

@@ -34,7 +34,20 @@ impl Field for Trilinear<'_> {
         let o = g.origin();
         let mut cell = [0usize; 3];
         let mut f = [0.0f64; 3];
+        let mut h = h;
         for a in 0..3 {
+            if let (2, Some(heights)) = (a, g.heights()) {
+                // Uneven planes: the cell holding p, and the fraction of its height.
+                let z = p[2] - o[2];
+                if !z.is_finite() {
+                    return None;
+                }
+                let c = heights.partition_point(|&t| t <= z).clamp(1, dims[2] - 1) - 1;
+                h[2] = heights[c + 1] - heights[c];
+                cell[2] = c;
+                f[2] = (z - heights[c]) / h[2];
+                continue;
+            }
             let u = (p[a] - o[a]) / h[a];
             if !u.is_finite() {
                 return None;

@@ -733,3 +733,35 @@ fn qualities_match_each_element() {
         }
     }
 }
+
+/// Planes placed by heights: heights that repeat the regular spacing give the very same meshes
+/// (surface and tetrahedra, every bit); uneven heights give a valid mesh of the stretched
+/// region (volume within the box, boundary on the level set of the stretched field).
+#[test]
+fn planes_at_heights_mesh_like_spaced_planes() {
+    let grid = Sample::Torus
+        .grid(14)
+        .with_spacing([0.25, 0.75, 0.5])
+        .unwrap();
+    let even: Vec<f64> = (0..14).map(|k| k as f64 * 0.5).collect();
+    let view = grid.view().with_heights(&even).unwrap();
+    for options in all_options().into_iter().chain(ternary_options()) {
+        let a = tetmesh(&grid, &options).unwrap();
+        let b = tetmesh(view, &options).unwrap();
+        assert_eq!(a, b, "{options:?}");
+    }
+    let uneven: Vec<f64> = (0..14).map(|k| (k as f64 / 13.0).powf(1.5) * 6.5).collect();
+    let view = grid.view().with_heights(&uneven).unwrap();
+    for options in all_options().into_iter().chain(ternary_options()) {
+        let t = tetmesh(view, &options).unwrap();
+        let c = assert_valid(&t, &format!("{options:?}"));
+        let cells = 13.0 * 0.25 * 13.0 * 0.75 * 6.5;
+        assert!(c.volume > 0.0 && c.volume < cells, "{}", c.volume);
+        // Every vertex within the box the heights span.
+        assert!(t
+            .positions
+            .iter()
+            .all(|p| p[2] >= grid.origin()[2] as f32 - 1e-5
+                && p[2] <= (grid.origin()[2] + 6.5) as f32 + 1e-5));
+    }
+}
