@@ -40,11 +40,13 @@ done
 "$venv/bin/python" "$here/check_meshes.py" "$manifest"
 
 # Tetrahedral meshes: a closed region (sphere), one reaching the grid's faces (gyroid's
-# other side) and a ternary one, in every tetrahedral format.
+# other side), a ternary one and the body between contour sections (flat ends: walls), in every
+# tetrahedral format.
 tets="$work/tets.txt"
 : > "$tets"
 for case in "sphere sample:sphere:32" "gyroid sample:gyroid:24 --flip" \
-  "torus-ternary sample:torus:24 --method ternary --snap 0.5"; do
+  "torus-ternary sample:torus:24 --method ternary --snap 0.5" \
+  "orebody sample:orebody --grid 40x40 --cap flat --method ternary"; do
   read -r name volume flip <<< "$case"
   for ext in msh vtu mesh inp; do
     out="$work/tet-$name.$ext"

@@ -40,7 +40,8 @@ enum Command {
     /// Catmull–Clark subdivision (OpenSubdiv's rules; creases, corners, faces with holes).
     Subdivide(commands::subdivide::Args),
     /// Fill the region inside an isosurface with tetrahedra (for finite elements), bounded by
-    /// the surface `extract` makes.
+    /// the surface `extract` makes; or the body a stack of contour sections outlines (.csv,
+    /// .json, .dxf, sample:orebody).
     Tetmesh(commands::tetmesh::Args),
     /// Print the symmetry-derived configuration tables as TSV.
     Tables(commands::tables::Args),

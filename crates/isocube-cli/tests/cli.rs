@@ -1302,6 +1302,91 @@ fn tetmesh_ternary_keeps_the_angles_moderate() {
     assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);
 }
 
+/// `tetmesh` on a contour stack: the body between the sections (caps extended or flat), with
+/// planes between the sections by default; with the sections only, its boundary has
+/// `contours --plain`'s triangles; an open stack, another level or labels are refused with
+/// nothing written.
+#[test]
+fn tetmesh_fills_contour_stacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("section,z,contour,x,y\n");
+    for (label, z, s) in [("a", 0.0, 2.0), ("b", 1.5, 1.5), ("c", 4.0, 2.5)] {
+        let ring: Vec<[f64; 2]> = (0..24)
+            .map(|i| {
+                let a = i as f64 * std::f64::consts::TAU / 24.0;
+                [s * a.cos() + 0.3 * z, s * a.sin()]
+            })
+            .collect();
+        for [x, y] in ring.iter().chain(&ring[..1]) {
+            csv += &format!("{label},{z},outer,{x},{y}\n");
+        }
+    }
+    std::fs::write(dir.path().join("stack.csv"), &csv).unwrap();
+    let summary = |args: &[&str]| {
+        let out = isocube(dir.path(), args);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains("check: conforming, 0 inverted, 0 flat"),
+            "{err}"
+        );
+        let count = |after: &str| -> usize {
+            let tail = err.split(after).nth(1).unwrap();
+            tail.split(' ').next().unwrap().parse().unwrap()
+        };
+        (count(": "), count("boundary "), err)
+    };
+    let base = ["tetmesh", "stack.csv", "--cell", "0.25"];
+    let with =
+        |extra: &[&'static str]| -> Vec<&str> { base.iter().chain(extra).copied().collect() };
+    let (split, _, err) = summary(&with(&["-o", "split.msh", "--method", "ternary"]));
+    assert!(err.contains("planes at most 0.2500 apart"), "{err}");
+    let angles = err.split("dihedral angles ").nth(1).unwrap();
+    let (lo, rest) = angles.split_once("°..").unwrap();
+    let hi = rest.split('°').next().unwrap();
+    assert!(
+        lo.parse::<f64>().unwrap() > 10.0 && hi.parse::<f64>().unwrap() < 165.0,
+        "{err}"
+    );
+    let (coarse, surface, _) = summary(&with(&[
+        "-o",
+        "coarse.vtu",
+        "--layer-spacing",
+        "sections",
+        "--triangulate",
+        "local",
+    ]));
+    assert!(split > 2 * coarse, "{split} {coarse}");
+    ok(
+        dir.path(),
+        &[
+            "contours",
+            "stack.csv",
+            "--cell",
+            "0.25",
+            "--plain",
+            "-o",
+            "plain.ply",
+        ],
+    );
+    assert_eq!(
+        info(dir.path(), "plain.ply")["triangles"].as_u64().unwrap() as usize,
+        surface
+    );
+    let (_, _, err) = summary(&with(&["-o", "flat.inp", "--cap", "flat", "--flip"]));
+    assert!(!err.contains("+ 0 wall triangles"), "{err}");
+    for (args, name) in [
+        (with(&["-o", "open.msh", "--cap", "none"]), "open.msh"),
+        (with(&["-o", "level.msh", "--level", "0.5"]), "level.msh"),
+        (with(&["-o", "labels.msh", "--labels"]), "labels.msh"),
+        (with(&["-o", "bad.msh", "--layer-spacing", "-1"]), "bad.msh"),
+    ] {
+        let out = isocube(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(!dir.path().join(name).exists(), "{name}");
+    }
+}
+
 /// `tetmesh --labels`: one region per label, conforming; a label that does not occur exits 2
 /// with nothing written.
 #[test]

@@ -15,7 +15,6 @@ use crate::volume::{parse_memory, MemoryLimit};
 use crate::Failure;
 
 #[derive(Debug, ClapArgs)]
-#[command(group(clap::ArgGroup::new("resolution").args(["grid", "cell"])))]
 pub(crate) struct Args {
     /// A contour file (.csv with columns section,z,contour,x,y; .json; or .dxf with closed
     /// LWPOLYLINE/POLYLINE entities, elevation as z), or `sample:orebody`.
@@ -23,17 +22,8 @@ pub(crate) struct Args {
     /// Output mesh: .ply, .obj or .stl.
     #[arg(long, short)]
     output: PathBuf,
-    /// Plane grid: at most NX × NY square cells over the contours' bounding box.
-    #[arg(long, value_name = "NXxNY", value_parser = parse_grid)]
-    grid: Option<[usize; 2]>,
-    /// Plane grid: square cells of this size (in the contours' units).
-    #[arg(long, value_name = "SIZE")]
-    cell: Option<f64>,
-    /// How the ends close: `extend [DIST]` extrapolates the body DIST beyond each end section
-    /// (default: half the mean section spacing); `flat` fills the end contours in their planes
-    /// (holes kept open); `none` leaves them open.
-    #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIST"], default_values = ["extend"], allow_negative_numbers = true)]
-    cap: Vec<String>,
+    #[command(flatten)]
+    stack: StackArgs,
     /// The section-data paper's plain approach: crossings interpolated from the distances and no
     /// contour points inserted (by default the mesh's cut by every section is the contour).
     #[arg(long)]
@@ -53,6 +43,110 @@ pub(crate) struct Args {
     max_memory: Option<MemoryLimit>,
 }
 
+/// The plane grid and the caps: how a stack of sections becomes a volume to mesh (`contours`
+/// and `tetmesh`).
+#[derive(Debug, ClapArgs)]
+#[command(group(clap::ArgGroup::new("resolution").args(["grid", "cell"])))]
+pub(crate) struct StackArgs {
+    /// Contour stacks: at most NX × NY square cells over the contours' bounding box. [default:
+    /// 100 across the longer side]
+    #[arg(long, value_name = "NXxNY", value_parser = parse_grid)]
+    grid: Option<[usize; 2]>,
+    /// Contour stacks: square cells of this size (in the contours' units).
+    #[arg(long, value_name = "SIZE")]
+    cell: Option<f64>,
+    /// Contour stacks: how the ends close: `extend [DIST]` extrapolates the body DIST beyond
+    /// each end section (default: half the mean section spacing); `flat` fills the end
+    /// contours in their planes (holes kept open); `none` leaves them open (surfaces only).
+    #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIST"], default_values = ["extend"], allow_negative_numbers = true)]
+    cap: Vec<String>,
+}
+
+/// Whether a command's input names a contour stack rather than a volume.
+pub(crate) fn is_stack(input: &str) -> bool {
+    input == "sample:orebody"
+        || Path::new(input)
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| ["csv", "json", "dxf"].contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// Reads the stack `input` names (refusing to write over it).
+pub(crate) fn load_stack(input: &str, output: &Path) -> Result<SectionStack, Failure> {
+    if input == "sample:orebody" {
+        return Ok(SectionStack::sample_orebody());
+    }
+    let input = Path::new(input);
+    crate::refuse_overwrite(output, &[(input, "input")])?;
+    read_contours(input).map_err(|e| crate::io_failure(e, true))
+}
+
+impl StackArgs {
+    /// The plane grid asked for (100 cells across by default), refused when too large to index.
+    pub(crate) fn plane(&self, stack: &SectionStack) -> Result<PlaneGrid, Failure> {
+        let plane = match (self.grid, self.cell) {
+            (_, Some(c)) if c.is_finite() && c > 0.0 => PlaneGrid::with_cell(stack, c),
+            (_, Some(c)) => {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "--cell {c}: expected a size > 0"
+                )))
+            }
+            (Some([nx, ny]), None) => {
+                let (lo, hi, _) = stack.bounds();
+                let cell = ((hi[0] - lo[0]) / nx as f64).max((hi[1] - lo[1]) / ny as f64);
+                PlaneGrid::with_cell(stack, cell)
+            }
+            (None, None) => PlaneGrid::across(stack, 100),
+        };
+        // Only the cells the surface crosses are stored, but every grid row of every section
+        // has an entry, and indices along a row are 32-bit.
+        let rows = plane.dims[1].saturating_mul(stack.sections().len() + 2);
+        if plane.dims[0] > 1 << 30 || rows > 1 << 28 {
+            return Err(Failure::input(anyhow::anyhow!(
+                "the plane grid would be {}×{} points over {} sections; use a coarser --grid or \
+                 a larger --cell",
+                plane.dims[0],
+                plane.dims[1],
+                stack.sections().len()
+            )));
+        }
+        Ok(plane)
+    }
+
+    /// The caps asked for.
+    pub(crate) fn cap(&self, stack: &SectionStack) -> Result<Cap, Failure> {
+        let bad = |m: String| Failure::input(anyhow::anyhow!(m));
+        match self
+            .cap
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>()
+            .as_slice()
+        {
+            ["none"] => Ok(Cap::Open),
+            ["extend"] => {
+                let z: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
+                let spacing = if z.len() > 1 {
+                    (z[z.len() - 1] - z[0]) / (z.len() - 1) as f64
+                } else {
+                    let (lo, hi, _) = stack.bounds();
+                    (hi[0] - lo[0]).max(hi[1] - lo[1]) / 4.0
+                };
+                Ok(Cap::Extend(spacing / 2.0))
+            }
+            ["extend", d] => match d.parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(Cap::Extend(v)),
+                _ => Err(bad(format!("--cap extend: '{d}' is not a distance > 0"))),
+            },
+            ["flat"] => Ok(Cap::Flat),
+            other => Err(bad(format!(
+                "--cap {}: expected `flat`, `none` or `extend [DIST]`",
+                other.join(" ")
+            ))),
+        }
+    }
+}
+
 fn parse_grid(s: &str) -> Result<[usize; 2], String> {
     let (a, b) = s
         .split_once(['x', 'X'])
@@ -64,74 +158,11 @@ fn parse_grid(s: &str) -> Result<[usize; 2], String> {
     Ok([n(a)?, n(b)?])
 }
 
-fn cap(args: &Args, stack: &SectionStack) -> Result<Cap, Failure> {
-    let bad = |m: String| Failure::input(anyhow::anyhow!(m));
-    match args
-        .cap
-        .iter()
-        .map(String::as_str)
-        .collect::<Vec<_>>()
-        .as_slice()
-    {
-        ["none"] => Ok(Cap::Open),
-        ["extend"] => {
-            let z: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
-            let spacing = if z.len() > 1 {
-                (z[z.len() - 1] - z[0]) / (z.len() - 1) as f64
-            } else {
-                let (lo, hi, _) = stack.bounds();
-                (hi[0] - lo[0]).max(hi[1] - lo[1]) / 4.0
-            };
-            Ok(Cap::Extend(spacing / 2.0))
-        }
-        ["extend", d] => match d.parse::<f64>() {
-            Ok(v) if v.is_finite() && v > 0.0 => Ok(Cap::Extend(v)),
-            _ => Err(bad(format!("--cap extend: '{d}' is not a distance > 0"))),
-        },
-        ["flat"] => Ok(Cap::Flat),
-        other => Err(bad(format!(
-            "--cap {}: expected `flat`, `none` or `extend [DIST]`",
-            other.join(" ")
-        ))),
-    }
-}
-
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
-    let stack = if args.input == "sample:orebody" {
-        SectionStack::sample_orebody()
-    } else {
-        let input = Path::new(&args.input);
-        crate::refuse_overwrite(&args.output, &[(input, "input")])?;
-        read_contours(input).map_err(|e| crate::io_failure(e, true))?
-    };
-    let plane = match (args.grid, args.cell) {
-        (_, Some(c)) if c.is_finite() && c > 0.0 => PlaneGrid::with_cell(&stack, c),
-        (_, Some(c)) => {
-            return Err(Failure::input(anyhow::anyhow!(
-                "--cell {c}: expected a size > 0"
-            )))
-        }
-        (Some([nx, ny]), None) => {
-            let (lo, hi, _) = stack.bounds();
-            let cell = ((hi[0] - lo[0]) / nx as f64).max((hi[1] - lo[1]) / ny as f64);
-            PlaneGrid::with_cell(&stack, cell)
-        }
-        (None, None) => PlaneGrid::across(&stack, 100),
-    };
-    // Only the cells the surface crosses are stored, but every grid row of every section has an
-    // entry, and indices along a row are 32-bit.
-    let rows = plane.dims[1].saturating_mul(stack.sections().len() + 2);
-    if plane.dims[0] > 1 << 30 || rows > 1 << 28 {
-        return Err(Failure::input(anyhow::anyhow!(
-            "the plane grid would be {}×{} points over {} sections; use a coarser --grid or a \
-             larger --cell",
-            plane.dims[0],
-            plane.dims[1],
-            stack.sections().len()
-        )));
-    }
-    let cap = cap(args, &stack)?;
+    let stack = load_stack(&args.input, &args.output)?;
+    let plane = args.stack.plane(&stack)?;
+    let cap = args.stack.cap(&stack)?;
     let started = Instant::now();
     let fidelity = if args.plain {
         Fidelity::Plain

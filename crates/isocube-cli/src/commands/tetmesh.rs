@@ -1,4 +1,5 @@
-//! `isocube tetmesh VOLUME -o MESH [--level L]`: tetrahedra of the region inside the surface.
+//! `isocube tetmesh VOLUME|CONTOURS -o MESH [--level L]`: tetrahedra of the region inside the
+//! surface, or of the body between sections.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -20,6 +21,15 @@ use crate::Failure;
 pub(crate) struct Args {
     #[command(flatten)]
     volume: VolumeArgs,
+    #[command(flatten)]
+    stack: super::contours::StackArgs,
+    /// Contour stacks: the largest distance between neighbouring planes; gaps between sections
+    /// (and caps) longer than it get planes in between where the distances are interpolated
+    /// linearly (the cut by every section stays the same), so elements are about as tall as
+    /// wide. `sections` keeps the sections only (the surface is then `contours --plain`'s, and
+    /// the elements as long as the sections are apart). [default: the plane grid's cell]
+    #[arg(long, value_name = "DIST")]
+    layer_spacing: Option<String>,
     /// Output: .msh (Gmsh 4.1), .vtu (VTK unstructured grid, quality as cell data), .mesh
     /// (MEDIT) or .inp (Abaqus: C3D4 in REGION, element surfaces SURFACE and WALLS). Physical
     /// groups: 1 the region, 2 the isosurface, 3 the grid's outer faces; with --labels, one per
@@ -82,6 +92,14 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             args.output.display()
         )));
     }
+    if super::contours::is_stack(&args.volume.volume) {
+        return run_stack(args, quiet);
+    }
+    if args.layer_spacing.is_some() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--layer-spacing is for contour stacks (.csv, .json, .dxf, sample:orebody)"
+        )));
+    }
     if !SampleSpec::is_sample(&args.volume.volume) {
         crate::refuse_overwrite(
             &args.output,
@@ -102,7 +120,68 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     let view = grid.view().with_orientation(orientation);
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
         .map(|limit| limit.saturating_sub(std::mem::size_of_val(view.values()) as u64));
-    let options = ExtractOptions::default()
+    let options = extract_options(args, room);
+    let loaded = started.elapsed();
+    let meshed = match &args.labels {
+        Some(selection) => tetmesh_labels(
+            view,
+            &LabelOptions::default()
+                .with_smoothing(0)
+                .with_background(args.background)
+                .with_labels(selection.clone()),
+            room,
+        ),
+        None => tetmesh(view, &options),
+    };
+    finish(args, quiet, meshed, started, loaded)
+}
+
+/// The contour stack's body (or, with --flip, the space around it in the grid's box).
+fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
+    let started = Instant::now();
+    if args.labels.is_some() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--labels is for labelled volumes: a contour stack outlines one body"
+        )));
+    }
+    let stack = super::contours::load_stack(&args.volume.volume, &args.output)?;
+    let plane = args.stack.plane(&stack)?;
+    let cap = args.stack.cap(&stack)?;
+    let layer_spacing = match args.layer_spacing.as_deref() {
+        None => Some(plane.spacing),
+        Some("sections") => None,
+        Some(d) => match d.parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Some(v),
+            _ => {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "--layer-spacing {d}: expected a distance > 0 or `sections`"
+                )))
+            }
+        },
+    };
+    let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory);
+    let options = extract_options(args, room);
+    let loaded = started.elapsed();
+    let meshed = isocube::contours::tetmesh(&stack, &plane, cap, layer_spacing, &options);
+    finish(args, quiet, meshed, started, loaded)?;
+    if !quiet {
+        eprintln!(
+            "{} sections, {}×{} plane grid (cell {:.4}), {}",
+            stack.sections().len(),
+            plane.dims[0],
+            plane.dims[1],
+            plane.spacing,
+            layer_spacing.map_or("planes at the sections only".to_string(), |d| format!(
+                "planes at most {d:.4} apart"
+            ))
+        );
+    }
+    Ok(())
+}
+
+/// The volume mesher's options from the command line.
+fn extract_options(args: &Args, room: Option<u64>) -> ExtractOptions {
+    ExtractOptions::default()
         .with_level(args.level)
         .with_flip(args.flip)
         .with_normals(false)
@@ -117,19 +196,17 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                     .with_position(args.snap_position),
             ),
             _ => Method::MarchingCubes,
-        });
-    let loaded = started.elapsed();
-    let meshed = match &args.labels {
-        Some(selection) => tetmesh_labels(
-            view,
-            &LabelOptions::default()
-                .with_smoothing(0)
-                .with_background(args.background)
-                .with_labels(selection.clone()),
-            room,
-        ),
-        None => tetmesh(view, &options),
-    };
+        })
+}
+
+/// Writes the mesh (checking it alongside) and reports.
+fn finish(
+    args: &Args,
+    quiet: bool,
+    meshed: Result<isocube::volume::TetMesh, TetError>,
+    started: Instant,
+    loaded: std::time::Duration,
+) -> Result<(), Failure> {
     let mesh = meshed.map_err(|e| match e {
         TetError::Cell { .. } => Failure::other(e),
         e => Failure::input(e),
