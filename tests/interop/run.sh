@@ -41,16 +41,18 @@ done
 
 # Tetrahedral meshes: a closed region (sphere), one reaching the grid's faces (gyroid's
 # other side), a ternary one and the body between contour sections (flat ends: walls), in every
-# tetrahedral format.
+# tetrahedral format (and .msh in Gmsh's binary form too).
 tets="$work/tets.txt"
 : > "$tets"
 for case in "sphere sample:sphere:32" "gyroid sample:gyroid:24 --flip" \
   "torus-ternary sample:torus:24 --method ternary --snap 0.5" \
   "orebody sample:orebody --grid 40x40 --cap flat --method ternary"; do
   read -r name volume flip <<< "$case"
-  for ext in msh vtu mesh inp; do
+  for ext in msh binary.msh vtu mesh inp; do
     out="$work/tet-$name.$ext"
-    summary=$("$isocube" tetmesh "$volume" $flip -o "$out" 2>&1)
+    binary=()
+    [[ $ext == binary.msh ]] && binary=(--binary)
+    summary=$("$isocube" tetmesh "$volume" $flip "${binary[@]}" -o "$out" 2>&1)
     summary=${summary%%$'\n'*}
     # "<file>: T tetrahedra, V vertices (...); boundary S surface + W wall triangles"
     numbers=$(sed -E 's/.*: ([0-9]+) tetrahedra, ([0-9]+) vertices.*boundary ([0-9]+) surface \+ ([0-9]+) wall.*/\1 \2 \3 \4/' <<< "$summary")

@@ -1183,11 +1183,13 @@ fn labels_give_one_closed_surface_each() {
 fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let mut firsts = HashSet::new();
-    for ext in ["msh", "vtu", "mesh", "inp"] {
-        let out = isocube(
-            dir.path(),
-            &["tetmesh", "sample:torus:24", "-o", &format!("t.{ext}")],
-        );
+    for ext in ["msh", "vtu", "mesh", "inp", "bin.msh"] {
+        let name = format!("t.{ext}");
+        let mut args = vec!["tetmesh", "sample:torus:24", "-o", &name];
+        if ext == "bin.msh" {
+            args.push("--binary");
+        }
+        let out = isocube(dir.path(), &args);
         assert!(
             out.status.success(),
             "{}",
@@ -1203,6 +1205,13 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
         assert!(dir.path().join(format!("t.{ext}")).exists());
     }
     assert_eq!(firsts.len(), 1, "{firsts:?}");
+    // The binary MSH file holds what the ASCII one does (read back by `quality`).
+    let quality = |file: &str| {
+        let out = isocube(dir.path(), &["quality", file]);
+        assert!(out.status.success(), "{file}");
+        String::from_utf8_lossy(&out.stdout).to_string()
+    };
+    assert_eq!(quality("t.msh"), quality("t.bin.msh"));
     let line = firsts.into_iter().next().unwrap();
     let surface: usize = line
         .split("boundary ")
@@ -1229,6 +1238,7 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
 
     for args in [
         &["tetmesh", "sample:torus:24", "-o", "t.ply"][..],
+        &["tetmesh", "sample:torus:24", "--binary", "-o", "b.inp"][..],
         &[
             "tetmesh",
             "sample:torus:24",
@@ -1242,6 +1252,7 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
         assert_eq!(out.status.code(), Some(2), "{args:?}");
     }
     assert!(!dir.path().join("t.ply").exists() && !dir.path().join("empty.msh").exists());
+    assert!(!dir.path().join("b.inp").exists());
 }
 
 /// `tetmesh --method ternary`: the boundary is `extract --method ternary --snap-position grid`'s

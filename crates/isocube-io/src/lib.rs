@@ -60,6 +60,7 @@ mod nrrd;
 mod poly;
 mod raw;
 mod tet_io;
+mod tet_msh_binary;
 mod tet_read;
 mod tet_vtu;
 #[cfg(feature = "tiff")]
@@ -93,7 +94,7 @@ pub use npy::{read_npy, NpyAxes};
 pub use nrrd::{read_nrrd, read_nrrd_oriented};
 pub use poly::{read_poly_mesh, read_poly_mesh_bytes, write_poly_mesh};
 pub use raw::{read_raw, Endian, RawOptions, ScalarType};
-pub use tet_io::{write_tet_mesh, TetFormat};
+pub use tet_io::{write_tet_mesh, write_tet_mesh_as, TetFormat};
 pub use tet_read::{read_tet_mesh, read_tet_mesh_bytes};
 #[cfg(feature = "tiff")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tiff")))]

@@ -12,7 +12,7 @@ use isocube::extract::{
 use isocube::field::{Orientation, SampleSpec};
 use isocube::quality::Strategy;
 use isocube::volume::{tetmesh, tetmesh_labels, TetError, TetReport};
-use isocube_io::{write_tet_mesh, TetFormat};
+use isocube_io::{write_tet_mesh_as, TetFormat};
 
 use crate::volume::VolumeArgs;
 use crate::Failure;
@@ -79,19 +79,35 @@ pub(crate) struct Args {
     /// Keep the mesh in grid index coordinates instead of the file's world coordinates.
     #[arg(long)]
     index_space: bool,
+    /// Write `.msh` as Gmsh's binary form (`4.1 1 8`): no digits formatted, so several times
+    /// faster on large meshes (about as many bytes: Gmsh spends 8 on every number). `.vtu` is
+    /// binary already; MEDIT and Abaqus files are text.
+    #[arg(long)]
+    binary: bool,
     /// Skip the check of the written mesh (conformity, orientation by an exact predicate, the
     /// volume against the boundary's).
     #[arg(long)]
     no_check: bool,
 }
 
-pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
-    if TetFormat::from_path(&args.output).is_none() {
-        return Err(Failure::input(anyhow::anyhow!(
+/// The output format: the extension's, binary MSH with --binary.
+fn output_format(args: &Args) -> Result<TetFormat, Failure> {
+    match (TetFormat::from_path(&args.output), args.binary) {
+        (None, _) => Err(Failure::input(anyhow::anyhow!(
             "{}: unknown tetrahedral mesh extension (expected .msh, .vtu, .mesh or .inp)",
             args.output.display()
-        )));
+        ))),
+        (Some(TetFormat::Medit | TetFormat::Inp), true) => Err(Failure::input(anyhow::anyhow!(
+            "--binary: {} is written as text (binary: .msh or .vtu)",
+            args.output.display()
+        ))),
+        (Some(TetFormat::Msh), true) => Ok(TetFormat::MshBinary),
+        (Some(format), _) => Ok(format),
     }
+}
+
+pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
+    output_format(args)?;
     if super::contours::is_stack(&args.volume.volume) {
         return run_stack(args, quiet);
     }
@@ -207,6 +223,7 @@ fn finish(
     started: Instant,
     loaded: std::time::Duration,
 ) -> Result<(), Failure> {
+    let format = output_format(args)?;
     let mesh = meshed.map_err(|e| match e {
         TetError::Cell { .. } => Failure::other(e),
         e => Failure::input(e),
@@ -217,7 +234,7 @@ fn finish(
     // The check (all cores) runs while the file is written (mostly the disk's time).
     let (write, check) = rayon::join(
         || {
-            let result = write_tet_mesh(&args.output, &mesh, Some(&qualities));
+            let result = write_tet_mesh_as(&args.output, format, &mesh, Some(&qualities));
             (result, started.elapsed())
         },
         || {
