@@ -156,8 +156,9 @@ impl<'a> GridView<'a> {
     /// let heights: Vec<f64> = (0..12).map(|k| (k as f64 / 11.0).powi(2)).collect();
     /// let view = grid.view().with_heights(&heights).unwrap();
     /// assert_eq!(view.point(0, 0, 11)[2], grid.origin()[2] + 1.0);
-    /// let mesh = extract(view, &ExtractOptions::default()).unwrap();
-    /// assert!(mesh.positions.iter().all(|p| p[2] >= -1.0 && p[2] <= 1.0));
+    /// let (mesh, _) = extract(view, &ExtractOptions::default()).unwrap();
+    /// let z0 = grid.origin()[2] as f32;
+    /// assert!(mesh.positions.iter().all(|p| p[2] >= z0 && p[2] <= z0 + 1.0));
     /// ```
     pub fn with_heights(mut self, heights: &'a [f64]) -> Result<GridView<'a>, GridError> {
         let increasing = heights.windows(2).all(|w| w[0] < w[1]);
