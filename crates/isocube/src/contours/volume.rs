@@ -110,6 +110,7 @@ pub fn tetmesh(
     let (field, heights) = stacked_field(stack, plane, extend);
     debug_assert_eq!(heights, coarse);
     let (grid, heights) = split_layers(&field.grid, &heights, &splits)?;
+    drop(field);
     let view = grid
         .view()
         .with_heights(&heights)
