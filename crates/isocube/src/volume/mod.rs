@@ -627,6 +627,22 @@ struct Layer {
 }
 
 impl Layer {
+    /// Appends another layer's tetrahedra and Steiner points (renumbered after these).
+    fn append(&mut self, other: Layer) {
+        let base = self.steiner.len() as u32;
+        self.steiner.extend(other.steiner);
+        self.tets.extend(other.tets.into_iter().map(|t| {
+            t.map(|v| {
+                if v & STEINER != 0 {
+                    STEINER | (base + (v & !STEINER))
+                } else {
+                    v
+                }
+            })
+        }));
+        self.walls.extend(other.walls);
+    }
+
     /// Appends tetrahedra whose Steiner points (`STEINER | k`) index `points`.
     fn push_tiled(&mut self, (points, tets): cones::Tiled) {
         let base = self.steiner.len() as u32;
@@ -848,10 +864,96 @@ impl Context<'_> {
             }
         }
         for part in parts(&boundary, &|v| self.position(v))? {
+            if self.shape && self.fill_peeled(cell, &part, out) {
+                continue;
+            }
             let mut budget = SPLIT_BUDGET;
             self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
         }
         Ok(())
+    }
+
+    /// A thin wedge of the part — two boundary triangles meeting at an edge at a small angle
+    /// inside, as where a snapped surface leaves a cell face at a shallow slope — caps the
+    /// dihedral angles of any cone: a cone point splits the wedge's angle between two
+    /// tetrahedra at that edge. Such a wedge is cut off whole instead, as the tetrahedron of its
+    /// two triangles (an *ear*: positive by the exact predicate), and the rest filled as usual.
+    /// Kept only when its worst angle beats filling the part as it is. As everywhere, all
+    /// tetrahedra positive over closed boundaries makes the result tile the part.
+    fn fill_peeled(&self, cell: [usize; 3], part: &[[u32; 3]], out: &mut Layer) -> bool {
+        let position = |v: u32| self.position(v).map(f64::from);
+        let mut rest: Vec<[u32; 3]> = part.to_vec();
+        let mut ears: Vec<[u32; 4]> = Vec::new();
+        while ears.len() < MAX_EARS {
+            let Some(ear) = thinnest_wedge(&rest, &position) else {
+                break;
+            };
+            let [u, a, v, b] = ear;
+            let rotations = |t: [u32; 3]| [t, [t[1], t[2], t[0]], [t[2], t[0], t[1]]];
+            let same = |x: &[u32; 3], t: [u32; 3]| rotations(t).contains(x);
+            // The wedge's two triangles go; the ear's other faces, seen from the rest, come
+            // (cancelling a triangle they meet the other way round).
+            rest.retain(|t| !same(t, [u, v, a]) && !same(t, [v, u, b]));
+            for face in [[a, b, v], [u, b, a]] {
+                let back = [face[0], face[2], face[1]];
+                match rest.iter().position(|t| same(t, back)) {
+                    Some(k) => {
+                        rest.swap_remove(k);
+                    }
+                    None => rest.push(face),
+                }
+            }
+            ears.push(ear);
+        }
+        if ears.is_empty() {
+            return false;
+        }
+        let mut peeled = Layer::default();
+        peeled.tets.extend_from_slice(&ears);
+        let filled = rest.is_empty()
+            || parts(&rest, &|v| self.position(v)).is_ok_and(|pieces| {
+                pieces.iter().all(|piece| {
+                    // A piece with no volume would take flat tetrahedra.
+                    let tris: Vec<[[f64; 3]; 3]> = piece.iter().map(|t| t.map(position)).collect();
+                    let mut budget = SPLIT_BUDGET;
+                    !check::coplanar(&tris)
+                        && self
+                            .fill(cell, piece, &mut peeled, SPLIT_DEPTH, &mut budget)
+                            .is_ok()
+                })
+            });
+        if !filled {
+            return false;
+        }
+        let mut plain = Layer::default();
+        let mut budget = SPLIT_BUDGET;
+        let ok = self
+            .fill(cell, part, &mut plain, SPLIT_DEPTH, &mut budget)
+            .is_ok();
+        if ok && self.worst(&plain) >= self.worst(&peeled) {
+            return false;
+        }
+        out.append(peeled);
+        true
+    }
+
+    /// The worst dihedral angle score ([`cone_quality`]'s) of a layer's tetrahedra.
+    fn worst(&self, layer: &Layer) -> f64 {
+        let at = |v: u32| {
+            if v & STEINER != 0 {
+                layer.steiner[(v & !STEINER) as usize].map(f64::from)
+            } else {
+                self.position(v).map(f64::from)
+            }
+        };
+        layer
+            .tets
+            .iter()
+            .map(|t| {
+                let (lo, hi) = quality::dihedral_extremes(t.map(at));
+                lo.min((180.0 - hi) * (10.0 / 15.0))
+            })
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// Fills a closed part with tetrahedra, trying in turn: a cone from one candidate point that
@@ -1235,6 +1337,63 @@ impl Context<'_> {
 fn cone_quality(t: &[[f64; 3]; 3], apex: [f64; 3]) -> f64 {
     let (lo, hi) = quality::dihedral_extremes([t[0], t[2], t[1], apex]);
     lo.min((180.0 - hi) * (10.0 / 15.0))
+}
+
+/// At most this many ears are cut off a part ([`Context::fill_peeled`]).
+const MAX_EARS: usize = 4;
+
+/// A part's wedges thinner than this (degrees inside, between two boundary triangles) are cut
+/// off as ears: a cone point would split them into two angles under [`GOOD_CONE`].
+const THIN_WEDGE: f64 = 2.0 * GOOD_CONE;
+
+/// The ear `[u, a, v, b]` (a positive tetrahedron) of the part's thinnest wedge under
+/// [`THIN_WEDGE`]: boundary triangles `(u, v, a)` and `(v, u, b)` meeting at edge `uv`, each
+/// edge used once each way.
+fn thinnest_wedge(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> Option<[u32; 4]> {
+    let mut directed: HashMap<(u32, u32), (u32, usize)> = HashMap::default();
+    for tri in part {
+        for k in 0..3 {
+            let e = directed
+                .entry((tri[k], tri[(k + 1) % 3]))
+                .or_insert((tri[(k + 2) % 3], 0));
+            e.1 += 1;
+        }
+    }
+    let mut best: Option<(f64, [u32; 4])> = None;
+    for (&(u, v), &(a, count)) in &directed {
+        let Some(&(b, back)) = directed.get(&(v, u)) else {
+            continue;
+        };
+        if count != 1 || back != 1 || a == b || u > v {
+            continue;
+        }
+        let [pu, pv, pa, pb] = [u, v, a, b].map(position);
+        // Each triangle's direction away from the edge, within its plane: the angle between
+        // them is the wedge's, inside when the ear is positive.
+        let e = check::sub(pv, pu);
+        let away = |p: [f64; 3]| {
+            let d = check::sub(p, pu);
+            let t = dot(d, e) / dot(e, e);
+            [d[0] - t * e[0], d[1] - t * e[1], d[2] - t * e[2]]
+        };
+        let (x, y) = (away(pa), away(pb));
+        let norm = (dot(x, x) * dot(y, y)).sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        let angle = (dot(x, y) / norm).clamp(-1.0, 1.0).acos().to_degrees();
+        if angle < THIN_WEDGE
+            && best.is_none_or(|(b, _)| angle < b)
+            && check::positive(pu, pa, pv, pb)
+        {
+            best = Some((angle, [u, a, v, b]));
+        }
+    }
+    best.map(|(_, ear)| ear)
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Why a part could not be filled.
