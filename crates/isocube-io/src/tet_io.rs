@@ -160,6 +160,37 @@ impl<'a> Groups<'a> {
     }
 
     /// The 3-D group (index) of tetrahedron `t`.
+    /// Gmsh's `$PhysicalNames` section (text in both forms of the format).
+    fn write_physical_names(&self, w: &mut impl Write) -> io::Result<()> {
+        writeln!(
+            w,
+            "$PhysicalNames\n{}",
+            self.volumes.len() + self.surfaces.len()
+        )?;
+        for (i, (name, _)) in self.volumes.iter().enumerate() {
+            writeln!(w, "3 {} \"{name}\"", self.volume_tag(i))?;
+        }
+        for (i, g) in self.surfaces.iter().enumerate() {
+            writeln!(w, "2 {} \"{}\"", self.surface_tag(i), g.name)?;
+        }
+        writeln!(w, "$EndPhysicalNames")
+    }
+
+    /// The surface entities bounding volume group `i`, signed by orientation: out of it, or
+    /// into it.
+    fn bounding(&self, i: usize) -> Vec<i64> {
+        self.surfaces
+            .iter()
+            .enumerate()
+            .filter_map(|(k, g)| {
+                let tag = self.surface_tag(k) as i64;
+                (g.owner as usize == i)
+                    .then_some(tag)
+                    .or((g.other == Some(i as u32)).then_some(-tag))
+            })
+            .collect()
+    }
+
     fn tet_group(&self, t: usize) -> u32 {
         self.mesh.labels.as_ref().map_or(0, |l| l.tets[t])
     }
@@ -254,36 +285,14 @@ fn write_msh(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     );
     let (v, s) = (groups.volumes.len(), groups.surfaces.len());
     writeln!(w, "$MeshFormat\n4.1 0 8\n$EndMeshFormat")?;
-    writeln!(w, "$PhysicalNames\n{}", v + s)?;
-    for (i, (name, _)) in groups.volumes.iter().enumerate() {
-        writeln!(w, "3 {} \"{name}\"", groups.volume_tag(i))?;
-    }
-    for (i, g) in groups.surfaces.iter().enumerate() {
-        writeln!(w, "2 {} \"{}\"", groups.surface_tag(i), g.name)?;
-    }
-    writeln!(w, "$EndPhysicalNames")?;
+    groups.write_physical_names(w)?;
     writeln!(w, "$Entities\n0 0 {s} {v}")?;
     for i in 0..s {
         let tag = groups.surface_tag(i);
         writeln!(w, "{tag} {bounds} 1 {tag} 0")?;
     }
     for i in 0..v {
-        // Bounding surfaces, signed by orientation: out of this volume, or into it.
-        let bounding: Vec<String> = groups
-            .surfaces
-            .iter()
-            .enumerate()
-            .filter_map(|(k, g)| {
-                let tag = groups.surface_tag(k) as i64;
-                if g.owner as usize == i {
-                    Some(tag.to_string())
-                } else if g.other == Some(i as u32) {
-                    Some((-tag).to_string())
-                } else {
-                    None
-                }
-            })
-            .collect();
+        let bounding = groups.bounding(i);
         let tag = groups.volume_tag(i);
         let list: String = bounding.iter().map(|b| format!(" {b}")).collect();
         writeln!(w, "{tag} {bounds} 1 {tag} {}{list}", bounding.len())?;
@@ -347,14 +356,7 @@ fn write_msh_binary(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
     w.write_all(b"$MeshFormat\n4.1 1 8\n")?;
     w.write_all(&int(1))?;
     w.write_all(b"\n$EndMeshFormat\n")?;
-    writeln!(w, "$PhysicalNames\n{}", v + s)?;
-    for (i, (name, _)) in groups.volumes.iter().enumerate() {
-        writeln!(w, "3 {} \"{name}\"", groups.volume_tag(i))?;
-    }
-    for (i, g) in groups.surfaces.iter().enumerate() {
-        writeln!(w, "2 {} \"{}\"", groups.surface_tag(i), g.name)?;
-    }
-    writeln!(w, "$EndPhysicalNames")?;
+    groups.write_physical_names(w)?;
     w.write_all(b"$Entities\n")?;
     for count in [0, 0, s, v] {
         w.write_all(&size(count))?;
@@ -368,17 +370,7 @@ fn write_msh_binary(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
         w.write_all(&size(0))?;
     }
     for i in 0..v {
-        let bounding: Vec<i64> = groups
-            .surfaces
-            .iter()
-            .enumerate()
-            .filter_map(|(k, g)| {
-                let tag = groups.surface_tag(k) as i64;
-                (g.owner as usize == i)
-                    .then_some(tag)
-                    .or((g.other == Some(i as u32)).then_some(-tag))
-            })
-            .collect();
+        let bounding = groups.bounding(i);
         let tag = groups.volume_tag(i) as i64;
         w.write_all(&int(tag))?;
         w.write_all(&bounds)?;

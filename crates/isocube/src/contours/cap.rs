@@ -225,17 +225,7 @@ pub(crate) fn ear_clip(
     let mut out = Vec::with_capacity(v.len());
     let mut guard = 0usize;
     // The smallest angle of a triangle, for choosing among ears.
-    let smallest = |pa: P2, pb: P2, pc: P2| {
-        let angle = |o: P2, a: P2, b: P2| {
-            let (u, w) = ([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]]);
-            (u[0] * w[1] - u[1] * w[0])
-                .abs()
-                .atan2(u[0] * w[0] + u[1] * w[1])
-        };
-        angle(pa, pb, pc)
-            .min(angle(pb, pc, pa))
-            .min(angle(pc, pa, pb))
-    };
+    let smallest = crate::quality::smallest_angle_2d;
     while v.len() > 3 {
         let n = v.len();
         // Small rings take the best-shaped ear (quadratic per ear); large ones, as dense

@@ -20,6 +20,21 @@ pub enum Cap {
     Flat,
 }
 
+impl Cap {
+    /// The distance the body is extended beyond the end sections, if any (checked).
+    pub(crate) fn extension(self) -> Result<Option<f64>, ExtractError> {
+        match self {
+            Cap::Open | Cap::Flat => Ok(None),
+            Cap::Extend(d) if d.is_finite() && d > 0.0 => Ok(Some(d)),
+            Cap::Extend(d) => Err(ExtractError::Option {
+                name: "cap extension",
+                range: "a finite distance > 0",
+                value: d as f32,
+            }),
+        }
+    }
+}
+
 /// A reconstructed surface and what it cost.
 #[derive(Clone, Debug)]
 pub struct Reconstruction {
@@ -257,17 +272,7 @@ pub fn reconstruct_with(
         r.mesh.compute_normals();
         return Ok(r);
     }
-    let extend = match cap {
-        Cap::Open | Cap::Flat => None,
-        Cap::Extend(d) if d.is_finite() && d > 0.0 => Some(d),
-        Cap::Extend(d) => {
-            return Err(ExtractError::Option {
-                name: "cap extension",
-                range: "a finite distance > 0",
-                value: d as f32,
-            })
-        }
-    };
+    let extend = cap.extension()?;
     if stack.sections().len() < 2 && extend.is_none() {
         return Err(ExtractError::SingleSection);
     }

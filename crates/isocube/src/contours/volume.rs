@@ -63,23 +63,12 @@ pub fn tetmesh(
         }
         .into());
     }
-    let extend = match cap {
-        Cap::Open => {
-            return Err(TetError::Unsupported(
-                "an open stack bounds no volume: close its ends (flat or extended)",
-            ))
-        }
-        Cap::Flat => None,
-        Cap::Extend(d) if d.is_finite() && d > 0.0 => Some(d),
-        Cap::Extend(d) => {
-            return Err(ExtractError::Option {
-                name: "cap extension",
-                range: "a finite distance > 0",
-                value: d as f32,
-            }
-            .into())
-        }
-    };
+    if cap == Cap::Open {
+        return Err(TetError::Unsupported(
+            "an open stack bounds no volume: close its ends (flat or extended)",
+        ));
+    }
+    let extend = cap.extension()?;
     if stack.sections().len() < 2 && extend.is_none() {
         return Err(ExtractError::SingleSection.into());
     }

@@ -152,6 +152,19 @@ pub struct TriangleQuality {
     pub area: f64,
 }
 
+/// The smallest angle, in radians, of a triangle in a plane (exact zero for a degenerate one).
+pub(crate) fn smallest_angle_2d(pa: [f64; 2], pb: [f64; 2], pc: [f64; 2]) -> f64 {
+    let angle = |o: [f64; 2], p: [f64; 2], q: [f64; 2]| {
+        let (x, y) = ([p[0] - o[0], p[1] - o[1]], [q[0] - o[0], q[1] - o[1]]);
+        (x[0] * y[1] - x[1] * y[0])
+            .abs()
+            .atan2(x[0] * y[0] + x[1] * y[1])
+    };
+    angle(pa, pb, pc)
+        .min(angle(pb, pc, pa))
+        .min(angle(pc, pa, pb))
+}
+
 /// The Verdict measures of a triangle; `None` when it has zero area.
 ///
 /// ```

@@ -370,7 +370,8 @@ fn convex_triangulation(piece: &[usize], cycle: &[Point], out: &mut Vec<[u32; 3]
         // lowest: diagonals chosen by one order of the vertices never twist a prism of three
         // such faces into one that has no tetrahedra without an inner point (Schönhardt's),
         // which a thin cut cell would have to cone at a poor angle.
-        let smallest = |a: usize, b: usize, c: usize| smallest_angle(at(a), at(b), at(c));
+        let smallest =
+            |a: usize, b: usize, c: usize| crate::quality::smallest_angle_2d(at(a), at(b), at(c));
         let through_02 = smallest(0, 1, 2).min(smallest(0, 2, 3));
         let through_13 = smallest(0, 1, 3).min(smallest(1, 2, 3));
         let lowest = (0..4).min_by_key(|&k| id(k)).expect("four vertices");
@@ -384,7 +385,8 @@ fn convex_triangulation(piece: &[usize], cycle: &[Point], out: &mut Vec<[u32; 3]
         }
         return;
     }
-    let smallest = |a: usize, b: usize, c: usize| smallest_angle(at(a), at(b), at(c));
+    let smallest =
+        |a: usize, b: usize, c: usize| crate::quality::smallest_angle_2d(at(a), at(b), at(c));
     // best[i][j]: the best smallest angle over triangulations of the sub-polygon i..=j.
     let mut best = vec![[f64::INFINITY; 8]; 8];
     let mut split = vec![[0usize; 8]; 8];
@@ -412,17 +414,4 @@ fn convex_triangulation(piece: &[usize], cycle: &[Point], out: &mut Vec<[u32; 3]
         stack.push((i, k));
         stack.push((k, j));
     }
-}
-
-/// The smallest angle of the triangle `(a, b, c)`, in radians.
-fn smallest_angle(pa: [f64; 2], pb: [f64; 2], pc: [f64; 2]) -> f64 {
-    let angle = |o: [f64; 2], p: [f64; 2], q: [f64; 2]| {
-        let (x, y) = ([p[0] - o[0], p[1] - o[1]], [q[0] - o[0], q[1] - o[1]]);
-        (x[0] * y[1] - x[1] * y[0])
-            .abs()
-            .atan2(x[0] * y[0] + x[1] * y[1])
-    };
-    angle(pa, pb, pc)
-        .min(angle(pb, pc, pa))
-        .min(angle(pc, pa, pb))
 }
