@@ -645,18 +645,11 @@ impl Layer {
 
     /// Appends tetrahedra whose Steiner points (`STEINER | k`) index `points`.
     fn push_tiled(&mut self, (points, tets): cones::Tiled) {
-        let base = self.steiner.len() as u32;
-        self.steiner
-            .extend(points.iter().map(|p| p.map(|x| x as f32)));
-        self.tets.extend(tets.into_iter().map(|t| {
-            t.map(|v| {
-                if v & STEINER != 0 {
-                    STEINER | (base + (v & !STEINER))
-                } else {
-                    v
-                }
-            })
-        }));
+        self.append(Layer {
+            tets,
+            steiner: points.iter().map(|p| p.map(|x| x as f32)).collect(),
+            ..Layer::default()
+        });
     }
 }
 
@@ -864,11 +857,17 @@ impl Context<'_> {
             }
         }
         for part in parts(&boundary, &|v| self.position(v))? {
-            if self.shape && self.fill_peeled(cell, &part, out) {
-                continue;
-            }
             let mut budget = SPLIT_BUDGET;
-            self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
+            let Some(peeled) = self.shape.then(|| self.peeled(cell, &part)).flatten() else {
+                self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
+                continue;
+            };
+            // Cutting the ears off is kept only when it beats filling the part as it is.
+            let mut plain = Layer::default();
+            match self.fill(cell, &part, &mut plain, SPLIT_DEPTH, &mut budget) {
+                Ok(()) if self.worst(&plain) >= self.worst(&peeled) => out.append(plain),
+                _ => out.append(peeled),
+            }
         }
         Ok(())
     }
@@ -878,9 +877,9 @@ impl Context<'_> {
     /// dihedral angles of any cone: a cone point splits the wedge's angle between two
     /// tetrahedra at that edge. Such a wedge is cut off whole instead, as the tetrahedron of its
     /// two triangles (an *ear*: positive by the exact predicate), and the rest filled as usual.
-    /// Kept only when its worst angle beats filling the part as it is. As everywhere, all
+    /// `None` when the part has no such wedge or the rest does not fill. As everywhere, all
     /// tetrahedra positive over closed boundaries makes the result tile the part.
-    fn fill_peeled(&self, cell: [usize; 3], part: &[[u32; 3]], out: &mut Layer) -> bool {
+    fn peeled(&self, cell: [usize; 3], part: &[[u32; 3]]) -> Option<Layer> {
         let position = |v: u32| self.position(v).map(f64::from);
         let mut rest: Vec<[u32; 3]> = part.to_vec();
         let mut ears: Vec<[u32; 4]> = Vec::new();
@@ -906,7 +905,7 @@ impl Context<'_> {
             ears.push(ear);
         }
         if ears.is_empty() {
-            return false;
+            return None;
         }
         let mut peeled = Layer::default();
         peeled.tets.extend_from_slice(&ears);
@@ -922,22 +921,10 @@ impl Context<'_> {
                             .is_ok()
                 })
             });
-        if !filled {
-            return false;
-        }
-        let mut plain = Layer::default();
-        let mut budget = SPLIT_BUDGET;
-        let ok = self
-            .fill(cell, part, &mut plain, SPLIT_DEPTH, &mut budget)
-            .is_ok();
-        if ok && self.worst(&plain) >= self.worst(&peeled) {
-            return false;
-        }
-        out.append(peeled);
-        true
+        filled.then_some(peeled)
     }
 
-    /// The worst dihedral angle score ([`cone_quality`]'s) of a layer's tetrahedra.
+    /// The worst [`tet_score`] of a layer's tetrahedra.
     fn worst(&self, layer: &Layer) -> f64 {
         let at = |v: u32| {
             if v & STEINER != 0 {
@@ -949,10 +936,7 @@ impl Context<'_> {
         layer
             .tets
             .iter()
-            .map(|t| {
-                let (lo, hi) = quality::dihedral_extremes(t.map(at));
-                lo.min((180.0 - hi) * (10.0 / 15.0))
-            })
+            .map(|t| tet_score(t.map(at)))
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -1332,14 +1316,19 @@ impl Context<'_> {
     }
 }
 
-/// A cone tetrahedron's angles scored: the worst of its smallest dihedral angle and its
-/// largest one's supplement, scaled so that the goal's bounds, 10° and 165°, score alike.
+/// A cone tetrahedron's angles scored ([`tet_score`]).
 fn cone_quality(t: &[[f64; 3]; 3], apex: [f64; 3]) -> f64 {
-    let (lo, hi) = quality::dihedral_extremes([t[0], t[2], t[1], apex]);
+    tet_score([t[0], t[2], t[1], apex])
+}
+
+/// A tetrahedron's angles scored: the worst of its smallest dihedral angle and its largest
+/// one's supplement, scaled so that the goal's bounds, 10° and 165°, score alike.
+fn tet_score(p: [[f64; 3]; 4]) -> f64 {
+    let (lo, hi) = quality::dihedral_extremes(p);
     lo.min((180.0 - hi) * (10.0 / 15.0))
 }
 
-/// At most this many ears are cut off a part ([`Context::fill_peeled`]).
+/// At most this many ears are cut off a part ([`Context::peeled`]).
 const MAX_EARS: usize = 4;
 
 /// A part's wedges thinner than this (degrees inside, between two boundary triangles) are cut
