@@ -14,12 +14,13 @@
 use rayon::prelude::*;
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
-use super::place::{interior_bounds, Bounds, Placer};
+use super::place::{clamp_into, interior_bounds, Bounds, Placer};
+use super::untangle::untangle;
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
 use crate::cube::triangulate::{may_join, safe_triangulation};
-use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
+use crate::cube::{CaseTable, CellTriangles, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
 use crate::mesh::Mesh;
 use crate::quality::{triangulate_polygon, Chords, Strategy, MAX_CORNERS};
 
@@ -435,6 +436,9 @@ impl<'a> BinaryCells<'a> {
             return Ok(());
         }
         let triangles = table.cell_triangles(config, decisions, options.topology, tunnel);
+        if tunnel.is_some() && self.untangled(cache, out, at, &triangles)? {
+            return Ok(());
+        }
         let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
         for tri in triangles.triangles {
             let mut ids = [0u32; 3];
@@ -461,6 +465,74 @@ impl<'a> BinaryCells<'a> {
             self.push(out, ids);
         }
         Ok(())
+    }
+
+    /// Emits a tunnel's triangles with its interior points moved where the table's places make
+    /// them cross each other ([`untangle`]); `false` (nothing emitted) when they do not.
+    fn untangled(
+        &self,
+        cache: &mut EdgeCache,
+        out: &mut ChunkMesh,
+        at: At,
+        triangles: &CellTriangles,
+    ) -> Result<bool, ExtractError> {
+        // Local numbers: edge corners by their vertex ids, interior point k as `u32::MAX - k`.
+        let mut ids: Vec<u32> = Vec::new();
+        let mut positions: Vec<[f64; 3]> = Vec::new();
+        let mut supports: Vec<Vec<u32>> = vec![Vec::new(); Corner::MAX_INTERIOR];
+        let bounds = self.interior_bounds(at.cell);
+        let mut tris = Vec::with_capacity(triangles.triangles.len());
+        for tri in triangles.triangles {
+            let mut t = [0u32; 3];
+            for (slot, &corner) in t.iter_mut().zip(tri) {
+                let (id, p) = if let Some(e) = corner.as_edge() {
+                    let id = self.edge(cache, out, at, e)?;
+                    (id, out.mesh.positions[id as usize].map(f64::from))
+                } else {
+                    let k = usize::from(corner.as_interior().expect("edge or interior corners"));
+                    let support = triangles.interior_support(k);
+                    supports[k] = self.corner_ids(cache, out, at, support)?;
+                    // Where the interior vertex would be stored (as `centroid_vertex` places it).
+                    let n = supports[k].len() as f64;
+                    let mut p = [0.0f64; 3];
+                    for &v in &supports[k] {
+                        for (c, x) in p.iter_mut().zip(out.mesh.positions[v as usize]) {
+                            *c += f64::from(x) / n;
+                        }
+                    }
+                    let p = clamp_into(p, &bounds).map(|c| f64::from(c as f32));
+                    (u32::MAX - k as u32, p)
+                };
+                *slot = match ids.iter().position(|&x| x == id) {
+                    Some(k) => k as u32,
+                    None => {
+                        ids.push(id);
+                        positions.push(p);
+                        ids.len() as u32 - 1
+                    }
+                };
+            }
+            tris.push(t);
+        }
+        let interior = |id: u32| id > u32::MAX - Corner::MAX_INTERIOR as u32;
+        let movable: Vec<u32> = (0..ids.len() as u32)
+            .filter(|&v| interior(ids[v as usize]))
+            .collect();
+        let Some(places) = untangle(&tris, &positions, &movable, &bounds) else {
+            return Ok(false);
+        };
+        let mut made = ids.clone();
+        for (&v, &p) in movable.iter().zip(&places) {
+            let k = (u32::MAX - ids[v as usize]) as usize;
+            let support = &supports[k];
+            made[v as usize] = self.interior(out, at.cell, k, |placer, mesh| {
+                placer.interior_vertex(p, support, mesh)
+            })?;
+        }
+        for t in tris {
+            self.push(out, t.map(|v| made[v as usize]));
+        }
+        Ok(true)
     }
 
     fn corner_ids(

@@ -83,6 +83,7 @@ pub(crate) use classify::{cell_config, face_decisions};
 mod patch_check;
 mod stream;
 mod ternary;
+mod untangle;
 mod weld;
 mod window;
 

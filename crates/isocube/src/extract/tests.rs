@@ -1238,3 +1238,57 @@ fn random_cells_have_no_edges_crossing_in_a_face() {
         }
     }
 }
+
+/// The surface inside one random cell does not cross itself (exact predicates on the stored
+/// positions), for every topology, triangulation and method, but in tunnels (counted).
+#[test]
+fn cell_surfaces_do_not_cross_themselves() {
+    use crate::quality::Strategy as Tri;
+    let mut rng = crate::TestRng::new(11);
+    let mut crossing: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+    for _ in 0..20000 {
+        let values: Vec<f32> = (0..8).map(|_| rng.unit() as f32 * 2.0 - 1.0).collect();
+        let grid = Grid::new([2, 2, 2], values).unwrap();
+        for topology in [Topology::Mc33, Topology::Classic] {
+            for (tri, snap) in [Tri::Fan, Tri::Local, Tri::Optimal]
+                .into_iter()
+                .flat_map(|t| [(t, None), (t, Some(0.0)), (t, Some(0.3))])
+            {
+                let method = snap.map_or(Method::MarchingCubes, |s| {
+                    Method::Ternary(Snapping::default().with_snap(s))
+                });
+                let options = ExtractOptions::default()
+                    .with_topology(topology)
+                    .with_triangulation(tri)
+                    .with_method(method);
+                let (mesh, stats) = extract(&grid, &options).unwrap();
+                let position = |v: u32| mesh.positions[v as usize].map(f64::from);
+                let bad = crate::mesh::intersect::first_crossing(&mesh.triangles, &position);
+                let e = crossing
+                    .entry(format!(
+                        "{topology:?} {tri:?} {snap:?} tunnel {}",
+                        stats.tunnels
+                    ))
+                    .or_default();
+                e.0 += 1;
+                e.1 += usize::from(bad.is_some());
+            }
+        }
+    }
+    eprintln!("{crossing:#?}");
+    for (what, &(cells, crossed)) in &crossing {
+        // Tunnels: the table's bands between the two loops are fixed per case, and with some
+        // crossings they pass through each other (interior points are moved where that helps,
+        // with Marching Cubes; a band search on the actual positions that keeps the manifold
+        // rule is still to do). Elsewhere only rarely, with ternary snapping and the classic
+        // table.
+        let limit = if what.ends_with("tunnel 1") {
+            cells / 3
+        } else if what.contains("Classic") && what.contains("Some") {
+            cells / 10_000
+        } else {
+            0
+        };
+        assert!(crossed <= limit, "{what}: {crossed} of {cells} cells cross");
+    }
+}

@@ -5,6 +5,7 @@
 //! matters for an isosurface: boundary and non-manifold edges, orientation, components, Euler
 //! characteristic, genus, degenerate triangles and angle range.
 
+pub(crate) mod intersect;
 mod report;
 
 pub use report::{EdgeReport, MeshReport};

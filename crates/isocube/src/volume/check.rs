@@ -21,25 +21,12 @@ pub fn positive(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> bool {
 
 /// The sign of the tetrahedron's orientation, decided exactly: positive, negative or zero (flat).
 fn orientation(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 {
-    // `robust` measures the other way round: positive when d lies below the plane of a, b, c
-    // seen counterclockwise.
-    -robust::orient3d(coord(a), coord(b), coord(c), coord(d))
-}
-
-fn coord(x: [f64; 3]) -> robust::Coord3D<f64> {
-    robust::Coord3D {
-        x: x[0],
-        y: x[1],
-        z: x[2],
-    }
+    crate::mesh::intersect::orient(a, b, c, d)
 }
 
 /// Whether a triangle's corners lie on one line (exactly).
 pub(super) fn collinear(t: [[f64; 3]; 3]) -> bool {
-    let p = |x: [f64; 3], a: usize, b: usize| robust::Coord { x: x[a], y: x[b] };
-    [(0, 1), (1, 2), (2, 0)]
-        .iter()
-        .all(|&(a, b)| robust::orient2d(p(t[0], a, b), p(t[1], a, b), p(t[2], a, b)) == 0.0)
+    crate::mesh::intersect::collinear(t)
 }
 
 /// Whether all the triangles' corners lie in one plane (exactly).

@@ -74,6 +74,7 @@ mod check;
 mod cones;
 mod cycles;
 mod face;
+mod front;
 mod improve;
 mod labels;
 mod quality;
@@ -1025,6 +1026,16 @@ impl Context<'_> {
             }
             (None, None) => {}
         }
+        let position = |v: u32| self.position(v).map(f64::from);
+        // A boundary that passes through itself bounds no region: no search can fill it. (Not
+        // asked where values at the level put several vertices on one point: those touch.)
+        if depth == SPLIT_DEPTH
+            && !degenerate.contains(&true)
+            && !shared_points(part, &position)
+            && crate::mesh::intersect::first_crossing(part, &position).is_some()
+        {
+            return Err(CROSSED);
+        }
         // (The largest ball's centre costs a linear program: not for the many parts splits try.)
         if let Some(apex) = (depth == SPLIT_DEPTH)
             .then(|| check::kernel_point(&tris))
@@ -1044,6 +1055,13 @@ impl Context<'_> {
         }
         if depth > 0 && self.split(cell, part, out, depth - 1, budget) {
             return Ok(());
+        }
+        if depth == SPLIT_DEPTH {
+            // The last resort: tetrahedra added one at a time from the boundary inward.
+            if let Ok(tiled) = front::advance(part, &position, &tet_score) {
+                out.push_tiled(tiled);
+                return Ok(());
+            }
         }
         Err(FOLDED)
     }
@@ -1386,6 +1404,23 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 /// Why a part could not be filled.
+/// Whether two of the part's vertices lie at one point.
+fn shared_points(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> bool {
+    let mut vertices: Vec<u32> = part.iter().flatten().copied().collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    let mut points: Vec<[u64; 3]> = vertices
+        .iter()
+        .map(|&v| position(v).map(f64::to_bits))
+        .collect();
+    points.sort_unstable();
+    points.windows(2).any(|w| w[0] == w[1])
+}
+
+const CROSSED: &str =
+    "the surface passes through itself in this cell (a tunnel of Marching Cubes 33 \
+     whose triangles cross), so it bounds no region here; --topology classic has no tunnels";
+
 const FOLDED: &str =
     "no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)";
 

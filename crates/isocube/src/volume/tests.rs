@@ -138,7 +138,7 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
 #[test]
 fn random_grids_give_valid_meshes_or_name_the_cell() {
     let mut rng = crate::TestRng::new(7);
-    let (mut meshed, mut refused) = (0, 0);
+    let (mut meshed, mut refused, mut refused_ties) = (0, 0, 0);
     for case in 0..300 {
         let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 5) as usize);
         let ties = case % 3 == 0;
@@ -177,12 +177,13 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
                 Err(TetError::Cell { cell, .. }) => {
                     assert!((0..3).all(|d| cell[d] + 1 < dims[d]), "{cell:?}");
                     refused += 1;
+                    refused_ties += usize::from(ties);
                 }
                 Err(e) => panic!("case {case} {options:?}: {e}"),
             }
         }
     }
-    eprintln!("random grids: {meshed} meshed, {refused} refused");
+    eprintln!("random grids: {meshed} meshed, {refused} refused ({refused_ties} with ties)");
     assert!(meshed > 0);
 }
 
