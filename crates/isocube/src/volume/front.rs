@@ -253,47 +253,12 @@ impl Front<'_> {
 mod tests {
     use super::*;
 
-    /// A closed part: the cube's twelve boundary triangles, outward, and its corners.
-    fn cube() -> (Vec<[u32; 3]>, Vec<[f64; 3]>) {
-        let corners: Vec<[f64; 3]> = (0..8)
-            .map(|o| [o & 1, o >> 1 & 1, o >> 2 & 1].map(f64::from))
-            .collect();
-        // Each face as a quad seen from outside, split along a diagonal.
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let faces = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        (faces, corners)
-    }
-
-    fn volume(tets: &[[u32; 4]], at: &dyn Fn(u32) -> [f64; 3]) -> f64 {
-        tets.iter()
-            .map(|t| {
-                let p = t.map(at);
-                let (u, v, w) = (
-                    check::sub(p[1], p[0]),
-                    check::sub(p[2], p[0]),
-                    check::sub(p[3], p[0]),
-                );
-                check::dot(u, check::cross(v, w)) / 6.0
-            })
-            .sum()
-    }
-
-    #[test]
-    fn fills_a_cube_exactly() {
-        let (faces, corners) = cube();
+    /// Fills the closed outward part and checks the tiling: every tetrahedron positive, every
+    /// face matched but the part's own, the volume the part's. Returns the points added.
+    fn fill_checked(faces: &[[u32; 3]], corners: &[[f64; 3]]) -> usize {
         let position = |v: u32| corners[v as usize];
         let score = |p: [[f64; 3]; 4]| super::super::tet_score(p);
-        let (points, tets) = advance(&faces, &position, &score).unwrap();
+        let (points, tets) = advance(faces, &position, &score).unwrap();
         let at = |v: u32| {
             if v & STEINER != 0 {
                 points[(v & !STEINER) as usize]
@@ -305,20 +270,39 @@ mod tests {
             let p = t.map(at);
             check::positive(p[0], p[1], p[2], p[3])
         }));
-        assert!(super::super::cones::open_faces(&tets, &faces).is_empty());
-        assert!((volume(&tets, &at) - 1.0).abs() < 1e-12);
-        assert!(points.is_empty(), "a cube needs no point inside");
-    }
-
-    /// The volume the outward triangles enclose (divergence theorem).
-    fn enclosed(faces: &[[u32; 3]], at: &dyn Fn(u32) -> [f64; 3]) -> f64 {
-        faces
+        assert!(super::super::cones::open_faces(&tets, faces).is_empty());
+        let volume: f64 = tets
+            .iter()
+            .map(|t| {
+                let p = t.map(at);
+                let (u, v, w) = (
+                    check::sub(p[1], p[0]),
+                    check::sub(p[2], p[0]),
+                    check::sub(p[3], p[0]),
+                );
+                check::dot(u, check::cross(v, w)) / 6.0
+            })
+            .sum();
+        // The volume the outward triangles enclose (divergence theorem).
+        let enclosed: f64 = faces
             .iter()
             .map(|f| {
-                let p = f.map(at);
+                let p = f.map(position);
                 check::dot(p[0], check::cross(p[1], p[2])) / 6.0
             })
-            .sum()
+            .sum();
+        assert!(
+            (volume - enclosed).abs() < 1e-12 * enclosed,
+            "{volume} vs {enclosed}"
+        );
+        points.len()
+    }
+
+    #[test]
+    fn fills_a_cube_exactly() {
+        let corners: Vec<[f64; 3]> = (0..8).map(super::super::tests::cube_corner).collect();
+        let added = fill_checked(&super::super::tests::cube_boundary(), &corners);
+        assert_eq!(added, 0, "a cube needs no point inside");
     }
 
     #[test]
@@ -349,24 +333,7 @@ mod tests {
                 faces.push([a, b, b + 3]);
                 faces.push([a, b + 3, a + 3]);
             }
-            let position = |v: u32| corners[v as usize];
-            let score = |p: [[f64; 3]; 4]| super::super::tet_score(p);
-            let (points, tets) = advance(&faces, &position, &score).unwrap();
-            needed_points += points.len();
-            let at = |v: u32| {
-                if v & STEINER != 0 {
-                    points[(v & !STEINER) as usize]
-                } else {
-                    corners[v as usize]
-                }
-            };
-            assert!(tets.iter().all(|t| {
-                let p = t.map(at);
-                check::positive(p[0], p[1], p[2], p[3])
-            }));
-            assert!(super::super::cones::open_faces(&tets, &faces).is_empty());
-            let (v, e) = (volume(&tets, &at), enclosed(&faces, &position));
-            assert!((v - e).abs() < 1e-12 * e, "{v} vs {e}");
+            needed_points += fill_checked(&faces, &corners);
         }
         assert!(needed_points > 0, "Schönhardt's prism needs a point inside");
     }

@@ -297,11 +297,13 @@ fn values_at_the_level_give_flat_never_inverted_tetrahedra() {
     }
 }
 
-/// Cones from two or three points over a cube's boundary (12 triangles, outward): the
-/// tetrahedra tile it (volume 1, all positive), wedges and junctions included.
-#[test]
-fn cones_from_several_points_tile_a_cube() {
-    let corner = |o: u32| [o & 1, o >> 1 & 1, o >> 2 & 1].map(f64::from);
+/// A unit cube's corner `o` (bit 0: +x, bit 1: +y, bit 2: +z).
+pub(super) fn cube_corner(o: u32) -> [f64; 3] {
+    [o & 1, o >> 1 & 1, o >> 2 & 1].map(f64::from)
+}
+
+/// A unit cube's boundary: twelve triangles over its corners ([`cube_corner`]), outward.
+pub(super) fn cube_boundary() -> Vec<[u32; 3]> {
     // Faces as quads (outward, counterclockwise seen from outside).
     let quads = [
         [0, 2, 3, 1],
@@ -311,10 +313,18 @@ fn cones_from_several_points_tile_a_cube() {
         [0, 4, 6, 2],
         [1, 3, 7, 5],
     ];
-    let part: Vec<[u32; 3]> = quads
+    quads
         .iter()
         .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
+        .collect()
+}
+
+/// Cones from two or three points over a cube's boundary (12 triangles, outward): the
+/// tetrahedra tile it (volume 1, all positive), wedges and junctions included.
+#[test]
+fn cones_from_several_points_tile_a_cube() {
+    let corner = cube_corner;
+    let part = cube_boundary();
     let tris: Vec<[[f64; 3]; 3]> = part.iter().map(|t| t.map(corner)).collect();
     let degenerate = vec![false; part.len()];
     for points in [
