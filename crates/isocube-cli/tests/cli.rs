@@ -1247,9 +1247,43 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
             "-o",
             "empty.msh",
         ][..],
+        // Options for contour stacks are refused on volumes, not ignored.
+        &[
+            "tetmesh",
+            "sample:torus:24",
+            "--cell",
+            "0.1",
+            "-o",
+            "cell.msh",
+        ][..],
+        &[
+            "tetmesh",
+            "sample:torus:24",
+            "--grid",
+            "10x10",
+            "-o",
+            "grid.msh",
+        ][..],
+        &[
+            "tetmesh",
+            "sample:torus:24",
+            "--cap",
+            "flat",
+            "-o",
+            "cap.msh",
+        ][..],
     ] {
         let out = isocube(dir.path(), args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let named = args
+            .iter()
+            .any(|a| a.starts_with("--cell") || a.starts_with("--grid") || a.starts_with("--cap"));
+        if named {
+            assert!(String::from_utf8_lossy(&out.stderr).contains("for contour stacks"));
+        }
+    }
+    for name in ["cell.msh", "grid.msh", "cap.msh"] {
+        assert!(!dir.path().join(name).exists(), "{name}");
     }
     assert!(!dir.path().join("t.ply").exists() && !dir.path().join("empty.msh").exists());
     assert!(!dir.path().join("b.inp").exists());
@@ -1391,6 +1425,13 @@ fn tetmesh_fills_contour_stacks() {
         (with(&["-o", "level.msh", "--level", "0.5"]), "level.msh"),
         (with(&["-o", "labels.msh", "--labels"]), "labels.msh"),
         (with(&["-o", "bad.msh", "--layer-spacing", "-1"]), "bad.msh"),
+        // Options for volumes are refused on stacks, not ignored.
+        (with(&["-o", "dims.msh", "--dims", "4,4,4"]), "dims.msh"),
+        (
+            with(&["-o", "spacing.msh", "--spacing", "1,1,2"]),
+            "spacing.msh",
+        ),
+        (with(&["-o", "index.msh", "--index-space"]), "index.msh"),
     ] {
         let out = isocube(dir.path(), &args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");

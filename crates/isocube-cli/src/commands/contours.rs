@@ -82,6 +82,20 @@ pub(crate) fn load_stack(input: &str, output: &Path) -> Result<SectionStack, Fai
 }
 
 impl StackArgs {
+    /// The first of these options given, to refuse for an input that is not a stack. (`--cap
+    /// extend`, the default, cannot be told from no `--cap`.)
+    pub(crate) fn given(&self) -> Option<&'static str> {
+        if self.grid.is_some() {
+            Some("--grid")
+        } else if self.cell.is_some() {
+            Some("--cell")
+        } else if self.cap != ["extend"] {
+            Some("--cap")
+        } else {
+            None
+        }
+    }
+
     /// The plane grid asked for (100 cells across by default), refused when too large to index.
     pub(crate) fn plane(&self, stack: &SectionStack) -> Result<PlaneGrid, Failure> {
         let plane = match (self.grid, self.cell) {

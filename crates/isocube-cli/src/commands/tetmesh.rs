@@ -111,9 +111,15 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if super::contours::is_stack(&args.volume.volume) {
         return run_stack(args, quiet);
     }
-    if args.layer_spacing.is_some() {
+    // Options meant for the other kind of input are refused, not silently ignored.
+    let for_stacks = args
+        .layer_spacing
+        .as_ref()
+        .map(|_| "--layer-spacing")
+        .or_else(|| args.stack.given());
+    if let Some(option) = for_stacks {
         return Err(Failure::input(anyhow::anyhow!(
-            "--layer-spacing is for contour stacks (.csv, .json, .dxf, sample:orebody)"
+            "{option} is for contour stacks (.csv, .json, .dxf, sample:orebody)"
         )));
     }
     if !SampleSpec::is_sample(&args.volume.volume) {
@@ -158,6 +164,22 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
     if args.labels.is_some() {
         return Err(Failure::input(anyhow::anyhow!(
             "--labels is for labelled volumes: a contour stack outlines one body"
+        )));
+    }
+    let v = &args.volume;
+    let for_volumes = [
+        (v.dims.is_some(), "--dims"),
+        (v.scalar.is_some(), "--type"),
+        (v.header_bytes != 0, "--header-bytes"),
+        (v.spacing.is_some(), "--spacing"),
+        (v.origin.is_some(), "--origin"),
+        (args.index_space, "--index-space"),
+        (args.background != 0, "--background"),
+    ];
+    if let Some((_, option)) = for_volumes.iter().find(|(given, _)| *given) {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{option} is for volumes: a contour stack's coordinates are its own (--cell and \
+             --grid set the plane grid)"
         )));
     }
     let stack = super::contours::load_stack(&args.volume.volume, &args.output)?;
