@@ -153,6 +153,19 @@ pub fn band_with_interior(l1: &[Corner], l2: &[Corner]) -> Option<Vec<[Corner; 3
     band_search(l1, l2, &midpoint, true)
 }
 
+/// [`band`] (`through_interior` false) or [`band_with_interior`] (true) with rungs measured
+/// between the given positions of the corners (the interior point's too) instead of the edges'
+/// midpoints: the same rule for which rungs may be drawn, the cheapest band for a cell's actual
+/// crossings.
+pub fn band_at(
+    l1: &[Corner],
+    l2: &[Corner],
+    position: &dyn Fn(Corner) -> [f64; 3],
+    through_interior: bool,
+) -> Option<Vec<[Corner; 3]>> {
+    band_search(l1, l2, position, through_interior)
+}
+
 /// Whether a rung between two crossings may be a diagonal of the face they share. Rungs of a
 /// band never cross in the band, but on an ambiguous face the two loops' segments can sit so
 /// that both of the face's diagonals are rungs: two edges of the surface lying in one face and

@@ -15,11 +15,11 @@ use rayon::prelude::*;
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::place::{clamp_into, interior_bounds, Bounds, Placer};
-use super::untangle::untangle;
+use super::untangle::{crosses, untangle};
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
-use crate::cube::triangulate::{may_join, safe_triangulation};
+use crate::cube::triangulate::{band_at, may_join, safe_triangulation};
 use crate::cube::{CaseTable, CellTriangles, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
 use crate::mesh::Mesh;
 use crate::quality::{triangulate_polygon, Chords, Strategy, MAX_CORNERS};
@@ -436,8 +436,11 @@ impl<'a> BinaryCells<'a> {
             return Ok(());
         }
         let triangles = table.cell_triangles(config, decisions, options.topology, tunnel);
-        if tunnel.is_some() && self.untangled(cache, out, at, &triangles)? {
-            return Ok(());
+        if let Some(k) = tunnel {
+            let loops = table.tunnel_loops(config, decisions, k);
+            if self.untangled(cache, out, at, &triangles, loops)? {
+                return Ok(());
+            }
         }
         let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
         for tri in triangles.triangles {
@@ -475,6 +478,7 @@ impl<'a> BinaryCells<'a> {
         out: &mut ChunkMesh,
         at: At,
         triangles: &CellTriangles,
+        (l1, l2): (&[Corner], &[Corner]),
     ) -> Result<bool, ExtractError> {
         // Local numbers: edge corners by their vertex ids, interior point k as `u32::MAX - k`.
         let mut ids: Vec<u32> = Vec::new();
@@ -514,12 +518,15 @@ impl<'a> BinaryCells<'a> {
             }
             tris.push(t);
         }
+        if !crosses(&tris, &positions) {
+            return Ok(false);
+        }
         let interior = |id: u32| id > u32::MAX - Corner::MAX_INTERIOR as u32;
         let movable: Vec<u32> = (0..ids.len() as u32)
             .filter(|&v| interior(ids[v as usize]))
             .collect();
         let Some(places) = untangle(&tris, &positions, &movable, &bounds) else {
-            return Ok(false);
+            return self.rebanded(cache, out, at, triangles, (l1, l2), &bounds);
         };
         let mut made = ids.clone();
         for (&v, &p) in movable.iter().zip(&places) {
@@ -533,6 +540,99 @@ impl<'a> BinaryCells<'a> {
             self.push(out, t.map(|v| made[v as usize]));
         }
         Ok(true)
+    }
+
+    /// Emits a crossing tunnel's band searched anew on the cell's actual crossings (the same
+    /// rule for the rungs, direct or through one interior point at a few places), the first
+    /// that crosses nothing; `false` (nothing emitted) when none does.
+    fn rebanded(
+        &self,
+        cache: &mut EdgeCache,
+        out: &mut ChunkMesh,
+        at: At,
+        triangles: &CellTriangles,
+        (l1, l2): (&[Corner], &[Corner]),
+        bounds: &Bounds,
+    ) -> Result<bool, ExtractError> {
+        let in_tube = |c: Corner| l1.contains(&c) || l2.contains(&c) || c.as_interior().is_some();
+        let disks: Vec<[Corner; 3]> = triangles
+            .triangles
+            .iter()
+            .filter(|t| !t.iter().all(|&c| in_tube(c)))
+            .copied()
+            .collect();
+        if disks.iter().flatten().any(|c| c.as_interior().is_some()) {
+            return Ok(false);
+        }
+        let ring: Vec<Corner> = l1.iter().chain(l2).copied().collect();
+        let ring_ids = self.corner_ids(cache, out, at, &ring)?;
+        let mut edge_position = [[0.0f64; 3]; 12];
+        for (c, &id) in ring.iter().zip(&ring_ids) {
+            let e = usize::from(c.as_edge().expect("loops are crossings"));
+            edge_position[e] = out.mesh.positions[id as usize].map(f64::from);
+        }
+        for t in &disks {
+            for c in t {
+                let e = c.as_edge().expect("disks are crossings");
+                let id = self.edge(cache, out, at, e)?;
+                edge_position[usize::from(e)] = out.mesh.positions[id as usize].map(f64::from);
+            }
+        }
+        let mean = |cs: &[Corner]| -> [f64; 3] {
+            let n = cs.len() as f64;
+            std::array::from_fn(|d| {
+                cs.iter()
+                    .map(|c| edge_position[usize::from(c.as_edge().expect("crossings"))][d])
+                    .sum::<f64>()
+                    / n
+            })
+        };
+        let (lo, hi) = *bounds;
+        let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
+        let (m1, m2) = (mean(l1), mean(l2));
+        let middle: [f64; 3] = std::array::from_fn(|d| 0.5 * (m1[d] + m2[d]));
+        let places = [mean(&ring), middle, centre]
+            .map(|p| clamp_into(p, bounds).map(|c| f64::from(c as f32)));
+        let variants = std::iter::once((false, places[0])).chain(places.iter().map(|&p| (true, p)));
+        for (through, x) in variants {
+            let position = |c: Corner| match c.as_edge() {
+                Some(e) => edge_position[usize::from(e)],
+                None => x,
+            };
+            let Some(band) = band_at(l1, l2, &position, through) else {
+                continue;
+            };
+            let all: Vec<[Corner; 3]> = disks.iter().chain(&band).copied().collect();
+            let code = |c: Corner| match c.as_edge() {
+                Some(e) => u32::from(e),
+                None => 12,
+            };
+            let local: Vec<[u32; 3]> = all.iter().map(|t| t.map(code)).collect();
+            let at_code = |v: u32| if v < 12 { edge_position[v as usize] } else { x };
+            if crate::mesh::intersect::first_crossing(&local, &at_code).is_some() {
+                continue;
+            }
+            let mut interior = u32::MAX;
+            for t in all {
+                let mut ids = [0u32; 3];
+                for (slot, c) in ids.iter_mut().zip(t) {
+                    *slot = match c.as_edge() {
+                        Some(e) => self.edge(cache, out, at, e)?,
+                        None => {
+                            if interior == u32::MAX {
+                                interior = self.interior(out, at.cell, 0, |placer, mesh| {
+                                    placer.interior_vertex(x, &ring_ids, mesh)
+                                })?;
+                            }
+                            interior
+                        }
+                    };
+                }
+                self.push(out, ids);
+            }
+            return Ok(true);
+        }
+        Ok(false)
     }
 
     fn corner_ids(

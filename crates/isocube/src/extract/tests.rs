@@ -1278,11 +1278,13 @@ fn cell_surfaces_do_not_cross_themselves() {
     eprintln!("{crossing:#?}");
     for (what, &(cells, crossed)) in &crossing {
         // Tunnels: the table's bands between the two loops are fixed per case, and with some
-        // crossings they pass through each other (interior points are moved where that helps,
-        // with Marching Cubes; a band search on the actual positions that keeps the manifold
-        // rule is still to do). Elsewhere only rarely, with ternary snapping and the classic
-        // table.
-        let limit = if what.ends_with("tunnel 1") {
+        // crossings they pass through each other; with Marching Cubes their interior points are
+        // moved or the band searched anew where that helps (a third crossed before, a seventh
+        // now; ternary cells are not treated yet). Elsewhere only rarely, with ternary snapping
+        // and the classic table.
+        let limit = if what.ends_with("tunnel 1") && what.contains("None") {
+            cells / 6
+        } else if what.ends_with("tunnel 1") {
             cells / 3
         } else if what.contains("Classic") && what.contains("Some") {
             cells / 10_000

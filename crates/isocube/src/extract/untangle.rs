@@ -70,6 +70,11 @@ pub(super) fn untangle(
     None
 }
 
+/// Whether the triangles (none of no area) cross each other.
+pub(super) fn crosses(tris: &[[u32; 3]], positions: &[[f64; 3]]) -> bool {
+    !degenerate(tris, positions) && first_crossing(tris, &|v: u32| positions[v as usize]).is_some()
+}
+
 /// Whether a triangle has no area (values at the level put several crossings on one grid point:
 /// crossing is not the question there).
 fn degenerate(tris: &[[u32; 3]], positions: &[[f64; 3]]) -> bool {
