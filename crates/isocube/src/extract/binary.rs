@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
-use super::place::{clamp_into, interior_bounds, Bounds, Placer};
+use super::place::{centroid_in, clamp_into, interior_bounds, Bounds, Placer};
 use super::untangle::{crosses, untangle};
 use super::weld::EdgeCache;
 use super::window::Window;
@@ -470,8 +470,10 @@ impl<'a> BinaryCells<'a> {
         Ok(())
     }
 
-    /// Emits a tunnel's triangles with its interior points moved where the table's places make
-    /// them cross each other ([`untangle`]); `false` (nothing emitted) when they do not.
+    /// Emits a tunnel whose triangles, at the table's places, cross each other: with its interior
+    /// points moved ([`untangle`]), else with a band searched anew ([`Self::rebanded`]). `false`
+    /// (nothing emitted) when they do not cross, or when neither mends them: the table's
+    /// triangles are then emitted as they are.
     fn untangled(
         &self,
         cache: &mut EdgeCache,
@@ -496,15 +498,8 @@ impl<'a> BinaryCells<'a> {
                     let k = usize::from(corner.as_interior().expect("edge or interior corners"));
                     let support = triangles.interior_support(k);
                     supports[k] = self.corner_ids(cache, out, at, support)?;
-                    // Where the interior vertex would be stored (as `centroid_vertex` places it).
-                    let n = supports[k].len() as f64;
-                    let mut p = [0.0f64; 3];
-                    for &v in &supports[k] {
-                        for (c, x) in p.iter_mut().zip(out.mesh.positions[v as usize]) {
-                            *c += f64::from(x) / n;
-                        }
-                    }
-                    let p = clamp_into(p, &bounds).map(|c| f64::from(c as f32));
+                    let corners = supports[k].iter().map(|&v| out.mesh.positions[v as usize]);
+                    let p = centroid_in(corners, &bounds).map(|c| f64::from(c as f32));
                     (u32::MAX - k as u32, p)
                 };
                 *slot = match ids.iter().position(|&x| x == id) {
@@ -567,16 +562,10 @@ impl<'a> BinaryCells<'a> {
         let ring: Vec<Corner> = l1.iter().chain(l2).copied().collect();
         let ring_ids = self.corner_ids(cache, out, at, &ring)?;
         let mut edge_position = [[0.0f64; 3]; 12];
-        for (c, &id) in ring.iter().zip(&ring_ids) {
-            let e = usize::from(c.as_edge().expect("loops are crossings"));
-            edge_position[e] = out.mesh.positions[id as usize].map(f64::from);
-        }
-        for t in &disks {
-            for c in t {
-                let e = c.as_edge().expect("disks are crossings");
-                let id = self.edge(cache, out, at, e)?;
-                edge_position[usize::from(e)] = out.mesh.positions[id as usize].map(f64::from);
-            }
+        for &c in ring.iter().chain(disks.iter().flatten()) {
+            let e = c.as_edge().expect("loops and disks are crossings");
+            let id = self.edge(cache, out, at, e)?;
+            edge_position[usize::from(e)] = out.mesh.positions[id as usize].map(f64::from);
         }
         let mean = |cs: &[Corner]| -> [f64; 3] {
             let n = cs.len() as f64;

@@ -106,14 +106,8 @@ impl<'a> Placer<'a> {
         bounds: &Bounds,
         mesh: &mut Mesh,
     ) -> Result<u32, ExtractError> {
-        let n = ids.len() as f64;
-        let mut p = [0.0f64; 3];
-        for &v in ids {
-            for (c, x) in p.iter_mut().zip(mesh.positions[v as usize]) {
-                *c += f64::from(x) / n;
-            }
-        }
-        self.interior_vertex(clamp_into(p, bounds), ids, mesh)
+        let p = centroid_in(ids.iter().map(|&v| mesh.positions[v as usize]), bounds);
+        self.interior_vertex(p, ids, mesh)
     }
 
     /// Creates a vertex at `p` inside a cell, its normal the mean of the normals of `ids`.
@@ -214,6 +208,23 @@ pub(super) fn interior_bounds(a: [f64; 3], b: [f64; 3]) -> Bounds {
 }
 
 /// `p` moved into `bounds`, coordinate by coordinate.
+/// The centroid of `points` kept within `bounds`: where [`Placer::centroid_vertex`] puts an
+/// interior point (before it is stored as `f32`). Callers that predict a position use this so
+/// their prediction is the stored one, bit for bit.
+pub(super) fn centroid_in(
+    points: impl ExactSizeIterator<Item = [f32; 3]>,
+    bounds: &Bounds,
+) -> [f64; 3] {
+    let n = points.len() as f64;
+    let mut p = [0.0f64; 3];
+    for q in points {
+        for (c, x) in p.iter_mut().zip(q) {
+            *c += f64::from(x) / n;
+        }
+    }
+    clamp_into(p, bounds)
+}
+
 pub(super) fn clamp_into(p: [f64; 3], (lo, hi): &Bounds) -> [f64; 3] {
     std::array::from_fn(|d| p[d].clamp(lo[d], hi[d]))
 }

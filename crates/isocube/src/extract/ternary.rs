@@ -58,7 +58,7 @@ use crate::quality::{triangulate, Strategy};
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::classify::{cell_config, face_decisions};
-use super::place::{clamp_into, interior_bounds, Bounds, Placer};
+use super::place::{centroid_in, interior_bounds, Bounds, Placer};
 use super::{choose_tunnel, ExtractError, ExtractOptions};
 
 /// The smallest distance, as a fraction of the edge, between a crossing that was not snapped and
@@ -1391,17 +1391,11 @@ impl<'a> Ternary<'a> {
                 if let Some(x) = interior.at {
                     return x.map(|c| c as f32);
                 }
-                let support = &interior.support;
-                let n = support.len() as f64;
-                let mut x = [0.0f64; 3];
-                for &s in support {
-                    let q = self.position(s, interiors);
-                    for d in 0..3 {
-                        x[d] += f64::from(q[d]) / n;
-                    }
-                }
-                // As `Placer::centroid_vertex` will place it.
-                clamp_into(x, &self.interior_bounds(payload / 8)).map(|c| c as f32)
+                let corners = interior
+                    .support
+                    .iter()
+                    .map(|&s| self.position(s, interiors));
+                centroid_in(corners, &self.interior_bounds(payload / 8)).map(|c| c as f32)
             }
         }
     }

@@ -17,19 +17,17 @@ use super::place::{clamp_into, Bounds};
 use crate::mesh::intersect::{collinear, first_crossing};
 
 /// New places for the interior points `movable` (local vertex numbers into `positions`) at which
-/// the triangles cross nothing, in the order of `movable`; `None` when they cross nothing already
-/// or no place tried helps. Places keep to `bounds` and are rounded as stored (`f32`).
+/// the triangles (which cross, see [`crosses`]) cross nothing, in the order of `movable`; `None`
+/// when no place tried helps. Places keep to `bounds` and are rounded as stored (`f32`).
 pub(super) fn untangle(
     tris: &[[u32; 3]],
     positions: &[[f64; 3]],
     movable: &[u32],
     bounds: &Bounds,
 ) -> Option<Vec<[f64; 3]>> {
-    if movable.is_empty() || degenerate(tris, positions) {
+    if movable.is_empty() {
         return None;
     }
-    let position = |v: u32| positions[v as usize];
-    first_crossing(tris, &position)?;
     let (lo, hi) = *bounds;
     let current: Vec<[f64; 3]> = movable.iter().map(|&v| positions[v as usize]).collect();
     let n = current.len() as f64;
