@@ -14,12 +14,12 @@
 use rayon::prelude::*;
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
-use super::place::{centroid_in, clamp_into, interior_bounds, Bounds, Placer};
-use super::untangle::{crosses, untangle};
+use super::place::{interior_bounds, Bounds, Placer};
+use super::untangle::mend;
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
-use crate::cube::triangulate::{band_at, may_join, safe_triangulation};
+use crate::cube::triangulate::{may_join, safe_triangulation};
 use crate::cube::{CaseTable, CellTriangles, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
 use crate::mesh::Mesh;
 use crate::quality::{triangulate_polygon, Chords, Strategy, MAX_CORNERS};
@@ -470,158 +470,56 @@ impl<'a> BinaryCells<'a> {
         Ok(())
     }
 
-    /// Emits a tunnel whose triangles, at the table's places, cross each other: with its interior
-    /// points moved ([`untangle`]), else with a band searched anew ([`Self::rebanded`]). `false`
-    /// (nothing emitted) when they do not cross, or when neither mends them: the table's
-    /// triangles are then emitted as they are.
+    /// Emits a tunnel whose triangles, at the table's places, cross each other, mended
+    /// ([`mend`]); `false` (nothing emitted) when they do not cross or nothing mends them: the
+    /// table's triangles are then emitted as they are.
     fn untangled(
         &self,
         cache: &mut EdgeCache,
         out: &mut ChunkMesh,
         at: At,
         triangles: &CellTriangles,
-        (l1, l2): (&[Corner], &[Corner]),
+        loops: (&[Corner], &[Corner]),
     ) -> Result<bool, ExtractError> {
-        // Local numbers: edge corners by their vertex ids, interior point k as `u32::MAX - k`.
-        let mut ids: Vec<u32> = Vec::new();
-        let mut positions: Vec<[f64; 3]> = Vec::new();
-        let mut supports: Vec<Vec<u32>> = vec![Vec::new(); Corner::MAX_INTERIOR];
+        let mut ids = [u32::MAX; 12];
+        let mut edge_position = [[0.0f64; 3]; 12];
+        for &c in triangles.triangles.iter().flatten() {
+            if let Some(e) = c.as_edge() {
+                let e = usize::from(e);
+                if ids[e] == u32::MAX {
+                    ids[e] = self.edge(cache, out, at, e as u8)?;
+                    edge_position[e] = out.mesh.positions[ids[e] as usize].map(f64::from);
+                }
+            }
+        }
+        let position = |c: Corner| edge_position[usize::from(c.as_edge().expect("crossings"))];
         let bounds = self.interior_bounds(at.cell);
-        let mut tris = Vec::with_capacity(triangles.triangles.len());
-        for tri in triangles.triangles {
-            let mut t = [0u32; 3];
-            for (slot, &corner) in t.iter_mut().zip(tri) {
-                let (id, p) = if let Some(e) = corner.as_edge() {
-                    let id = self.edge(cache, out, at, e)?;
-                    (id, out.mesh.positions[id as usize].map(f64::from))
-                } else {
-                    let k = usize::from(corner.as_interior().expect("edge or interior corners"));
-                    let support = triangles.interior_support(k);
-                    supports[k] = self.corner_ids(cache, out, at, support)?;
-                    let corners = supports[k].iter().map(|&v| out.mesh.positions[v as usize]);
-                    let p = centroid_in(corners, &bounds).map(|c| f64::from(c as f32));
-                    (u32::MAX - k as u32, p)
-                };
-                *slot = match ids.iter().position(|&x| x == id) {
-                    Some(k) => k as u32,
+        let Some(mended) = mend(triangles, loops, &position, &|c| c, &bounds) else {
+            return Ok(false);
+        };
+        // Interior points take their normals from the loops'.
+        let support = self.corner_ids(cache, out, at, &[loops.0, loops.1].concat())?;
+        let mut interior = [u32::MAX; Corner::MAX_INTERIOR];
+        for t in mended.triangles {
+            let mut tri = [0u32; 3];
+            for (slot, c) in tri.iter_mut().zip(t) {
+                *slot = match c.as_edge() {
+                    Some(e) => self.edge(cache, out, at, e)?,
                     None => {
-                        ids.push(id);
-                        positions.push(p);
-                        ids.len() as u32 - 1
+                        let k = usize::from(c.as_interior().expect("edge or interior corners"));
+                        if interior[k] == u32::MAX {
+                            let x = mended.interiors[k];
+                            interior[k] = self.interior(out, at.cell, k, |placer, mesh| {
+                                placer.interior_vertex(x, &support, mesh)
+                            })?;
+                        }
+                        interior[k]
                     }
                 };
             }
-            tris.push(t);
-        }
-        if !crosses(&tris, &positions) {
-            return Ok(false);
-        }
-        let interior = |id: u32| id > u32::MAX - Corner::MAX_INTERIOR as u32;
-        let movable: Vec<u32> = (0..ids.len() as u32)
-            .filter(|&v| interior(ids[v as usize]))
-            .collect();
-        let Some(places) = untangle(&tris, &positions, &movable, &bounds) else {
-            return self.rebanded(cache, out, at, triangles, (l1, l2), &bounds);
-        };
-        let mut made = ids.clone();
-        for (&v, &p) in movable.iter().zip(&places) {
-            let k = (u32::MAX - ids[v as usize]) as usize;
-            let support = &supports[k];
-            made[v as usize] = self.interior(out, at.cell, k, |placer, mesh| {
-                placer.interior_vertex(p, support, mesh)
-            })?;
-        }
-        for t in tris {
-            self.push(out, t.map(|v| made[v as usize]));
+            self.push(out, tri);
         }
         Ok(true)
-    }
-
-    /// Emits a crossing tunnel's band searched anew on the cell's actual crossings (the same
-    /// rule for the rungs, direct or through one interior point at a few places), the first
-    /// that crosses nothing; `false` (nothing emitted) when none does.
-    fn rebanded(
-        &self,
-        cache: &mut EdgeCache,
-        out: &mut ChunkMesh,
-        at: At,
-        triangles: &CellTriangles,
-        (l1, l2): (&[Corner], &[Corner]),
-        bounds: &Bounds,
-    ) -> Result<bool, ExtractError> {
-        let in_tube = |c: Corner| l1.contains(&c) || l2.contains(&c) || c.as_interior().is_some();
-        let disks: Vec<[Corner; 3]> = triangles
-            .triangles
-            .iter()
-            .filter(|t| !t.iter().all(|&c| in_tube(c)))
-            .copied()
-            .collect();
-        if disks.iter().flatten().any(|c| c.as_interior().is_some()) {
-            return Ok(false);
-        }
-        let ring: Vec<Corner> = l1.iter().chain(l2).copied().collect();
-        let ring_ids = self.corner_ids(cache, out, at, &ring)?;
-        let mut edge_position = [[0.0f64; 3]; 12];
-        for &c in ring.iter().chain(disks.iter().flatten()) {
-            let e = c.as_edge().expect("loops and disks are crossings");
-            let id = self.edge(cache, out, at, e)?;
-            edge_position[usize::from(e)] = out.mesh.positions[id as usize].map(f64::from);
-        }
-        let mean = |cs: &[Corner]| -> [f64; 3] {
-            let n = cs.len() as f64;
-            std::array::from_fn(|d| {
-                cs.iter()
-                    .map(|c| edge_position[usize::from(c.as_edge().expect("crossings"))][d])
-                    .sum::<f64>()
-                    / n
-            })
-        };
-        let (lo, hi) = *bounds;
-        let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
-        let (m1, m2) = (mean(l1), mean(l2));
-        let middle: [f64; 3] = std::array::from_fn(|d| 0.5 * (m1[d] + m2[d]));
-        let places = [mean(&ring), middle, centre]
-            .map(|p| clamp_into(p, bounds).map(|c| f64::from(c as f32)));
-        let variants = std::iter::once((false, places[0])).chain(places.iter().map(|&p| (true, p)));
-        for (through, x) in variants {
-            let position = |c: Corner| match c.as_edge() {
-                Some(e) => edge_position[usize::from(e)],
-                None => x,
-            };
-            let Some(band) = band_at(l1, l2, &position, through) else {
-                continue;
-            };
-            let all: Vec<[Corner; 3]> = disks.iter().chain(&band).copied().collect();
-            let code = |c: Corner| match c.as_edge() {
-                Some(e) => u32::from(e),
-                None => 12,
-            };
-            let local: Vec<[u32; 3]> = all.iter().map(|t| t.map(code)).collect();
-            let at_code = |v: u32| if v < 12 { edge_position[v as usize] } else { x };
-            if crate::mesh::intersect::first_crossing(&local, &at_code).is_some() {
-                continue;
-            }
-            let mut interior = u32::MAX;
-            for t in all {
-                let mut ids = [0u32; 3];
-                for (slot, c) in ids.iter_mut().zip(t) {
-                    *slot = match c.as_edge() {
-                        Some(e) => self.edge(cache, out, at, e)?,
-                        None => {
-                            if interior == u32::MAX {
-                                interior = self.interior(out, at.cell, 0, |placer, mesh| {
-                                    placer.interior_vertex(x, &ring_ids, mesh)
-                                })?;
-                            }
-                            interior
-                        }
-                    };
-                }
-                self.push(out, ids);
-            }
-            return Ok(true);
-        }
-        Ok(false)
     }
 
     fn corner_ids(

@@ -59,6 +59,7 @@ use crate::quality::{triangulate, Strategy};
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::classify::{cell_config, face_decisions};
 use super::place::{centroid_in, interior_bounds, Bounds, Placer};
+use super::untangle::{crosses, mend};
 use super::{choose_tunnel, ExtractError, ExtractOptions};
 
 /// The smallest distance, as a fraction of the edge, between a crossing that was not snapped and
@@ -590,8 +591,29 @@ impl<'a> Ternary<'a> {
             return false;
         }
         let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
+        let mended = tunnel.and_then(|t| {
+            let loops = table.tunnel_loops(config, decisions, t);
+            let position = |c: Corner| self.position(key(c), &[]).map(f64::from);
+            // Corners collapsed onto one zero point are one vertex.
+            let same = |c: Corner| {
+                let edges = cell
+                    .triangles
+                    .iter()
+                    .flatten()
+                    .filter(|d| d.as_edge().is_some());
+                match c.as_edge() {
+                    Some(_) => edges.copied().find(|&d| key(d) == key(c)).unwrap_or(c),
+                    None => c,
+                }
+            };
+            mend(&cell, loops, &position, &same, &self.interior_bounds(base))
+                .map(|m| (m, [loops.0, loops.1].concat()))
+        });
+        let triangles = mended
+            .as_ref()
+            .map_or(cell.triangles, |(m, _)| &m.triangles[..]);
         let mut used = [false; Corner::MAX_INTERIOR];
-        for t in cell.triangles {
+        for t in triangles {
             let k = t.map(key);
             if k[0] == k[1] || k[1] == k[2] || k[0] == k[2] {
                 continue;
@@ -604,18 +626,54 @@ impl<'a> Ternary<'a> {
             patch.triangles.push(k);
         }
         for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
-            let support = cell.interior_support(i).iter().map(|&c| key(c)).collect();
+            let (support, at) = match &mended {
+                // Mended points take their normals from the loops'.
+                Some((m, loops)) => {
+                    let mut support: Vec<Key> = loops.iter().map(|&c| key(c)).collect();
+                    support.sort_unstable();
+                    support.dedup();
+                    (support, Some(m.interiors[i]))
+                }
+                None => (
+                    cell.interior_support(i).iter().map(|&c| key(c)).collect(),
+                    None,
+                ),
+            };
             patch.interiors.push(Interior {
                 key: key(Corner::interior(i as u8)),
                 support,
-                at: None,
+                at,
             });
         }
         self.face_diagonals(first, over, patch);
         if flips {
+            // Flips in a tunnel's tube can make it pass through itself: kept only if not.
+            let table_triangles = tunnel.map(|_| patch.triangles[first..].to_vec());
             self.improve_cell(base, first, patch);
+            if let Some(before) = table_triangles {
+                if self.crosses(&patch.triangles[first..], &patch.interiors) {
+                    patch.triangles.truncate(first);
+                    patch.triangles.extend(before);
+                }
+            }
         }
         tunnel.is_some()
+    }
+
+    /// Whether triangles of a cell cross each other (none of no area) where they are placed.
+    fn crosses(&self, triangles: &[[Key; 3]], interiors: &[Interior]) -> bool {
+        let mut keys: Vec<Key> = triangles.iter().flatten().copied().collect();
+        keys.sort_unstable();
+        keys.dedup();
+        let positions: Vec<[f64; 3]> = keys
+            .iter()
+            .map(|&k| self.position(k, interiors).map(f64::from))
+            .collect();
+        let local: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|k| keys.binary_search(&k).expect("a key of the cell") as u32))
+            .collect();
+        crosses(&local, &positions)
     }
 
     /// Makes every diagonal of a face of four zero points that the cell's triangles use the one

@@ -1277,20 +1277,50 @@ fn cell_surfaces_do_not_cross_themselves() {
     }
     eprintln!("{crossing:#?}");
     for (what, &(cells, crossed)) in &crossing {
-        // Tunnels: the table's bands between the two loops are fixed per case, and with some
-        // crossings they pass through each other; with Marching Cubes their interior points are
-        // moved or the band searched anew where that helps (a third crossed before, a seventh
-        // now; ternary cells are not treated yet). Elsewhere only rarely, with ternary snapping
-        // and the classic table.
-        let limit = if what.ends_with("tunnel 1") && what.contains("None") {
-            cells / 6
-        } else if what.ends_with("tunnel 1") {
-            cells / 3
-        } else if what.contains("Classic") && what.contains("Some") {
+        // Tunnels cross themselves with the table's bands at about a third of these cells
+        // (28 of 89 with Marching Cubes, 21 ternary); mended, none does. Elsewhere only rarely,
+        // with ternary snapping and the classic table.
+        let limit = if what.contains("Classic") && what.contains("Some") {
             cells / 10_000
         } else {
             0
         };
         assert!(crossed <= limit, "{what}: {crossed} of {cells} cells cross");
     }
+}
+
+/// Measurement (ignored: about half a minute): Marching Cubes 33 tunnels, binary and ternary, in
+/// many random cells, half with values bunched near the level. None crosses itself but where two
+/// crossings are one point (a value within about 1e-9 of the level): touching, not crossing.
+#[test]
+#[ignore]
+fn tunnel_crossings_in_many_cells() {
+    let mut rng = crate::TestRng::new(12);
+    let ternary = Method::Ternary(Snapping::default().with_snap(0.3));
+    let (mut tunnels, mut touching) = ([0usize; 2], [0usize; 2]);
+    for n in 0..800_000 {
+        let power = if n % 2 == 0 { 1 } else { 3 };
+        let values: Vec<f32> = (0..8)
+            .map(|_| (rng.unit() as f32 * 2.0 - 1.0).powi(power))
+            .collect();
+        let grid = Grid::new([2, 2, 2], values).unwrap();
+        for (m, method) in [Method::MarchingCubes, ternary].into_iter().enumerate() {
+            let options = ExtractOptions::default().with_method(method);
+            let (mesh, stats) = extract(&grid, &options).unwrap();
+            if stats.tunnels == 0 {
+                continue;
+            }
+            tunnels[m] += 1;
+            let position = |v: u32| mesh.positions[v as usize].map(f64::from);
+            if crate::mesh::intersect::first_crossing(&mesh.triangles, &position).is_none() {
+                continue;
+            }
+            let mut at = mesh.positions.clone();
+            at.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
+            let tied = at.windows(2).any(|w| w[0] == w[1]);
+            assert!(tied, "{method:?} {:?} crosses itself", grid.values());
+            touching[m] += 1;
+        }
+    }
+    eprintln!("tunnel cells {tunnels:?}, touching at a tied point {touching:?}");
 }

@@ -1,25 +1,157 @@
-//! Tunnels that cross themselves, with their interior points moved.
+//! Tunnels that would cross themselves, mended.
 //!
 //! Marching Cubes 33's tunnels are stored as one triangulation per case: a band joining two of
 //! the cell's loops, through interior points where the rule that keeps meshes manifold forbids a
-//! direct band (see [`crate::cube::triangulate`]). The interior points sit at the centroid of
-//! some of the loops' corners. With the crossings where some cells put them, the tube's long
-//! triangles then pass through each other: about a third of the tunnels in random cells (the
-//! extract tests count them). Such a surface is still closed but not embedded: no region has it
-//! as its boundary, and a volume mesher cannot fill it.
+//! direct band (see [`crate::cube::triangulate`]). With the crossings where some cells put them,
+//! the tube's long triangles pass through each other (about a third of the tunnels in random
+//! cells). Such a surface is still closed but not embedded: no region has it as its boundary,
+//! and a volume mesher cannot fill it.
 //!
-//! Where a cell's triangles cross (decided by exact predicates on the stored positions), its
-//! interior points are moved — to the first of a fixed list of places in the cell, the nearest
-//! first, where nothing crosses. The triangles stay the table's (the same topology, the same
-//! edges, so neighbours are unaffected); only where the points are changes.
+//! Where a tunnel cell's triangles cross (exact predicates on the stored positions), [`mend`]
+//! finds triangles that do not: the same ones with the interior points moved, else another band
+//! between the same two loops. Only the tube changes: its loops, and so every edge on the
+//! cell's faces, stay the table's, so neighbours are unaffected, and the result depends on the
+//! cell's values alone (the same whatever the chunks or threads).
 
-use super::place::{clamp_into, Bounds};
+use super::place::{centroid_in, clamp_into, Bounds};
+use crate::cube::polygons::Corner;
+use crate::cube::table::CellTriangles;
+use crate::cube::triangulate::band_at;
 use crate::mesh::intersect::{collinear, first_crossing};
+
+/// A tunnel cell's triangles that cross nothing, and where their interior points go
+/// (`interiors[k]` for [`Corner::interior`]`(k)`, rounded as stored).
+pub(super) struct Mended {
+    pub triangles: Vec<[Corner; 3]>,
+    pub interiors: Vec<[f64; 3]>,
+}
+
+/// Mends a tunnel cell whose triangles (`cell`, the tunnel joining loops `l1` and `l2`) cross
+/// each other with the crossings at `position` (edge corners; `f32` values as stored): `None`
+/// when they do not cross (or a triangle has no area: crossings on one grid point touch, they
+/// do not cross), or when nothing tried helps.
+///
+/// Tried in order, the first that crosses nothing: the table's triangles with the interior
+/// points moved ([`untangle`]); a band searched anew on the actual crossings under the table's
+/// rule for rungs ([`band_at`]), direct or through one interior point at the loops' centroid,
+/// the middle of their centroids or the cell centre; bands through a ring of interior points
+/// ([`rings`]). The cell's other triangles (disks) stay. `same` maps a corner to the one whose
+/// vertex it shares (ternary cells collapse crossings onto zero points; the identity otherwise):
+/// triangles are tested as they will be emitted, those with a repeated vertex dropped.
+pub(super) fn mend(
+    cell: &CellTriangles,
+    (l1, l2): (&[Corner], &[Corner]),
+    position: &dyn Fn(Corner) -> [f64; 3],
+    same: &dyn Fn(Corner) -> Corner,
+    bounds: &Bounds,
+) -> Option<Mended> {
+    let stored = |p: [f64; 3]| p.map(|c| f64::from(c as f32));
+    let table_interiors: Vec<[f64; 3]> = (0..cell.interior_count())
+        .map(|k| {
+            let support = cell.interior_support(k);
+            let corners = support.iter().map(|&c| position(c).map(|x| x as f32));
+            stored(centroid_in(corners, bounds))
+        })
+        .collect();
+    let at = |c: Corner, xs: &[[f64; 3]]| match c.as_interior() {
+        Some(k) => xs[usize::from(k)],
+        None => position(c),
+    };
+    // Local vertices: distinct corners after `same`, numbered by first use.
+    let local = |triangles: &[[Corner; 3]], xs: &[[f64; 3]]| {
+        let mut corners: Vec<Corner> = Vec::new();
+        let mut tris = Vec::with_capacity(triangles.len());
+        for t in triangles {
+            let t = t.map(same);
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                continue;
+            }
+            tris.push(t.map(|c| match corners.iter().position(|&x| x == c) {
+                Some(k) => k as u32,
+                None => {
+                    corners.push(c);
+                    corners.len() as u32 - 1
+                }
+            }));
+        }
+        let positions: Vec<[f64; 3]> = corners.iter().map(|&c| at(c, xs)).collect();
+        (corners, tris, positions)
+    };
+    let (corners, tris, positions) = local(cell.triangles, &table_interiors);
+    if !crosses(&tris, &positions) {
+        return None;
+    }
+    let movable: Vec<u32> = (0..corners.len() as u32)
+        .filter(|&v| corners[v as usize].as_interior().is_some())
+        .collect();
+    if let Some(places) = untangle(&tris, &positions, &movable, bounds) {
+        let mut interiors = table_interiors;
+        for (&v, p) in movable.iter().zip(places) {
+            let k = corners[v as usize]
+                .as_interior()
+                .expect("movable points are interior");
+            interiors[usize::from(k)] = p;
+        }
+        return Some(Mended {
+            triangles: cell.triangles.to_vec(),
+            interiors,
+        });
+    }
+    let in_tube = |c: Corner| l1.contains(&c) || l2.contains(&c) || c.as_interior().is_some();
+    let disks: Vec<[Corner; 3]> = cell
+        .triangles
+        .iter()
+        .filter(|t| !t.iter().all(|&c| in_tube(c)))
+        .copied()
+        .collect();
+    if disks.iter().flatten().any(|c| c.as_interior().is_some()) {
+        return None;
+    }
+    let mean = |cs: &[Corner]| -> [f64; 3] {
+        let n = cs.len() as f64;
+        std::array::from_fn(|d| cs.iter().map(|&c| position(c)[d]).sum::<f64>() / n)
+    };
+    let (lo, hi) = *bounds;
+    let centre: [f64; 3] = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
+    let (m1, m2) = (mean(l1), mean(l2));
+    let middle: [f64; 3] = std::array::from_fn(|d| 0.5 * (m1[d] + m2[d]));
+    let both: Vec<Corner> = l1.iter().chain(l2).copied().collect();
+    let places = [mean(&both), middle, centre].map(|p| stored(clamp_into(p, bounds)));
+    let variants = std::iter::once((false, places[0])).chain(places.iter().map(|&p| (true, p)));
+    let singles = variants.filter_map(|(through, x)| {
+        let xs = vec![x];
+        let band = band_at(l1, l2, &|c| at(c, &xs), through)?;
+        Some((band, xs))
+    });
+    let p1: Vec<[f64; 3]> = l1.iter().map(|&c| position(c)).collect();
+    let p2: Vec<[f64; 3]> = l2.iter().map(|&c| position(c)).collect();
+    let ringed = rings(&p1, &p2).into_iter().filter_map(|ring| {
+        let xs: Vec<[f64; 3]> = ring
+            .into_iter()
+            .map(|p| stored(clamp_into(p, bounds)))
+            .collect();
+        let r: Vec<Corner> = (0..xs.len() as u8).map(Corner::interior).collect();
+        let back: Vec<Corner> = r.iter().rev().copied().collect();
+        let to_ring = band_at(l1, &r, &|c| at(c, &xs), false)?;
+        let from_ring = band_at(&back, l2, &|c| at(c, &xs), false)?;
+        Some((to_ring.into_iter().chain(from_ring).collect(), xs))
+    });
+    singles.chain(ringed).find_map(|(band, xs)| {
+        let triangles: Vec<[Corner; 3]> = disks.iter().chain(&band).copied().collect();
+        let (_, tris, positions) = local(&triangles, &xs);
+        let ok = !degenerate(&tris, &positions)
+            && first_crossing(&tris, &|v: u32| positions[v as usize]).is_none();
+        ok.then_some(Mended {
+            triangles,
+            interiors: xs,
+        })
+    })
+}
 
 /// New places for the interior points `movable` (local vertex numbers into `positions`) at which
 /// the triangles (which cross, see [`crosses`]) cross nothing, in the order of `movable`; `None`
 /// when no place tried helps. Places keep to `bounds` and are rounded as stored (`f32`).
-pub(super) fn untangle(
+fn untangle(
     tris: &[[u32; 3]],
     positions: &[[f64; 3]],
     movable: &[u32],
@@ -78,4 +210,83 @@ pub(super) fn crosses(tris: &[[u32; 3]], positions: &[[f64; 3]]) -> bool {
 fn degenerate(tris: &[[u32; 3]], positions: &[[f64; 3]]) -> bool {
     tris.iter()
         .any(|t| collinear(t.map(|v| positions[v as usize])))
+}
+
+/// Rings of interior points for a tube between the loops at `p1` and `p2` (each oriented as a
+/// boundary of the tube, so they run opposite ways round it), to try in order: regular polygons
+/// of 4 or 3 points round the line between the loops' centroids, at a few places along it and a
+/// few fractions of the loops' radius, each running opposite to the first loop (so the first
+/// loop and the ring bound an annulus, and the ring reversed and the second loop another).
+///
+/// A band to a ring needs no chord on a face of the cell (every rung ends at an interior point),
+/// so the manifold rule never forbids one; whether it crosses is the caller's test.
+fn rings(p1: &[[f64; 3]], p2: &[[f64; 3]]) -> Vec<Vec<[f64; 3]>> {
+    let mean = |p: &[[f64; 3]]| -> [f64; 3] {
+        std::array::from_fn(|d| p.iter().map(|q| q[d]).sum::<f64>() / p.len() as f64)
+    };
+    let sub = |a: [f64; 3], b: [f64; 3]| -> [f64; 3] { std::array::from_fn(|d| a[d] - b[d]) };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let unit = |a: [f64; 3]| {
+        let l = dot(a, a).sqrt();
+        (l > 1e-12).then(|| a.map(|c| c / l))
+    };
+    if p1.len() < 3 || p2.len() < 3 {
+        return Vec::new();
+    }
+    let (m1, m2) = (mean(p1), mean(p2));
+    let axis = sub(m2, m1);
+    let Some(n) = unit(axis) else {
+        return Vec::new();
+    };
+    let flat = |a: [f64; 3]| {
+        let h = dot(a, n);
+        std::array::from_fn::<f64, 3, _>(|d| a[d] - h * n[d])
+    };
+    let winding: f64 = (0..p1.len())
+        .map(|i| {
+            let (a, b) = (sub(p1[i], m1), sub(p1[(i + 1) % p1.len()], m1));
+            dot(cross(a, b), n)
+        })
+        .sum();
+    let u = unit(flat(sub(p1[0], m1)))
+        .or_else(|| unit(flat([1.0, 0.0, 0.0])))
+        .or_else(|| unit(flat([0.0, 1.0, 0.0])))
+        .expect("some axis is not parallel to n");
+    let v = cross(n, u);
+    let radius = |p: &[[f64; 3]], m: [f64; 3]| {
+        p.iter()
+            .map(|&q| dot(flat(sub(q, m)), flat(sub(q, m))).sqrt())
+            .sum::<f64>()
+            / p.len() as f64
+    };
+    let r0 = radius(p1, m1).min(radius(p2, m2));
+    // Opposite to the first loop's winding about n.
+    let sense = if winding > 0.0 { -1.0 } else { 1.0 };
+    let mut out = Vec::new();
+    for t in [0.5, 0.35, 0.65, 0.2, 0.8] {
+        for f in [0.5, 0.3, 0.7, 0.15, 0.9] {
+            for m in [4usize, 3] {
+                for phase in [0.0, 0.5] {
+                    let r = f * r0;
+                    let ring = (0..m)
+                        .map(|k| {
+                            let angle =
+                                sense * std::f64::consts::TAU * (k as f64 + phase) / m as f64;
+                            let (c, s) = (angle.cos() * r, angle.sin() * r);
+                            std::array::from_fn(|d| m1[d] + t * axis[d] + c * u[d] + s * v[d])
+                        })
+                        .collect();
+                    out.push(ring);
+                }
+            }
+        }
+    }
+    out
 }

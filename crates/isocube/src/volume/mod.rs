@@ -1418,8 +1418,8 @@ fn shared_points(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> bool 
 }
 
 const CROSSED: &str =
-    "the surface passes through itself in this cell (a tunnel of Marching Cubes 33 \
-     whose triangles cross), so it bounds no region here; --topology classic has no tunnels";
+    "the surface passes through itself in this cell, so it bounds no region here (extraction \
+     mends the tunnels that would: a mesh that reaches here is a bug to report, with the input)";
 
 const FOLDED: &str =
     "no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)";
