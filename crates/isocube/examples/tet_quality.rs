@@ -4,7 +4,9 @@
 //! and 64 points per axis, each sampled on grids moved by random sub-cell offsets (the worst
 //! over the offsets).
 //!
-//! `cargo run --release -p isocube --example tet_quality [OFFSETS]`
+//! `cargo run --release -p isocube --example tet_quality [OFFSETS [SAMPLE]]`: SAMPLE (e.g.
+//! `packed`) keeps the rows of samples whose name starts with it; the offsets are the same
+//! as in the whole table. Refusals are printed to stderr with their reason.
 
 use isocube::extract::{ExtractOptions, Method, SnapPosition, Snapping};
 use isocube::field::{Grid, Sample};
@@ -14,6 +16,7 @@ fn main() {
     let offsets: usize = std::env::args()
         .nth(1)
         .map_or(3, |s| s.parse().expect("a number of offsets"));
+    let only = std::env::args().nth(2).unwrap_or_default();
     let samples = [
         Sample::Sphere,
         Sample::Torus,
@@ -44,6 +47,9 @@ fn main() {
             let shifts: Vec<[f64; 3]> = (0..offsets)
                 .map(|_| std::array::from_fn(|_| unit(&mut state)))
                 .collect();
+            if !sample.name().starts_with(&only) {
+                continue;
+            }
             for (name, options) in &methods {
                 let mut worst: Option<(TetReport, usize)> = None;
                 let mut refused = 0;
@@ -53,7 +59,8 @@ fn main() {
                     let grid = shifted(sample, n, *shift);
                     let mesh = match tetmesh(&grid, options) {
                         Ok(mesh) => mesh,
-                        Err(_) => {
+                        Err(e) => {
+                            eprintln!("{sample:?} {n} {name} {shift:?}: {e}");
                             refused += 1;
                             continue;
                         }

@@ -1418,8 +1418,9 @@ fn shared_points(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> bool 
 }
 
 const CROSSED: &str =
-    "the surface passes through itself in this cell, so it bounds no region here (extraction \
-     mends the tunnels that would: a mesh that reaches here is a bug to report, with the input)";
+    "the surface passes through itself in this cell, so it bounds no region here (seen with \
+     --snap-position crossing, where snapped points carry the surface along a cell face; \
+     --snap-position grid meshes those inputs)";
 
 const FOLDED: &str =
     "no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)";
