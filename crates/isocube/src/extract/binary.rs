@@ -494,7 +494,7 @@ impl<'a> BinaryCells<'a> {
         }
         let position = |c: Corner| edge_position[usize::from(c.as_edge().expect("crossings"))];
         let bounds = self.interior_bounds(at.cell);
-        let Some(mended) = mend(triangles, loops, &position, &|c| c, &bounds) else {
+        let Some(mended) = mend(triangles, loops, &position, &|c| c, &|_| true, &bounds) else {
             return Ok(false);
         };
         // Interior points take their normals from the loops'.

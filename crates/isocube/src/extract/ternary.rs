@@ -544,9 +544,13 @@ impl<'a> Ternary<'a> {
     }
 
     /// Appends the triangles of cell `cell` (its first grid point) to `patch`, with point `over`
-    /// treated as zero, improved by flips if `flips`.
+    /// treated as zero. `last` for the mesh itself, not a snapping check: then a tunnel that
+    /// would cross itself is mended and the triangles improved by flips. (The checks compare
+    /// how triangles share vertices and edges, which a mended tunnel keeps: a tube between
+    /// the same loops. Mending each tunnel cell of every check made noisy data a half slower.)
     /// Returns whether the cell's interior opened a tunnel.
-    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch, flips: bool) -> bool {
+    fn emit(&self, base: usize, over: Option<usize>, patch: &mut Patch, last: bool) -> bool {
+        let flips = last;
         let pts = self.offsets.map(|o| base + o);
         let v = pts.map(|p| self.value(p, over));
         if v.iter().any(|x| !x.is_finite()) {
@@ -591,7 +595,7 @@ impl<'a> Ternary<'a> {
             return false;
         }
         let cell = table.cell_triangles(config, decisions, self.topology, tunnel);
-        let mended = tunnel.and_then(|t| {
+        let mended = tunnel.filter(|_| last).and_then(|t| {
             let loops = table.tunnel_loops(config, decisions, t);
             let position = |c: Corner| self.position(key(c), &[]).map(f64::from);
             // Corners collapsed onto one zero point are one vertex.
@@ -606,8 +610,25 @@ impl<'a> Ternary<'a> {
                     None => c,
                 }
             };
-            mend(&cell, loops, &position, &same, &self.interior_bounds(base))
-                .map(|m| (m, [loops.0, loops.1].concat()))
+            // The snapping checks validated the table's triangles collapsed; a band collapsed
+            // otherwise could pinch, so it must bound the same as they do.
+            let keys = |tris: &[[Corner; 3]]| -> Vec<[Key; 3]> {
+                let all = tris.iter().map(|t| t.map(key));
+                all.filter(|k| k[0] != k[1] && k[1] != k[2] && k[0] != k[2])
+                    .collect()
+            };
+            let cube = self.coords(base).map(|c| 2 * c);
+            let faces = |k: Key| {
+                let c = self.key_coords(k);
+                (0..3).fold(0u8, |m, a| {
+                    m | u8::from(c[a] == cube[a]) << a | u8::from(c[a] == cube[a] + 2) << (a + 3)
+                })
+            };
+            let table_keys = keys(cell.triangles);
+            let accept = |t: &[[Corner; 3]]| same_surface(&table_keys, &keys(t), &faces);
+            let bounds = self.interior_bounds(base);
+            let m = mend(&cell, loops, &position, &same, &accept, &bounds)?;
+            Some((m, [loops.0, loops.1].concat()))
         });
         let triangles = mended
             .as_ref()
@@ -2099,6 +2120,51 @@ fn fan<T: Copy + Ord>(ts: &[[T; 3]], u: T) -> Option<(Vec<(T, T)>, usize)> {
         }
     }
     Some((paths, cycles))
+}
+
+/// Whether triangles `b` make a surface like `a`'s: every edge of `b` in at most two triangles,
+/// in opposite directions when in two; the same boundary (edges without their reverse, with
+/// direction) and the same Euler characteristic; no edge that `a` lacks joining two vertices on
+/// one face of the cell (`faces`: a vertex's faces as bits), where the cell across the face
+/// may draw it too. Both are one cell's patch, so this keeps the mesh's topology when `b`
+/// replaces `a`.
+fn same_surface(a: &[[Key; 3]], b: &[[Key; 3]], faces: &dyn Fn(Key) -> u8) -> bool {
+    let edges = |t: &[[Key; 3]]| -> Vec<(Key, Key)> {
+        let mut e: Vec<(Key, Key)> = t
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .collect();
+        e.sort_unstable();
+        e
+    };
+    let (ea, eb) = (edges(a), edges(b));
+    if eb.windows(2).any(|w| w[0] == w[1]) {
+        return false;
+    }
+    let in_a =
+        |x: Key, y: Key| ea.binary_search(&(x, y)).is_ok() || ea.binary_search(&(y, x)).is_ok();
+    if eb
+        .iter()
+        .any(|&(x, y)| faces(x) & faces(y) != 0 && !in_a(x, y))
+    {
+        return false;
+    }
+    let boundary = |e: &[(Key, Key)]| -> Vec<(Key, Key)> {
+        let open = e
+            .iter()
+            .filter(|&&(x, y)| e.binary_search(&(y, x)).is_err());
+        open.copied().collect()
+    };
+    let euler = |t: &[[Key; 3]], e: &[(Key, Key)]| -> i64 {
+        let mut v: Vec<Key> = t.iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        let mut u: Vec<(Key, Key)> = e.iter().map(|&(x, y)| (x.min(y), x.max(y))).collect();
+        u.sort_unstable();
+        u.dedup();
+        v.len() as i64 - u.len() as i64 + t.len() as i64
+    };
+    boundary(&ea) == boundary(&eb) && euler(a, &ea) == euler(b, &eb)
 }
 
 #[cfg(test)]

@@ -432,6 +432,27 @@ mod ternary {
         );
     }
 
+    /// A grid `random_tied_grids` found (threshold 1, snap 0.1, on grid points): a tunnel cell
+    /// whose crossings collapse onto zero points, once mended into a band whose collapsed rung
+    /// lay in a cell face the neighbour used too (an edge of four triangles).
+    #[test]
+    fn tied_tunnel_mended_without_a_hole() {
+        let values: [i8; 180] = [
+            -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+            -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0,
+            0, 0, 0, -1, -1, 0, 0, 3, -1, -1, -1, 0, 0, 0, -1, -1, -1, 0, 0, 0, 0, -1, -1, -1, -1,
+            -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, -1, -1, 0, 0, -2, 1, -1, -1, 0, 0,
+            0, 0, -1, -1, 0, 0, 0, 0, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 0,
+            0, 0, -1, -1, 0, 0, 0, -1, -1, -1, 0, 0, -2, -2, -1, -1, 0, 0, 0, 0, -1, -1, -1, -1,
+            -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+            -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+        ];
+        let grid = Grid::new([6, 6, 5], values.iter().map(|&v| f32::from(v)).collect()).unwrap();
+        let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
+        let mesh = extract(&grid, &ternary_on_grid(1.0, 0.1)).unwrap().0;
+        assert_eq!(topology(&mesh), topology(&mc33));
+    }
+
     fn topology(mesh: &Mesh) -> (usize, i64, bool) {
         let r = mesh.report();
         (r.components, r.euler, r.watertight)

@@ -37,12 +37,14 @@ pub(super) struct Mended {
 /// the middle of their centroids or the cell centre; bands through a ring of interior points
 /// ([`rings`]). The cell's other triangles (disks) stay. `same` maps a corner to the one whose
 /// vertex it shares (ternary cells collapse crossings onto zero points; the identity otherwise):
-/// triangles are tested as they will be emitted, those with a repeated vertex dropped.
+/// triangles are tested as they will be emitted, those with a repeated vertex dropped. A new
+/// band is taken only if `accept` takes it (the mesher's own rules once collapsed).
 pub(super) fn mend(
     cell: &CellTriangles,
     (l1, l2): (&[Corner], &[Corner]),
     position: &dyn Fn(Corner) -> [f64; 3],
     same: &dyn Fn(Corner) -> Corner,
+    accept: &dyn Fn(&[[Corner; 3]]) -> bool,
     bounds: &Bounds,
 ) -> Option<Mended> {
     let stored = |p: [f64; 3]| p.map(|c| f64::from(c as f32));
@@ -140,7 +142,8 @@ pub(super) fn mend(
         let triangles: Vec<[Corner; 3]> = disks.iter().chain(&band).copied().collect();
         let (_, tris, positions) = local(&triangles, &xs);
         let ok = !degenerate(&tris, &positions)
-            && first_crossing(&tris, &|v: u32| positions[v as usize]).is_none();
+            && first_crossing(&tris, &|v: u32| positions[v as usize]).is_none()
+            && accept(&triangles);
         ok.then_some(Mended {
             triangles,
             interiors: xs,
