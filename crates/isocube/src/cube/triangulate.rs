@@ -50,10 +50,29 @@ pub fn may_join(a: Corner, b: Corner) -> bool {
 ///
 /// Returns `None` when no such triangulation exists (the caller then needs an interior point).
 pub fn safe_triangulation(polygon: &[Corner]) -> Option<Vec<[Corner; 3]>> {
+    safe_triangulation_where(polygon, &|_, _| true)
+}
+
+/// [`safe_triangulation`] with chords also limited to those `also` allows (the mesher's rules
+/// where values sit exactly at the level).
+///
+/// ```
+/// use isocube::cube::triangulate::safe_triangulation_where;
+/// use isocube::cube::CaseTable;
+/// let table = CaseTable::binary();
+/// let square = table.polygons(0b0000_1111, Default::default()).next().unwrap();
+/// let no_chord = safe_triangulation_where(square, &|_, _| false);
+/// assert!(no_chord.is_none());
+/// assert_eq!(safe_triangulation_where(square, &|_, _| true).unwrap().len(), 2);
+/// ```
+pub fn safe_triangulation_where(
+    polygon: &[Corner],
+    also: &dyn Fn(Corner, Corner) -> bool,
+) -> Option<Vec<[Corner; 3]>> {
     let n = polygon.len();
     let allowed = |i: usize, j: usize| {
         let d = i.abs_diff(j);
-        d == 1 || d == n - 1 || may_join(polygon[i], polygon[j])
+        d == 1 || d == n - 1 || may_join(polygon[i], polygon[j]) && also(polygon[i], polygon[j])
     };
     if let Some(apex) = (0..n).find(|&k| (0..n).all(|j| allowed(k, j) || j == k)) {
         return Some(

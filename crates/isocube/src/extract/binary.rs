@@ -19,7 +19,7 @@ use super::untangle::mend;
 use super::weld::EdgeCache;
 use super::window::Window;
 use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
-use crate::cube::triangulate::{may_join, safe_triangulation};
+use crate::cube::triangulate::{may_join, safe_triangulation_where};
 use crate::cube::{CaseTable, CellTriangles, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
 use crate::mesh::Mesh;
 use crate::quality::{triangulate_polygon, Chords, Strategy, MAX_CORNERS};
@@ -428,10 +428,32 @@ impl<'a> BinaryCells<'a> {
             None
         };
         out.stats.tunnels += usize::from(tunnel.is_some());
-        if options.triangulation != Strategy::Fan && tunnel.is_none() {
+        let fan = options.triangulation == Strategy::Fan;
+        let sheet = |p: &[Corner]| face_square_start(p, at.v, level);
+        // Crossings on points of a face can join across it: the table's chord may be the
+        // diagonal the cell across does not draw.
+        let across = |p: &[Corner]| {
+            let points: Vec<usize> = p.iter().filter_map(|&c| at_point(c, at.v, level)).collect();
+            points.iter().enumerate().any(|(i, &a)| {
+                points[i + 1..]
+                    .iter()
+                    .any(|&b| off_canonical_diagonal(a, b))
+            })
+        };
+        if tunnel.is_none() && (!fan || table.polygons(config, decisions).any(across)) {
             let bounds = self.interior_bounds(at.cell);
             for (l, polygon) in table.polygons(config, decisions).enumerate() {
-                self.emit_polygon(cache, out, at, l, polygon, bounds)?;
+                if let Some(i) = sheet(polygon) {
+                    let ids = self.corner_ids(cache, out, at, polygon)?;
+                    let q = |k: usize| ids[(i + k) % 4];
+                    self.push(out, [q(0), q(1), q(2)]);
+                    self.push(out, [q(0), q(2), q(3)]);
+                } else if fan {
+                    let ids = self.corner_ids(cache, out, at, polygon)?;
+                    self.table_triangles(out, at, l, polygon, &ids)?;
+                } else {
+                    self.emit_polygon(cache, out, at, l, polygon, bounds)?;
+                }
             }
             return Ok(());
         }
@@ -554,7 +576,7 @@ impl<'a> BinaryCells<'a> {
         if n > MAX_CORNERS {
             // Never for cell loops (at most 12 corners); kept total all the same.
             let ids = self.corner_ids(cache, out, at, polygon)?;
-            return self.table_triangles(out, at.cell, l, polygon, &ids);
+            return self.table_triangles(out, at, l, polygon, &ids);
         }
         let mut ids = [0u32; MAX_CORNERS];
         let mut positions = [[0.0f64; 3]; MAX_CORNERS];
@@ -567,6 +589,17 @@ impl<'a> BinaryCells<'a> {
         if n == 3 {
             self.push(out, [ids[0], ids[1], ids[2]]);
             return Ok(());
+        }
+        let points: Vec<Option<usize>> = polygon
+            .iter()
+            .map(|&c| at_point(c, at.v, self.options.level))
+            .collect();
+        let in_face = |a: usize, b: usize| match (points[a], points[b]) {
+            (Some(p), Some(q)) => off_canonical_diagonal(p, q),
+            _ => false,
+        };
+        if (0..n).any(|a| (a + 1..n).any(|b| in_face(a, b))) {
+            return self.table_triangles(out, at, l, polygon, ids);
         }
         let chords = Chords::new(n, |a, b| may_join(polygon[a], polygon[b]));
         match triangulate_polygon(&positions[..n], &chords, self.options.triangulation, bounds) {
@@ -585,7 +618,7 @@ impl<'a> BinaryCells<'a> {
                 }
                 Ok(())
             }
-            None => self.table_triangles(out, at.cell, l, polygon, ids),
+            None => self.table_triangles(out, at, l, polygon, ids),
         }
     }
 
@@ -597,15 +630,23 @@ impl<'a> BinaryCells<'a> {
     }
 
     /// The table's triangulation of loop `l` (or a star around its centroid if it has none).
+    /// A diagonal of a face between crossings on its points is drawn only through the face's
+    /// lowest point (see [`off_canonical_diagonal`]): else the star.
     fn table_triangles(
         &self,
         out: &mut ChunkMesh,
-        cell: [usize; 3],
+        at: At,
         l: usize,
         polygon: &[Corner],
         ids: &[u32],
     ) -> Result<(), ExtractError> {
-        match safe_triangulation(polygon) {
+        let cell = at.cell;
+        let level = self.options.level;
+        let canonical = |a: Corner, b: Corner| {
+            let (p, q) = (at_point(a, at.v, level), at_point(b, at.v, level));
+            !matches!((p, q), (Some(p), Some(q)) if off_canonical_diagonal(p, q))
+        };
+        match safe_triangulation_where(polygon, &canonical) {
             Some(tris) => {
                 for t in tris {
                     let id =
@@ -625,6 +666,66 @@ impl<'a> BinaryCells<'a> {
         }
         Ok(())
     }
+}
+
+/// The cell vertex (0–7) a crossing sits on: the end of its edge whose value is the level.
+fn at_point(c: Corner, v: &[f32; 8], level: f32) -> Option<usize> {
+    let [a, b] = EDGES[usize::from(c.as_edge()?)].map(usize::from);
+    match (v[a] == level, v[b] == level) {
+        (true, false) => Some(a),
+        (false, true) => Some(b),
+        _ => None,
+    }
+}
+
+/// A cell's points in the grid's order (z, then y, then x).
+fn grid_order(p: usize) -> u8 {
+    let c = VERTICES[p];
+    4 * c[2] + 2 * c[1] + c[0]
+}
+
+/// Whether cell vertices `p` and `q` are opposite corners of a cell face whose lowest point
+/// (in the grid's order) is neither. Crossings on both lie in the face, where the cell across
+/// it may draw a diagonal too: both cells draw only the one through the lowest point, or
+/// their edges would cross in the face.
+fn off_canonical_diagonal(p: usize, q: usize) -> bool {
+    let (a, b) = (VERTICES[p], VERTICES[q]);
+    let apart: Vec<usize> = (0..3).filter(|&d| a[d] != b[d]).collect();
+    if apart.len() != 2 {
+        return false;
+    }
+    // The face's other two corners: one coordinate of each from `a`, the other from `b`.
+    let mut r = a;
+    r[apart[0]] = b[apart[0]];
+    let mut s = a;
+    s[apart[1]] = b[apart[1]];
+    let order = |c: [u8; 3]| 4 * c[2] + 2 * c[1] + c[0];
+    order(r).min(order(s)) < order(a).min(order(b))
+}
+
+/// Where a loop of four crossings all lies on the four points of one cell face (each point's
+/// value the level, the cells on both sides of the face below it: each puts a square in the
+/// face, a sheet of no thickness), the loop's corner the diagonal starts from: the one on the
+/// face's lowest point, so that both squares take the same diagonal (the table's or a
+/// strategy's choice, a tie, would depend on the side the face is seen from). `None` for every
+/// other loop.
+fn face_square_start(polygon: &[Corner], v: &[f32; 8], level: f32) -> Option<usize> {
+    if polygon.len() != 4 {
+        return None;
+    }
+    let mut points = [0usize; 4];
+    for (slot, &c) in points.iter_mut().zip(polygon) {
+        *slot = at_point(c, v, level)?;
+    }
+    // On one face: the four points share a coordinate (they are distinct, on parallel edges).
+    let coords = points.map(|p| VERTICES[p]);
+    let one_face = (0..3).any(|d| coords.iter().all(|c| c[d] == coords[0][d]));
+    let mut distinct = points;
+    distinct.sort_unstable();
+    if !one_face || distinct.windows(2).any(|w| w[0] == w[1]) {
+        return None;
+    }
+    (0..4).min_by_key(|&k| grid_order(points[k]))
 }
 
 /// The cell being meshed: its place in the box (for the edge cache), in the grid, and its eight

@@ -59,7 +59,7 @@ use crate::quality::{triangulate, Strategy};
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
 use super::classify::{cell_config, face_decisions};
 use super::place::{centroid_in, interior_bounds, Bounds, Placer};
-use super::untangle::{crosses, mend};
+use super::untangle::{crosses, mend, number_locally};
 use super::{choose_tunnel, ExtractError, ExtractOptions};
 
 /// The smallest distance, as a fraction of the edge, between a crossing that was not snapped and
@@ -599,16 +599,16 @@ impl<'a> Ternary<'a> {
             let loops = table.tunnel_loops(config, decisions, t);
             let position = |c: Corner| self.position(key(c), &[]).map(f64::from);
             // Corners collapsed onto one zero point are one vertex.
-            let same = |c: Corner| {
-                let edges = cell
-                    .triangles
-                    .iter()
-                    .flatten()
-                    .filter(|d| d.as_edge().is_some());
-                match c.as_edge() {
-                    Some(_) => edges.copied().find(|&d| key(d) == key(c)).unwrap_or(c),
-                    None => c,
+            let mut first_of: Vec<(Key, Corner)> = Vec::new();
+            for &d in cell.triangles.iter().flatten() {
+                let k = key(d);
+                if d.as_edge().is_some() && first_of.iter().all(|e| e.0 != k) {
+                    first_of.push((k, d));
                 }
+            }
+            let same = |c: Corner| match c.as_edge() {
+                Some(_) => first_of.iter().find(|e| e.0 == key(c)).map_or(c, |e| e.1),
+                None => c,
             };
             // The snapping checks validated the table's triangles collapsed; a band collapsed
             // otherwise could pinch, so it must bound the same as they do.
@@ -617,13 +617,7 @@ impl<'a> Ternary<'a> {
                 all.filter(|k| k[0] != k[1] && k[1] != k[2] && k[0] != k[2])
                     .collect()
             };
-            let cube = self.coords(base).map(|c| 2 * c);
-            let faces = |k: Key| {
-                let c = self.key_coords(k);
-                (0..3).fold(0u8, |m, a| {
-                    m | u8::from(c[a] == cube[a]) << a | u8::from(c[a] == cube[a] + 2) << (a + 3)
-                })
-            };
+            let faces = self.cell_faces(base);
             let table_keys = keys(cell.triangles);
             let accept = |t: &[[Corner; 3]]| same_surface(&table_keys, &keys(t), &faces);
             let bounds = self.interior_bounds(base);
@@ -683,16 +677,10 @@ impl<'a> Ternary<'a> {
 
     /// Whether triangles of a cell cross each other (none of no area) where they are placed.
     fn crosses(&self, triangles: &[[Key; 3]], interiors: &[Interior]) -> bool {
-        let mut keys: Vec<Key> = triangles.iter().flatten().copied().collect();
-        keys.sort_unstable();
-        keys.dedup();
+        let (keys, local) = number_locally(triangles.iter().copied());
         let positions: Vec<[f64; 3]> = keys
             .iter()
             .map(|&k| self.position(k, interiors).map(f64::from))
-            .collect();
-        let local: Vec<[u32; 3]> = triangles
-            .iter()
-            .map(|t| t.map(|k| keys.binary_search(&k).expect("a key of the cell") as u32))
             .collect();
         crosses(&local, &positions)
     }
@@ -782,30 +770,30 @@ impl<'a> Ternary<'a> {
         let simple = sorted.windows(2).all(|w| w[0] != w[1]);
         let interior_key = INTERIOR << TAG_SHIFT | (base * 8 + 4 + l) as u64;
         if simple {
-            let cell = self.coords(base).map(|c| 2 * c);
-            // The cube faces a key lies on, numbered as `Corner::faces`: x, y, z low faces are
-            // 3, 0, 4 and high faces 1, 2, 5.
-            const LOW: [u8; 3] = [3, 0, 4];
-            const HIGH: [u8; 3] = [1, 2, 5];
-            let faces = |k: Key| {
-                let c = self.key_coords(k);
-                (0..3).fold(0u8, |m, a| {
-                    m | u8::from(c[a] == cell[a]) << LOW[a]
-                        | u8::from(c[a] == cell[a] + 2) << HIGH[a]
-                })
-            };
+            let faces = self.cell_faces(base);
             let masks: Vec<u8> = keys.iter().map(|&k| faces(k)).collect();
             let positions: Vec<[f64; 3]> = keys
                 .iter()
                 .map(|&k| self.position(k, &patch.interiors).map(f64::from))
                 .collect();
             let c = self.coords(base);
-            let bounds = (
+            let cube = (
                 self.grid.point(c[0], c[1], c[2]),
                 self.grid.point(c[0] + 1, c[1] + 1, c[2] + 1),
             );
             let allowed = |a: usize, b: usize| may_join_on(masks[a] & masks[b], ALL_FACES);
-            if let Some(result) = triangulate(&positions, &allowed, self.strategy, bounds) {
+            // An interior point the search pushes onto a face of the cell (where the
+            // triangles are best) has its spokes in the face, where the cell across may draw
+            // edges too, and they could cross: then it is sought again off the faces.
+            let on_face = |x: [f64; 3]| (0..3).any(|d| x[d] == cube.0[d] || x[d] == cube.1[d]);
+            let found = match triangulate(&positions, &allowed, self.strategy, cube) {
+                Some(r) if r.interior.is_some_and(on_face) => {
+                    let inside = self.interior_bounds(base);
+                    triangulate(&positions, &allowed, self.strategy, inside)
+                }
+                found => found,
+            };
+            if let Some(result) = found {
                 if let Some(x) = result.interior {
                     patch.interiors.push(Interior {
                         key: interior_key,
@@ -863,19 +851,7 @@ impl<'a> Ternary<'a> {
         if n < 2 {
             return;
         }
-        let cell = self.coords(base).map(|c| 2 * c);
-        let faces = |k: Key| {
-            let c = self.key_coords(k);
-            let mut mask = 0u8;
-            for a in 0..3 {
-                if c[a] == cell[a] {
-                    mask |= 1 << a;
-                } else if c[a] == cell[a] + 2 {
-                    mask |= 1 << (a + 3);
-                }
-            }
-            mask
-        };
+        let faces = self.cell_faces(base);
         // Each vertex placed once, when a measure first needs it: the sweeps below look at
         // every triangle pair several times, and many cells have no pair that may flip.
         let mut placed = std::mem::take(&mut patch.placed);
@@ -973,6 +949,21 @@ impl<'a> Ternary<'a> {
                     .map(move |i| i * self.strides[0] + j * self.strides[1] + k * self.strides[2])
             })
         })
+    }
+
+    /// The faces of the cell at `base` a key lies on, as bits numbered as [`Corner::faces`]
+    /// (x, y, z low faces 3, 0, 4; high faces 1, 2, 5): two keys with a common bit are joined by
+    /// a segment in a face, which the cell across it may draw too.
+    fn cell_faces(&self, base: usize) -> impl Fn(Key) -> u8 + '_ {
+        const LOW: [u8; 3] = [3, 0, 4];
+        const HIGH: [u8; 3] = [1, 2, 5];
+        let cell = self.coords(base).map(|c| 2 * c);
+        move |k| {
+            let c = self.key_coords(k);
+            (0..3).fold(0u8, |m, a| {
+                m | u8::from(c[a] == cell[a]) << LOW[a] | u8::from(c[a] == cell[a] + 2) << HIGH[a]
+            })
+        }
     }
 
     /// Doubled grid coordinates of a key: points even, crossings odd along their edge, interior

@@ -1386,3 +1386,45 @@ fn random_grid_surfaces_do_not_cross() {
     }
     eprintln!("(grids, crossing) {counts:#?}");
 }
+
+/// A face whose four points lie at the level with both cells beside it below: each cell puts
+/// a square in the face (ternary: the same four zero points) (a sheet of no thickness), and the two squares must take the same
+/// diagonal, or their edges cross in the face. A tie for every triangulation strategy, so the
+/// diagonal is the one through the face's lowest point (the property test found a grid where
+/// `local` took one diagonal on each side). Every axis, both orientations.
+#[test]
+fn sheets_in_a_face_take_one_diagonal() {
+    use crate::quality::Strategy as Tri;
+    for axis in 0..3 {
+        let mut dims = [2, 2, 2];
+        dims[axis] = 3;
+        let values: Vec<f32> = (0..12)
+            .map(|i| {
+                let c = [i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1])];
+                if c[axis] == 1 {
+                    0.0
+                } else {
+                    -1.0
+                }
+            })
+            .collect();
+        let grid = Grid::new(dims, values).unwrap();
+        for flip in [false, true] {
+            for topology in [Topology::Mc33, Topology::Classic] {
+                for strategy in [Tri::Fan, Tri::Local, Tri::Optimal] {
+                    for method in [Method::MarchingCubes, Method::Ternary(Snapping::default())] {
+                        let options = ExtractOptions::default()
+                            .with_flip(flip)
+                            .with_topology(topology)
+                            .with_triangulation(strategy)
+                            .with_method(method);
+                        let (mesh, _) = extract(&grid, &options).unwrap();
+                        assert_eq!(mesh.triangles.len(), 4, "{axis} {options:?}");
+                        let crossing = edges_crossing_in_faces(&mesh);
+                        assert!(crossing.is_empty(), "{axis} {options:?}: {crossing:?}");
+                    }
+                }
+            }
+        }
+    }
+}

@@ -18,6 +18,7 @@ use crate::cube::polygons::Corner;
 use crate::cube::table::CellTriangles;
 use crate::cube::triangulate::band_at;
 use crate::mesh::intersect::{collinear, first_crossing};
+use crate::mesh::{cross, dot, sub};
 
 /// A tunnel cell's triangles that cross nothing, and where their interior points go
 /// (`interiors[k]` for [`Corner::interior`]`(k)`, rounded as stored).
@@ -59,23 +60,9 @@ pub(super) fn mend(
         Some(k) => xs[usize::from(k)],
         None => position(c),
     };
-    // Local vertices: distinct corners after `same`, numbered by first use.
+    // Local vertices: distinct corners after `same`.
     let local = |triangles: &[[Corner; 3]], xs: &[[f64; 3]]| {
-        let mut corners: Vec<Corner> = Vec::new();
-        let mut tris = Vec::with_capacity(triangles.len());
-        for t in triangles {
-            let t = t.map(same);
-            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
-                continue;
-            }
-            tris.push(t.map(|c| match corners.iter().position(|&x| x == c) {
-                Some(k) => k as u32,
-                None => {
-                    corners.push(c);
-                    corners.len() as u32 - 1
-                }
-            }));
-        }
+        let (corners, tris) = number_locally(triangles.iter().map(|t| t.map(same)));
         let positions: Vec<[f64; 3]> = corners.iter().map(|&c| at(c, xs)).collect();
         (corners, tris, positions)
     };
@@ -127,7 +114,7 @@ pub(super) fn mend(
     });
     let p1: Vec<[f64; 3]> = l1.iter().map(|&c| position(c)).collect();
     let p2: Vec<[f64; 3]> = l2.iter().map(|&c| position(c)).collect();
-    let ringed = rings(&p1, &p2).into_iter().filter_map(|ring| {
+    let ringed = rings(&p1, &p2).filter_map(|ring| {
         let xs: Vec<[f64; 3]> = ring
             .into_iter()
             .map(|p| stored(clamp_into(p, bounds)))
@@ -149,6 +136,28 @@ pub(super) fn mend(
             interiors: xs,
         })
     })
+}
+
+/// The triangles on local vertex numbers (by first use), those with a repeated vertex dropped,
+/// and the vertices in that order: one cell's patch, small enough for a linear search.
+pub(super) fn number_locally<T: Copy + PartialEq>(
+    triangles: impl IntoIterator<Item = [T; 3]>,
+) -> (Vec<T>, Vec<[u32; 3]>) {
+    let mut vertices: Vec<T> = Vec::new();
+    let mut tris = Vec::new();
+    for t in triangles {
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            continue;
+        }
+        tris.push(t.map(|c| match vertices.iter().position(|&x| x == c) {
+            Some(k) => k as u32,
+            None => {
+                vertices.push(c);
+                vertices.len() as u32 - 1
+            }
+        }));
+    }
+    (vertices, tris)
 }
 
 /// New places for the interior points `movable` (local vertex numbers into `positions`) at which
@@ -223,30 +232,21 @@ fn degenerate(tris: &[[u32; 3]], positions: &[[f64; 3]]) -> bool {
 ///
 /// A band to a ring needs no chord on a face of the cell (every rung ends at an interior point),
 /// so the manifold rule never forbids one; whether it crosses is the caller's test.
-fn rings(p1: &[[f64; 3]], p2: &[[f64; 3]]) -> Vec<Vec<[f64; 3]>> {
+fn rings(p1: &[[f64; 3]], p2: &[[f64; 3]]) -> Box<dyn Iterator<Item = Vec<[f64; 3]>>> {
     let mean = |p: &[[f64; 3]]| -> [f64; 3] {
         std::array::from_fn(|d| p.iter().map(|q| q[d]).sum::<f64>() / p.len() as f64)
-    };
-    let sub = |a: [f64; 3], b: [f64; 3]| -> [f64; 3] { std::array::from_fn(|d| a[d] - b[d]) };
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
     };
     let unit = |a: [f64; 3]| {
         let l = dot(a, a).sqrt();
         (l > 1e-12).then(|| a.map(|c| c / l))
     };
     if p1.len() < 3 || p2.len() < 3 {
-        return Vec::new();
+        return Box::new(std::iter::empty());
     }
     let (m1, m2) = (mean(p1), mean(p2));
     let axis = sub(m2, m1);
     let Some(n) = unit(axis) else {
-        return Vec::new();
+        return Box::new(std::iter::empty());
     };
     let flat = |a: [f64; 3]| {
         let h = dot(a, n);
@@ -272,24 +272,23 @@ fn rings(p1: &[[f64; 3]], p2: &[[f64; 3]]) -> Vec<Vec<[f64; 3]>> {
     let r0 = radius(p1, m1).min(radius(p2, m2));
     // Opposite to the first loop's winding about n.
     let sense = if winding > 0.0 { -1.0 } else { 1.0 };
-    let mut out = Vec::new();
-    for t in [0.5, 0.35, 0.65, 0.2, 0.8] {
-        for f in [0.5, 0.3, 0.7, 0.15, 0.9] {
-            for m in [4usize, 3] {
-                for phase in [0.0, 0.5] {
-                    let r = f * r0;
-                    let ring = (0..m)
-                        .map(|k| {
-                            let angle =
-                                sense * std::f64::consts::TAU * (k as f64 + phase) / m as f64;
-                            let (c, s) = (angle.cos() * r, angle.sin() * r);
-                            std::array::from_fn(|d| m1[d] + t * axis[d] + c * u[d] + s * v[d])
-                        })
-                        .collect();
-                    out.push(ring);
-                }
-            }
-        }
-    }
-    out
+    const ALONG: [f64; 5] = [0.5, 0.35, 0.65, 0.2, 0.8];
+    const RADII: [f64; 5] = [0.5, 0.3, 0.7, 0.15, 0.9];
+    let shapes = [(4usize, 0.0), (4, 0.5), (3, 0.0), (3, 0.5)];
+    // Built one at a time: most tunnels are mended before the rings, or by one of the first.
+    let all = ALONG.into_iter().flat_map(move |t| {
+        RADII.into_iter().flat_map(move |f| {
+            shapes.into_iter().map(move |(m, phase)| {
+                let r = f * r0;
+                (0..m)
+                    .map(|k| {
+                        let angle = sense * std::f64::consts::TAU * (k as f64 + phase) / m as f64;
+                        let (c, s) = (angle.cos() * r, angle.sin() * r);
+                        std::array::from_fn(|d| m1[d] + t * axis[d] + c * u[d] + s * v[d])
+                    })
+                    .collect()
+            })
+        })
+    });
+    Box::new(all)
 }
