@@ -42,18 +42,30 @@ pub(crate) fn orient(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 
 /// Whether two triangles (vertex ids with positions, neither of no area) meet anywhere but in
 /// the vertices and the edge they share; two over the same three vertices do not cross.
 pub(crate) fn triangles_cross(t: [(u32, [f64; 3]); 3], g: [(u32, [f64; 3]); 3]) -> bool {
-    let shared: Vec<u32> = t
-        .iter()
-        .map(|x| x.0)
-        .filter(|v| g.iter().any(|y| y.0 == *v))
-        .collect();
+    let mut shared = [0u32; 3];
+    let mut count = 0;
+    for x in &t {
+        if g.iter().any(|y| y.0 == x.0) {
+            shared[count] = x.0;
+            count += 1;
+        }
+    }
+    let shared = &shared[..count];
     let tp = t.map(|x| x.1);
     let gp = g.map(|x| x.1);
-    let coplanar = gp.iter().all(|&x| orient(tp[0], tp[1], tp[2], x) == 0.0);
-    match shared.len() {
+    match count {
         // Two triangles meet when an edge of one meets the other (closed): in one plane too,
-        // where the segment test works in two dimensions.
+        // where the segment test works in two dimensions. Boxes apart settle most pairs.
         0 => {
+            let apart = (0..3).any(|d| {
+                let (t0, t1) = (tp.map(|x| x[d]), gp.map(|x| x[d]));
+                let max = |a: [f64; 3]| a[0].max(a[1]).max(a[2]);
+                let min = |a: [f64; 3]| a[0].min(a[1]).min(a[2]);
+                max(t0) < min(t1) || max(t1) < min(t0)
+            });
+            if apart {
+                return false;
+            }
             (0..3).any(|k| segment_meets(tp[k], tp[(k + 1) % 3], gp))
                 || (0..3).any(|k| segment_meets(gp[k], gp[(k + 1) % 3], tp))
         }
@@ -65,6 +77,14 @@ pub(crate) fn triangles_cross(t: [(u32, [f64; 3]); 3], g: [(u32, [f64; 3]); 3]) 
                 [x[r].1, x[(r + 1) % 3].1, x[(r + 2) % 3].1]
             };
             let (a, b) = (rot(t), rot(g));
+            // The other corners of one strictly on one side of the other's plane: that plane
+            // holds only the shared vertex of it, and so does the other triangle (most pairs).
+            let side = |x: [[f64; 3]; 3], y: [[f64; 3]; 3]| {
+                orient(y[0], y[1], y[2], x[1]) * orient(y[0], y[1], y[2], x[2]) > 0.0
+            };
+            if side(a, b) || side(b, a) {
+                return false;
+            }
             // Off the shared vertex they meet along a segment from it that ends on an edge
             // opposite it, or along an edge through it lying in the other's plane.
             segment_meets(a[1], a[2], b)
@@ -76,7 +96,7 @@ pub(crate) fn triangles_cross(t: [(u32, [f64; 3]); 3], g: [(u32, [f64; 3]); 3]) 
         3 => false,
         _ => {
             // Sharing an edge, they meet beyond it only lying in one plane on one side of it.
-            if !coplanar {
+            if gp.iter().any(|&x| orient(tp[0], tp[1], tp[2], x) != 0.0) {
                 return false;
             }
             let other = |x: [(u32, [f64; 3]); 3]| {
