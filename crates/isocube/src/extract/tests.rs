@@ -389,6 +389,18 @@ mod ternary {
         }))
     }
 
+    /// A tunnel whose band runs through the cell's centre, which lies exactly between two of
+    /// its crossings (quantised values, a symmetric cell): the table's triangles there have no
+    /// area, and the interior point is moved (found by `random_open_grids`, 1 run in about 40).
+    #[test]
+    fn a_centre_between_two_crossings_is_moved() {
+        let dims = [5, 6, 2];
+        let grid = Grid::new(dims, quantised_values(dims, 6843947057787533948)).unwrap();
+        let (mesh, stats) = extract(&grid, &ternary(0.0, 0.0).with_level(-0.25)).unwrap();
+        assert_eq!(stats.tunnels, 1);
+        assert_clean(&mesh);
+    }
+
     /// No triangle repeats (in either orientation) and none has zero area.
     fn assert_clean(mesh: &Mesh) {
         let mut sets: Vec<[u32; 3]> = mesh

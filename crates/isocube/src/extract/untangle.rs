@@ -28,9 +28,10 @@ pub(super) struct Mended {
 }
 
 /// Mends a tunnel cell whose triangles (`cell`, the tunnel joining loops `l1` and `l2`) cross
-/// each other with the crossings at `position` (edge corners; `f32` values as stored): `None`
-/// when they do not cross (or a triangle has no area: crossings on one grid point touch, they
-/// do not cross), or when nothing tried helps.
+/// each other with the crossings at `position` (edge corners; `f32` values as stored), or
+/// have a triangle of no area through an interior point lying between two crossings: `None`
+/// when they do neither (a triangle of no area between crossings on one grid point: they
+/// touch, they do not cross), or when nothing tried helps.
 ///
 /// Tried in order, the first that crosses nothing: the table's triangles with the interior
 /// points moved ([`untangle`]); a band searched anew on the actual crossings under the table's
@@ -67,7 +68,19 @@ pub(super) fn mend(
         (corners, tris, positions)
     };
     let (corners, tris, positions) = local(cell.triangles, &table_interiors);
-    if !crosses(&tris, &positions) {
+    // A triangle of no area is mended only where an interior point lies on the line through
+    // its two crossings (a symmetric cell puts the centre there): moving the point helps. Two
+    // crossings on one point (values at the level) touch, and nothing is to be mended.
+    let interior_on_a_line = tris.iter().any(|t| {
+        let p = t.map(|v| positions[v as usize]);
+        let crossings: Vec<[f64; 3]> = (0..3)
+            .filter(|&k| corners[t[k] as usize].as_interior().is_none())
+            .map(|k| p[k])
+            .collect();
+        collinear(p) && crossings.len() == 2 && crossings[0] != crossings[1]
+    });
+    let flat = degenerate(&tris, &positions);
+    if flat && !interior_on_a_line || !flat && !crosses(&tris, &positions) {
         return None;
     }
     let movable: Vec<u32> = (0..corners.len() as u32)
