@@ -433,11 +433,10 @@ impl<'a> BinaryCells<'a> {
         // Crossings on points of a face can join across it: the table's chord may be the
         // diagonal the cell across does not draw.
         let across = |p: &[Corner]| {
-            let points: Vec<usize> = p.iter().filter_map(|&c| at_point(c, at.v, level)).collect();
-            points.iter().enumerate().any(|(i, &a)| {
-                points[i + 1..]
+            p.iter().enumerate().any(|(i, &a)| {
+                p[i + 1..]
                     .iter()
-                    .any(|&b| off_canonical_diagonal(a, b))
+                    .any(|&b| off_face_diagonal(a, b, at.v, level))
             })
         };
         if tunnel.is_none() && (!fan || table.polygons(config, decisions).any(across)) {
@@ -590,15 +589,13 @@ impl<'a> BinaryCells<'a> {
             self.push(out, [ids[0], ids[1], ids[2]]);
             return Ok(());
         }
-        let points: Vec<Option<usize>> = polygon
-            .iter()
-            .map(|&c| at_point(c, at.v, self.options.level))
-            .collect();
-        let in_face = |a: usize, b: usize| match (points[a], points[b]) {
-            (Some(p), Some(q)) => off_canonical_diagonal(p, q),
-            _ => false,
-        };
-        if (0..n).any(|a| (a + 1..n).any(|b| in_face(a, b))) {
+        // Such a pair joined through the search's own choice could draw the face's other
+        // diagonal; searching with that chord forbidden added interior points (+16 % triangles
+        // on tie-heavy data), so the table's triangulation, which can avoid it, takes these.
+        let level = self.options.level;
+        if (0..n)
+            .any(|a| (a + 1..n).any(|b| off_face_diagonal(polygon[a], polygon[b], at.v, level)))
+        {
             return self.table_triangles(out, at, l, polygon, ids);
         }
         let chords = Chords::new(n, |a, b| may_join(polygon[a], polygon[b]));
@@ -629,9 +626,9 @@ impl<'a> BinaryCells<'a> {
         )
     }
 
-    /// The table's triangulation of loop `l` (or a star around its centroid if it has none).
-    /// A diagonal of a face between crossings on its points is drawn only through the face's
-    /// lowest point (see [`off_canonical_diagonal`]): else the star.
+    /// The table's triangulation of loop `l`, or else any triangulation of it by the table's
+    /// chords, that draws no face diagonal off the face's lowest point (see
+    /// [`off_face_diagonal`]); a star around its centroid if none does.
     fn table_triangles(
         &self,
         out: &mut ChunkMesh,
@@ -642,10 +639,7 @@ impl<'a> BinaryCells<'a> {
     ) -> Result<(), ExtractError> {
         let cell = at.cell;
         let level = self.options.level;
-        let canonical = |a: Corner, b: Corner| {
-            let (p, q) = (at_point(a, at.v, level), at_point(b, at.v, level));
-            !matches!((p, q), (Some(p), Some(q)) if off_canonical_diagonal(p, q))
-        };
+        let canonical = |a: Corner, b: Corner| !off_face_diagonal(a, b, at.v, level);
         match safe_triangulation_where(polygon, &canonical) {
             Some(tris) => {
                 for t in tris {
@@ -678,29 +672,29 @@ fn at_point(c: Corner, v: &[f32; 8], level: f32) -> Option<usize> {
     }
 }
 
-/// A cell's points in the grid's order (z, then y, then x).
-fn grid_order(p: usize) -> u8 {
-    let c = VERTICES[p];
+/// A cell point's place in the grid's order (z, then y, then x), from its coordinates.
+fn grid_order(c: [u8; 3]) -> u8 {
     4 * c[2] + 2 * c[1] + c[0]
 }
 
-/// Whether cell vertices `p` and `q` are opposite corners of a cell face whose lowest point
-/// (in the grid's order) is neither. Crossings on both lie in the face, where the cell across
-/// it may draw a diagonal too: both cells draw only the one through the lowest point, or
-/// their edges would cross in the face.
-fn off_canonical_diagonal(p: usize, q: usize) -> bool {
-    let (a, b) = (VERTICES[p], VERTICES[q]);
-    let apart: Vec<usize> = (0..3).filter(|&d| a[d] != b[d]).collect();
-    if apart.len() != 2 {
+/// Whether crossings `a` and `b` sit on cell points opposite on a face whose lowest point (in
+/// the grid's order) is neither of them. Both lie in the face, where the cell across it may
+/// join crossings too: both cells draw only the diagonal through the lowest point, or their
+/// edges would cross in the face.
+fn off_face_diagonal(a: Corner, b: Corner, v: &[f32; 8], level: f32) -> bool {
+    let (Some(p), Some(q)) = (at_point(a, v, level), at_point(b, v, level)) else {
         return false;
-    }
+    };
+    let (a, b) = (VERTICES[p], VERTICES[q]);
+    let mut apart = (0..3).filter(|&d| a[d] != b[d]);
+    let (Some(d), Some(e), None) = (apart.next(), apart.next(), apart.next()) else {
+        return false;
+    };
     // The face's other two corners: one coordinate of each from `a`, the other from `b`.
-    let mut r = a;
-    r[apart[0]] = b[apart[0]];
-    let mut s = a;
-    s[apart[1]] = b[apart[1]];
-    let order = |c: [u8; 3]| 4 * c[2] + 2 * c[1] + c[0];
-    order(r).min(order(s)) < order(a).min(order(b))
+    let (mut r, mut s) = (a, a);
+    r[d] = b[d];
+    s[e] = b[e];
+    grid_order(r).min(grid_order(s)) < grid_order(a).min(grid_order(b))
 }
 
 /// Where a loop of four crossings all lies on the four points of one cell face (each point's
@@ -725,7 +719,7 @@ fn face_square_start(polygon: &[Corner], v: &[f32; 8], level: f32) -> Option<usi
     if !one_face || distinct.windows(2).any(|w| w[0] == w[1]) {
         return None;
     }
-    (0..4).min_by_key(|&k| grid_order(points[k]))
+    (0..4).min_by_key(|&k| grid_order(coords[k]))
 }
 
 /// The cell being meshed: its place in the box (for the edge cache), in the grid, and its eight

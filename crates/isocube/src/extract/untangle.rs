@@ -71,16 +71,22 @@ pub(super) fn mend(
     // A triangle of no area is mended only where an interior point lies on the line through
     // its two crossings (a symmetric cell puts the centre there): moving the point helps. Two
     // crossings on one point (values at the level) touch, and nothing is to be mended.
-    let interior_on_a_line = tris.iter().any(|t| {
+    let (mut flat, mut interior_on_a_line) = (false, false);
+    for t in &tris {
         let p = t.map(|v| positions[v as usize]);
-        let crossings: Vec<[f64; 3]> = (0..3)
+        if !collinear(p) {
+            continue;
+        }
+        flat = true;
+        let mut crossings = (0..3)
             .filter(|&k| corners[t[k] as usize].as_interior().is_none())
-            .map(|k| p[k])
-            .collect();
-        collinear(p) && crossings.len() == 2 && crossings[0] != crossings[1]
-    });
-    let flat = degenerate(&tris, &positions);
-    if flat && !interior_on_a_line || !flat && !crosses(&tris, &positions) {
+            .map(|k| p[k]);
+        if let (Some(a), Some(b), None) = (crossings.next(), crossings.next(), crossings.next()) {
+            interior_on_a_line |= a != b;
+        }
+    }
+    let crossing = || first_crossing(&tris, &|v: u32| positions[v as usize]).is_some();
+    if flat && !interior_on_a_line || !flat && !crossing() {
         return None;
     }
     let movable: Vec<u32> = (0..corners.len() as u32)

@@ -1,6 +1,8 @@
 //! Whether triangles meet, decided exactly: the test behind self-intersection checks of
 //! surfaces and the volume mesher's advancing front.
 
+use super::sub;
+
 /// The first pair of triangles (indices) that meet anywhere but in the vertices and edges they
 /// share, by exact predicates on the positions given. Triangles of no area are left out (where
 /// they meet is not a question of crossing).
@@ -20,10 +22,6 @@ pub(crate) fn first_crossing(
 /// Whether a triangle's corners lie on one line (exactly).
 pub(crate) fn collinear(t: [[f64; 3]; 3]) -> bool {
     (0..3).all(|axis| orient2(t[0], t[1], t[2], axis) == 0.0)
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// The sign of the orientation of `(a, b, c, d)`, decided exactly: positive when `(b − a) ·
