@@ -1552,6 +1552,9 @@ fn quality_reads_tetrahedral_meshes() {
         assert_eq!(report["inverted"].as_u64(), Some(0));
         assert!(report["min_dihedral"]["min"].as_f64().unwrap() > 10.0);
         assert!(report["max_dihedral"]["max"].as_f64().unwrap() < 165.0);
+        // The sphere's boundary has no edge sharper than the elements' angles allow.
+        let sharpest = report["sharpest_boundary_edge"].as_f64().unwrap();
+        assert!(sharpest >= report["min_dihedral"]["min"].as_f64().unwrap() && sharpest < 180.0);
         let svg = std::fs::read_to_string(dir.path().join(format!("h-{ext}.svg"))).unwrap();
         assert!(svg.contains(&format!("{tets} tetrahedra")));
     }
@@ -1560,4 +1563,26 @@ fn quality_reads_tetrahedral_meshes() {
         &["quality", "t.msh", "--field", "sample:sphere:16"],
     );
     assert_eq!(out.status.code(), Some(2));
+    // Packed spheres at 24: an element under 10° is shown beside the boundary's sharpest edge,
+    // which bounds it.
+    let out = isocube(
+        dir.path(),
+        &["tetmesh", "sample:packed-spheres:24", "-o", "p.msh"],
+    );
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    let angle = |prefix: &str| -> f64 {
+        let line = err.lines().find(|l| l.starts_with(prefix)).expect(prefix);
+        line[prefix.len()..]
+            .split('°')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (worst, sharpest) = (
+        angle("quality: dihedral angles "),
+        angle("sharpest boundary edge: "),
+    );
+    assert!(worst < 10.0 && worst <= sharpest, "{err}");
 }

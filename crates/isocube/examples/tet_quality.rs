@@ -4,6 +4,9 @@
 //! and 64 points per axis, each sampled on grids moved by random sub-cell offsets (the worst
 //! over the offsets).
 //!
+//! The last column is the sharpest edge of the region's boundary (the worst over the
+//! offsets): no mesh keeping that boundary has a larger smallest dihedral angle.
+//!
 //! `cargo run --release -p isocube --example tet_quality [OFFSETS [SAMPLE]]`: SAMPLE (e.g.
 //! `packed`) keeps the rows of samples whose name starts with it; the offsets are the same
 //! as in the whole table. Refusals are printed to stderr with their reason.
@@ -38,9 +41,9 @@ fn main() {
     ];
     println!(
         "| sample | N | method | tetrahedra | min dihedral | max dihedral | outside [10°, 165°] | \
-         radius ratio mean | radius ratio worst |"
+         radius ratio mean | radius ratio worst | sharpest boundary edge |"
     );
-    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|");
     let mut state = 0x9e37_79b9_7f4a_7c15_u64;
     for sample in samples {
         for n in [24, 40, 64] {
@@ -55,6 +58,7 @@ fn main() {
                 let mut refused = 0;
                 let mut tets = 0;
                 let mut outside = 0;
+                let mut sharpest = f64::INFINITY;
                 for shift in &shifts {
                     let grid = shifted(sample, n, *shift);
                     let mesh = match tetmesh(&grid, options) {
@@ -65,6 +69,9 @@ fn main() {
                             continue;
                         }
                     };
+                    if let Some(e) = mesh.sharpest_boundary_edge() {
+                        sharpest = sharpest.min(e.angle);
+                    }
                     let qualities = mesh.qualities();
                     let report = TetReport::of(&qualities);
                     tets += report.tets;
@@ -96,15 +103,16 @@ fn main() {
                 };
                 match worst {
                     Some((w, _)) => println!(
-                        "| {sample} | {n} | {name}{refusals} | {} | {:.2}° | {:.2}° | {:.4} % | {:.3} | {:.1} |",
+                        "| {sample} | {n} | {name}{refusals} | {} | {:.2}° | {:.2}° | {:.4} % | {:.3} | {:.1} | {:.2}° |",
                         tets / (offsets - refused),
                         w.min_dihedral,
                         w.max_dihedral,
                         100.0 * outside as f64 / tets as f64,
                         w.mean_radius_ratio,
-                        w.max_radius_ratio
+                        w.max_radius_ratio,
+                        sharpest
                     ),
-                    None => println!("| {sample} | {n} | {name} | refused | | | | | |"),
+                    None => println!("| {sample} | {n} | {name} | refused | | | | | | |"),
                 }
             }
         }

@@ -8,7 +8,7 @@ use isocube::mesh::Mesh;
 use isocube::quality::{
     level_set_distance, quality_report, Distance, Field, QualityReport, Range, Trilinear,
 };
-use isocube::volume::TetReport;
+use isocube::volume::{BoundaryEdge, TetMesh, TetReport};
 use isocube_io::{read_mesh, read_tet_mesh, read_volume_oriented, TetFormat, VolumeOptions};
 use serde_json::json;
 
@@ -160,6 +160,7 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
         write_picture(path, &bins, &title)?;
     }
     let share = outside as f64 / report.tets.max(1) as f64;
+    let sharpest = mesh.sharpest_boundary_edge();
     if args.json {
         let mut fields = serde_json::Map::new();
         fields.insert("tetrahedra".into(), json!(report.tets));
@@ -170,6 +171,9 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
             fields.insert((*name).into(), range(r));
         }
         fields.insert("outside_10_165".into(), number(share));
+        if let Some(e) = &sharpest {
+            fields.insert("sharpest_boundary_edge".into(), number(e.angle));
+        }
         println!("{}", serde_json::Value::Object(fields));
     } else {
         let mut s = format!(
@@ -183,9 +187,23 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
             );
         }
         s += &format!("outside [10°, 165°]: {:.4} %\n", 100.0 * share);
+        if let Some(e) = &sharpest {
+            s += &format!("{}\n", sharpest_line(&mesh, e));
+        }
         print!("{s}");
     }
     Ok(())
+}
+
+/// The sharpest boundary edge, where it is, and what it means for the elements there.
+pub(crate) fn sharpest_line(mesh: &TetMesh, e: &BoundaryEdge) -> String {
+    let [a, b] = e.edge.map(|v| mesh.positions[v as usize]);
+    let middle: [f32; 3] = std::array::from_fn(|d| 0.5 * (a[d] + b[d]));
+    format!(
+        "sharpest boundary edge: {:.2}° at ({:.6}, {:.6}, {:.6}): no element there can have a \
+         larger smallest dihedral angle",
+        e.angle, middle[0], middle[1], middle[2]
+    )
 }
 
 fn distance(

@@ -312,6 +312,14 @@ fn finish(
         "quality: dihedral angles {:.2}°..{:.2}°, radius ratio mean {:.3}, worst {:.3}",
         report.min_dihedral, report.max_dihedral, report.mean_radius_ratio, report.max_radius_ratio
     );
+    if report.min_dihedral < 10.0 {
+        if let Some(sharpest) = mesh.sharpest_boundary_edge() {
+            eprintln!(
+                "{}",
+                crate::commands::quality::sharpest_line(&mesh, &sharpest)
+            );
+        }
+    }
     if let Some((c, _)) = &check {
         eprintln!(
             "check: {}, {} inverted, {} flat, volume {:.6e} (the boundary encloses {:.6e})",

@@ -331,7 +331,7 @@ fn mix(mut x: u64) -> u64 {
 /// counting sort, linear), each vertex's few faces are sorted on their own, in parallel. Returns
 /// the faces used otherwise than once each way, and the faces used once (the boundary), as
 /// oriented triangles.
-fn match_faces(tets: &[[u32; 4]], vertices: usize) -> (usize, Vec<[u32; 3]>) {
+pub(super) fn match_faces(tets: &[[u32; 4]], vertices: usize) -> (usize, Vec<[u32; 3]>) {
     /// The other two vertices of a face filed under its lowest, and its direction.
     type Filed = (u32, u32, bool);
     // A face (lowest vertex first, then the other two in order) and whether it runs that way.

@@ -169,6 +169,98 @@ impl TetMesh {
     pub fn quality_report(&self) -> TetReport {
         TetReport::of(&self.qualities())
     }
+
+    /// The sharpest edge of the region's boundary (surface and walls, or for a mesh read from a
+    /// file the faces of one tetrahedron only): the smallest angle the
+    /// region makes there, in degrees, and the edge. The tetrahedra around a boundary edge
+    /// share out that angle, so none of them has a larger dihedral angle there: no mesh
+    /// keeping this boundary has a better smallest dihedral angle than the sharpest edge's.
+    /// It tells a poor element forced by the surface (where it meets a wall at a grazing
+    /// angle, or folds into a thin wedge) from one the mesher could have done better.
+    ///
+    /// Edges with other than two boundary triangles (the surface touching itself) are left out;
+    /// `None` when no edge is left, and for multi-material meshes (whose interfaces are not
+    /// one region's boundary).
+    ///
+    /// ```
+    /// use isocube::extract::ExtractOptions;
+    /// use isocube::field::Sample;
+    /// use isocube::volume::tetmesh;
+    /// // The whole grid inside: a box, its sharpest edges the box's own right angles.
+    /// let grid = Sample::Sphere.grid(8);
+    /// let mesh = tetmesh(&grid, &ExtractOptions::default().with_level(10.0)).unwrap();
+    /// let sharpest = mesh.sharpest_boundary_edge().unwrap();
+    /// assert!((sharpest.angle - 90.0).abs() < 1e-9);
+    /// ```
+    pub fn sharpest_boundary_edge(&self) -> Option<BoundaryEdge> {
+        if self.labels.is_some() {
+            return None;
+        }
+        let boundary: Vec<[u32; 3]> = if self.surface.is_empty() && self.walls.is_empty() {
+            // Read from a file: the faces of one tetrahedron only.
+            super::check::match_faces(&self.tets, self.positions.len()).1
+        } else {
+            let mut beyond = self.beyond.clone();
+            beyond.sort_unstable();
+            self.surface
+                .iter()
+                .enumerate()
+                .filter(|(t, _)| beyond.binary_search(&(*t as u32)).is_err())
+                .map(|(_, &f)| f)
+                .chain(self.walls.iter().copied())
+                .collect()
+        };
+        // Half-edges (a, b) with the triangle's third corner, grouped by edge.
+        let mut halves: Vec<([u32; 2], u32)> = boundary
+            .iter()
+            .flat_map(|f| (0..3).map(move |k| ([f[k], f[(k + 1) % 3]], f[(k + 2) % 3])))
+            .collect();
+        halves.par_sort_unstable_by_key(|&([a, b], c)| (a.min(b), a.max(b), a, c));
+        let at = |v: u32| self.positions[v as usize].map(f64::from);
+        halves
+            .par_chunk_by(|x, y| {
+                x.0[0].min(x.0[1]) == y.0[0].min(y.0[1]) && x.0[0].max(x.0[1]) == y.0[0].max(y.0[1])
+            })
+            .filter_map(|group| match group {
+                &[([a, b], c1), ([b2, _], c2)] if a != b2 => {
+                    let (a, b) = if a < b { (a, b) } else { (b, a) };
+                    // Seen along the edge: the angle from the first triangle's side to the
+                    // second's, turning into the region (against the first one's outward
+                    // normal).
+                    let (pa, pb) = (at(a), at(b));
+                    let e = sub(pb, pa);
+                    let across = |c: u32| {
+                        let u = sub(at(c), pa);
+                        let along = dot(u, e) / dot(e, e);
+                        std::array::from_fn::<f64, 3, _>(|d| u[d] - along * e[d])
+                    };
+                    let (u1, u2) = (across(c1), across(c2));
+                    // The first triangle runs a → b or b → a: its outward normal is ±e × u1.
+                    let first_forward = group[0].0 == [a, b];
+                    let inward = cross(u1, e).map(|x| if first_forward { x } else { -x });
+                    let y = dot(u2, inward) / dot(inward, inward).sqrt();
+                    let x = dot(u2, u1) / dot(u1, u1).sqrt();
+                    let angle = y.atan2(x).rem_euclid(std::f64::consts::TAU).to_degrees();
+                    angle.is_finite().then_some(BoundaryEdge {
+                        angle,
+                        edge: [a, b],
+                    })
+                }
+                _ => None,
+            })
+            .min_by(|x, y| x.angle.total_cmp(&y.angle).then(x.edge.cmp(&y.edge)))
+    }
+}
+
+/// An edge of a volume mesh's boundary and the region's angle there
+/// ([`TetMesh::sharpest_boundary_edge`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryEdge {
+    /// The angle, in degrees, between the two boundary triangles, measured through the region
+    /// (180° where they lie flat, under 180° at a convex edge).
+    pub angle: f64,
+    /// The edge's vertices, the smaller first.
+    pub edge: [u32; 2],
 }
 
 impl TetReport {

@@ -776,3 +776,88 @@ fn planes_at_heights_mesh_like_spaced_planes() {
                 && p[2] <= (grid.origin()[2] + 6.5) as f32 + 1e-5));
     }
 }
+
+/// The region's angle at each boundary edge, as the sum of the dihedral angles of the
+/// tetrahedra around it, for every edge with two boundary triangles.
+fn boundary_angles_from_tets(mesh: &TetMesh) -> HashMap<[u32; 2], f64> {
+    let mut count: HashMap<[u32; 2], usize> = HashMap::default();
+    for f in mesh.surface.iter().chain(&mesh.walls) {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *count.entry([a.min(b), a.max(b)]).or_default() += 1;
+        }
+    }
+    let mut angles: HashMap<[u32; 2], f64> = count
+        .into_iter()
+        .filter(|&(_, n)| n == 2)
+        .map(|(e, _)| (e, 0.0))
+        .collect();
+    let p = |v: u32| mesh.positions[v as usize].map(f64::from);
+    for t in &mesh.tets {
+        for (a, b, c, d) in [
+            (0, 1, 2, 3),
+            (0, 2, 1, 3),
+            (0, 3, 1, 2),
+            (1, 2, 0, 3),
+            (1, 3, 0, 2),
+            (2, 3, 0, 1),
+        ] {
+            let Some(sum) = angles.get_mut(&[t[a].min(t[b]), t[a].max(t[b])]) else {
+                continue;
+            };
+            let e = crate::mesh::sub(p(t[b]), p(t[a]));
+            let n1 = crate::mesh::cross(e, crate::mesh::sub(p(t[c]), p(t[a])));
+            let n2 = crate::mesh::cross(e, crate::mesh::sub(p(t[d]), p(t[a])));
+            let cos = crate::mesh::dot(n1, n2)
+                / (crate::mesh::dot(n1, n1) * crate::mesh::dot(n2, n2)).sqrt();
+            *sum += cos.clamp(-1.0, 1.0).acos().to_degrees();
+        }
+    }
+    angles
+}
+
+#[test]
+fn the_sharpest_boundary_edge_bounds_the_tetrahedra_around_it() {
+    // Packed spheres give grazing cuts by the box and thin gaps; the sphere's pores convex
+    // and reflex edges.
+    let ternary = ternary_options()[0];
+    for (grid, options) in [
+        (Sample::PackedSpheres { seed: 1 }.grid(24), ternary),
+        (
+            Sample::PackedSpheres { seed: 1 }.grid(24),
+            ExtractOptions::default(),
+        ),
+        (
+            Sample::Sphere.grid(12),
+            ExtractOptions::default().with_flip(true),
+        ),
+        (Sample::Torus.grid(16), ternary),
+    ] {
+        let mesh = tetmesh(&grid, &options).expect("meshed");
+        let angles = boundary_angles_from_tets(&mesh);
+        let sharpest = mesh.sharpest_boundary_edge().expect("a boundary");
+        let (&edge, &least) = angles
+            .iter()
+            .min_by(|x, y| x.1.total_cmp(y.1))
+            .expect("edges");
+        // The same angle from the boundary's two triangles as from the tetrahedra.
+        assert!(
+            (sharpest.angle - least).abs() < 1e-6,
+            "{sharpest:?} vs {edge:?} {least}"
+        );
+        assert!((angles[&sharpest.edge] - sharpest.angle).abs() < 1e-6);
+        let worst = mesh.quality_report().min_dihedral;
+        assert!(worst <= sharpest.angle + 1e-9, "{worst} > {sharpest:?}");
+        // Read back from a file, the tetrahedra alone give the boundary.
+        let bare = TetMesh {
+            positions: mesh.positions.clone(),
+            tets: mesh.tets.clone(),
+            ..TetMesh::default()
+        };
+        let again = bare.sharpest_boundary_edge().expect("a boundary");
+        assert!(
+            (again.angle - sharpest.angle).abs() < 1e-9,
+            "{again:?} vs {sharpest:?}"
+        );
+    }
+}
