@@ -1586,3 +1586,90 @@ fn quality_reads_tetrahedral_meshes() {
     );
     assert!(worst < 10.0 && worst <= sharpest, "{err}");
 }
+
+/// `tetmesh` on a file is bounded by exactly the surface `extract` makes of the same file, also
+/// when the file stores its axes z-fastest (a C-order `.npy`, mapped and meshed in its own order
+/// by both: before, `tetmesh` read such a file into x-fastest order, and its boundary matched
+/// only a sixth of `extract`'s triangles).
+#[test]
+fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let shape = [13usize, 17, 21];
+    let mut data = Vec::new();
+    for a in 0..shape[0] {
+        for b in 0..shape[1] {
+            for c in 0..shape[2] {
+                let d = [a, b, c].map(|x| x as f32);
+                let v = ((d[0] - 6.2) / 5.0).powi(2)
+                    + ((d[1] - 8.1) / 6.5).powi(2)
+                    + ((d[2] - 10.3) / 8.0).powi(2)
+                    + 0.1 * (d[0] * 0.9 + d[2] * 0.4).sin()
+                    - 1.0;
+                data.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(
+        dir.path().join("v.npy"),
+        common::npy(
+            "<f4",
+            &format!("({}, {}, {})", shape[0], shape[1], shape[2]),
+            &data,
+        ),
+    )
+    .unwrap();
+    let triangle = |p: [[f32; 3]; 3]| {
+        let mut t = p.map(|x| x.map(f32::to_bits));
+        t.sort_unstable();
+        t
+    };
+    // `tetmesh` keeps snapped points on their grid points by default; `extract` is told so.
+    let ternary = [
+        "--method",
+        "ternary",
+        "--snap",
+        "0.3",
+        "--snap-position",
+        "grid",
+    ];
+    for method in [&["--method", "mc"][..], &ternary] {
+        let mut args = vec!["extract", "v.npy", "-o", "e.ply"];
+        args.extend_from_slice(method);
+        ok(dir.path(), &args);
+        let mut args = vec!["tetmesh", "v.npy", "-o", "t.vtu"];
+        args.extend_from_slice(method);
+        ok(dir.path(), &args);
+        let surface = isocube_io::read_mesh(&dir.path().join("e.ply")).unwrap();
+        let tets = isocube_io::read_tet_mesh(&dir.path().join("t.vtu")).unwrap();
+        let expected: HashSet<[[u32; 3]; 3]> = surface
+            .triangles
+            .iter()
+            .map(|t| triangle(t.map(|v| surface.positions[v as usize])))
+            .collect();
+        // The tetrahedra's faces used once: the region's boundary (no walls: the region lies
+        // inside the grid).
+        let mut uses: HashMap<[[u32; 3]; 3], usize> = HashMap::new();
+        for t in &tets.tets {
+            for skip in 0..4 {
+                let mut f = [[0.0f32; 3]; 3];
+                for (slot, k) in (0..4).filter(|&k| k != skip).enumerate() {
+                    f[slot] = tets.positions[t[k] as usize];
+                }
+                *uses.entry(triangle(f)).or_default() += 1;
+            }
+        }
+        let boundary: HashSet<[[u32; 3]; 3]> = uses
+            .into_iter()
+            .filter(|&(_, n)| n == 1)
+            .map(|(f, _)| f)
+            .collect();
+        assert!(expected.len() > 500, "{method:?}");
+        let differ = boundary.symmetric_difference(&expected).count();
+        assert_eq!(
+            differ,
+            0,
+            "{method:?}: {} boundary triangles",
+            boundary.len()
+        );
+    }
+}

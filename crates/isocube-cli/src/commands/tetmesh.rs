@@ -129,17 +129,38 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         )?;
     }
     let started = Instant::now();
-    let (grid, orientation) = args.volume.load_oriented()?;
-    let (grid, orientation) = if args.index_space {
-        let grid = grid
-            .with_spacing([1.0; 3])
-            .and_then(|g| g.with_origin([0.0; 3]))
-            .map_err(Failure::input)?;
-        (grid, Orientation::IDENTITY)
-    } else {
-        (grid, orientation)
+    // A file stored uncompressed with `f32` values is mapped and meshed where its values lie,
+    // in the order the file stores them, as `extract` does (so the boundary is its surface):
+    // no copy, nor a transpose of arrays stored z-fastest. Labels are read whole, as by
+    // `extract --labels`.
+    let mapped = match args.labels {
+        Some(_) => None,
+        None => args.volume.try_map()?,
     };
-    let view = grid.view().with_orientation(orientation);
+    let mapped = mapped.map(|v| match args.index_space {
+        true => v.into_index_space(),
+        false => v,
+    });
+    let mut loaded_grid = None;
+    let view = match mapped.as_ref().and_then(|v| v.view()) {
+        Some(view) => view,
+        None => {
+            let (grid, orientation) = args.volume.load_oriented()?;
+            let (grid, orientation) = if args.index_space {
+                let grid = grid
+                    .with_spacing([1.0; 3])
+                    .and_then(|g| g.with_origin([0.0; 3]))
+                    .map_err(Failure::input)?;
+                (grid, Orientation::IDENTITY)
+            } else {
+                (grid, orientation)
+            };
+            loaded_grid
+                .insert(grid)
+                .view()
+                .with_orientation(orientation)
+        }
+    };
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
         .map(|limit| limit.saturating_sub(std::mem::size_of_val(view.values()) as u64));
     let options = extract_options(args, room);
