@@ -1595,7 +1595,7 @@ fn quality_reads_tetrahedral_meshes() {
 fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
     let dir = tempfile::tempdir().unwrap();
     let shape = [13usize, 17, 21];
-    let mut data = Vec::new();
+    let (mut data, mut stored) = (Vec::new(), Vec::new());
     for a in 0..shape[0] {
         for b in 0..shape[1] {
             for c in 0..shape[2] {
@@ -1606,6 +1606,8 @@ fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
                     + 0.1 * (d[0] * 0.9 + d[2] * 0.4).sin()
                     - 1.0;
                 data.extend_from_slice(&v.to_le_bytes());
+                // The same field as integers (converted to f32 whole by `tetmesh`).
+                stored.extend_from_slice(&(((v + 2.0) * 1000.0) as u16).to_le_bytes());
             }
         }
     }
@@ -1615,6 +1617,15 @@ fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
             "<f4",
             &format!("({}, {}, {})", shape[0], shape[1], shape[2]),
             &data,
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("w.npy"),
+        common::npy(
+            "<u2",
+            &format!("({}, {}, {})", shape[0], shape[1], shape[2]),
+            &stored,
         ),
     )
     .unwrap();
@@ -1632,11 +1643,16 @@ fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
         "--snap-position",
         "grid",
     ];
-    for method in [&["--method", "mc"][..], &ternary] {
-        let mut args = vec!["extract", "v.npy", "-o", "e.ply"];
+    let integers = ["--level", "2000"];
+    for (file, method) in [
+        ("v.npy", &["--method", "mc"][..]),
+        ("v.npy", &ternary),
+        ("w.npy", &integers),
+    ] {
+        let mut args = vec!["extract", file, "-o", "e.ply"];
         args.extend_from_slice(method);
         ok(dir.path(), &args);
-        let mut args = vec!["tetmesh", "v.npy", "-o", "t.vtu"];
+        let mut args = vec!["tetmesh", file, "-o", "t.vtu"];
         args.extend_from_slice(method);
         ok(dir.path(), &args);
         let surface = isocube_io::read_mesh(&dir.path().join("e.ply")).unwrap();

@@ -9,7 +9,7 @@ use isocube::cube::Topology;
 use isocube::extract::{
     ExtractOptions, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
 };
-use isocube::field::{Orientation, SampleSpec};
+use isocube::field::{Grid, Orientation, PlaneSource, SampleSpec};
 use isocube::quality::Strategy;
 use isocube::volume::{tetmesh, tetmesh_labels, TetError, TetReport};
 use isocube_io::{write_tet_mesh_as, TetFormat};
@@ -142,9 +142,17 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         false => v,
     });
     let mut loaded_grid = None;
-    let view = match mapped.as_ref().and_then(|v| v.view()) {
-        Some(view) => view,
-        None => {
+    let view = match (mapped.as_ref().and_then(|v| v.view()), &mapped) {
+        (Some(view), _) => view,
+        // Other stored types are converted whole, in the same order.
+        (None, Some(volume)) => {
+            let (grid, orientation) = converted(volume, args.volume.max_memory)?;
+            loaded_grid
+                .insert(grid)
+                .view()
+                .with_orientation(orientation)
+        }
+        (None, None) => {
             let (grid, orientation) = args.volume.load_oriented()?;
             let (grid, orientation) = if args.index_space {
                 let grid = grid
@@ -236,6 +244,32 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// A mapped volume's values as `f32`, in the order its planes are stored (the order `extract`
+/// meshes it in), within `--max-memory`.
+fn converted(
+    volume: &isocube_io::MappedVolume,
+    max_memory: Option<crate::volume::MemoryLimit>,
+) -> Result<(Grid, Orientation), Failure> {
+    let dims = volume.dims();
+    let count = dims.iter().product::<usize>();
+    let needed = count as u64 * 4;
+    if let Some(limit) = crate::volume::MemoryLimit::or_default(max_memory).filter(|&l| needed > l)
+    {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: its values need {needed} bytes as f32, more than the limit of {limit} (raise it \
+             with --max-memory)",
+            volume.path().display()
+        )));
+    }
+    let mut values = vec![0.0f32; count];
+    volume.read_planes(0, &mut values);
+    let grid = Grid::new(dims, values)
+        .and_then(|g| g.with_spacing(volume.spacing()))
+        .and_then(|g| g.with_origin(volume.origin()))
+        .map_err(Failure::input)?;
+    Ok((grid, volume.orientation()))
 }
 
 /// The volume mesher's options from the command line.
