@@ -444,7 +444,7 @@ fn write_msh_binary(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
 
 /// VTK XML unstructured grid: tetrahedra only (cell type 10), appended raw with 64-bit block
 /// headers; cell data `region` and, when given, `min_dihedral`, `max_dihedral`,
-/// `radius_ratio`.
+/// `radius_ratio` (`Float32`).
 fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>) -> io::Result<()> {
     let n = mesh.positions.len();
     let t = mesh.tets.len();
@@ -464,7 +464,9 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
     let types = next(t as u64);
     let region = next(4 * t as u64);
     let label = mesh.labels.as_ref().map(|_| next(8 * t as u64));
-    let measures = quality.map(|_| [next(8 * t as u64), next(8 * t as u64), next(8 * t as u64)]);
+    // Qualities in single precision: half the bytes, and more digits than any reader of a
+    // report or a picture needs.
+    let measures = quality.map(|_| [next(4 * t as u64), next(4 * t as u64), next(4 * t as u64)]);
     writeln!(w, r#"<?xml version="1.0"?>"#)?;
     writeln!(
         w,
@@ -490,7 +492,7 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
         {
             writeln!(
                 w,
-                r#"        <DataArray type="Float64" Name="{name}" format="appended" offset="{at}"/>"#
+                r#"        <DataArray type="Float32" Name="{name}" format="appended" offset="{at}"/>"#
             )?;
         }
     }
@@ -601,9 +603,9 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
         let fields: [fn(&TetQuality) -> f64; 3] =
             [|q| q.min_dihedral, |q| q.max_dihedral, |q| q.radius_ratio];
         for field in fields {
-            array(w, t, 8, &|r, b| {
+            array(w, t, 4, &|r, b| {
                 for q in &q[r] {
-                    b.extend_from_slice(&field(q).to_le_bytes());
+                    b.extend_from_slice(&(field(q) as f32).to_le_bytes());
                 }
             })?;
         }

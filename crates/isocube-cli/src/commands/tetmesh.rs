@@ -306,12 +306,20 @@ fn finish(
         e => Failure::input(e),
     })?;
     let meshed = started.elapsed();
-    let qualities = mesh.qualities();
+    // Only `.vtu` files hold each element's quality (24 bytes a tetrahedron); for the other
+    // formats the report is summed stretch by stretch, never holding them all.
+    let (qualities, report) = if format == TetFormat::Vtu {
+        let qualities = mesh.qualities();
+        let report = TetReport::of(&qualities);
+        (Some(qualities), report)
+    } else {
+        (None, mesh.quality_report())
+    };
     let measured = started.elapsed();
     // The check (all cores) runs while the file is written (mostly the disk's time).
     let (write, check) = rayon::join(
         || {
-            let result = write_tet_mesh_as(&args.output, format, &mesh, Some(&qualities));
+            let result = write_tet_mesh_as(&args.output, format, &mesh, qualities.as_deref());
             (result, started.elapsed())
         },
         || {
@@ -324,7 +332,7 @@ fn finish(
     if quiet {
         return Ok(());
     }
-    let report = TetReport::of(&qualities);
+    drop(qualities);
     let s = &mesh.stats;
     eprintln!(
         "{}: {} tetrahedra, {} vertices ({} on the surface, {} grid points, {} inside cut cells); \

@@ -364,55 +364,45 @@ pub fn tetmesh<'a>(
         flip,
         shape: ternary,
     };
-    let layers: Vec<Layer> = (0..cell_dims[2])
-        .into_par_iter()
-        .map(|k| ctx.layer(k))
-        .collect::<Result<_, _>>()?;
-
-    // Join the layers: Steiner points after the grid points, in layer order.
+    // The layers of cells are meshed in parallel a batch at a time and appended in order, each
+    // freed once copied: the tetrahedra are held about once (all the layers first, then their
+    // concatenation, held them twice, the allocator keeping the freed layers for a while).
+    // Steiner points come after the grid points, in layer order.
     let steiner_base = base + inside_points.len();
-    let total_steiner: usize = layers.iter().map(|l| l.steiner.len()).sum();
-    if steiner_base + total_steiner >= STEINER as usize {
-        return Err(TetError::TooManyVertices);
-    }
-    let grid_positions: Vec<[f32; 3]> = inside_points
-        .par_iter()
-        .map(|&p| ctx.point_position(p as usize))
-        .collect();
-    let mut positions = surface.positions;
-    positions.reserve(inside_points.len() + total_steiner);
-    positions.extend_from_slice(&grid_positions);
+    let mut positions = Vec::with_capacity(steiner_base);
+    positions.extend_from_slice(&surface.positions);
+    positions.par_extend(
+        inside_points
+            .par_iter()
+            .map(|&p| ctx.point_position(p as usize)),
+    );
     let mut stats = TetStats {
         grid_points: inside_points.len(),
-        steiner_points: total_steiner,
         extract: extract_stats,
         ..TetStats::default()
     };
-    // Each layer's Steiner points are numbered from `offset`; its tetrahedra are copied into
-    // their place in parallel.
-    let mut tets = vec![[0u32; 4]; layers.iter().map(|l| l.tets.len()).sum()];
+    // Room for six tetrahedra per inside point and a few per surface triangle reserved (not
+    // touched): the vector seldom moves.
+    let mut tets = Vec::with_capacity(6 * inside_points.len() + 8 * surface.triangles.len());
     let mut walls = Vec::new();
-    let mut offset = steiner_base as u32;
-    let mut places = Vec::with_capacity(layers.len());
-    let mut rest = tets.as_mut_slice();
-    for layer in &layers {
-        let (head, tail) = std::mem::take(&mut rest).split_at_mut(layer.tets.len());
-        places.push((layer, head, offset));
-        rest = tail;
-        let map = steiner_map(offset);
-        walls.extend(layer.walls.iter().map(|t| t.map(map)));
-        positions.extend_from_slice(&layer.steiner);
-        offset += layer.steiner.len() as u32;
-        stats.lattice_cells += layer.lattice_cells;
-        stats.cut_cells += layer.cut_cells;
-    }
-    places.into_par_iter().for_each(|(layer, place, offset)| {
-        let map = steiner_map(offset);
-        for (to, from) in place.iter_mut().zip(&layer.tets) {
-            *to = from.map(map);
-        }
-    });
-    drop(layers);
+    in_batches(
+        cell_dims[2],
+        |k| ctx.layer(k),
+        |layer| {
+            if positions.len() + layer.steiner.len() >= STEINER as usize {
+                return Err(TetError::TooManyVertices);
+            }
+            let map = steiner_map(positions.len() as u32);
+            walls.extend(layer.walls.iter().map(|t| t.map(map)));
+            tets.extend(layer.tets.iter().map(|t| t.map(map)));
+            positions.extend_from_slice(&layer.steiner);
+            stats.steiner_points += layer.steiner.len();
+            stats.lattice_cells += layer.lattice_cells;
+            stats.cut_cells += layer.cut_cells;
+            Ok(())
+        },
+    )?;
+    let total_steiner = stats.steiner_points;
     // Ternary meshes are held to the dihedral angle range: what the cells could not reach,
     // flips and moves across cells often can. With plain Marching Cubes the slivers come with
     // the surface (its triangles' corners fixed), several per cent of the elements, and the
@@ -440,6 +430,33 @@ pub fn tetmesh<'a>(
     };
     mesh.orient(&grid);
     Ok(mesh)
+}
+
+/// Meshes layers `0..count` in parallel a batch at a time and hands them to `append` in
+/// order, a batch being appended while the next is meshed; each layer is freed once appended,
+/// so the mesh is not held twice (all the layers, then their concatenation).
+fn in_batches<L: Send>(
+    count: usize,
+    layer: impl Fn(usize) -> Result<L, TetError> + Sync,
+    mut append: impl FnMut(L) -> Result<(), TetError> + Send,
+) -> Result<(), TetError> {
+    let batch = 4 * rayon::current_num_threads().max(1);
+    let mut pending: Vec<L> = Vec::new();
+    let mut append_all = |layers: Vec<L>| layers.into_iter().try_for_each(&mut append);
+    for first in (0..count).step_by(batch) {
+        let (appended, layers) = rayon::join(
+            || append_all(std::mem::take(&mut pending)),
+            || {
+                (first..(first + batch).min(count))
+                    .into_par_iter()
+                    .map(&layer)
+                    .collect::<Result<Vec<L>, _>>()
+            },
+        );
+        appended?;
+        pending = layers?;
+    }
+    append_all(pending)
 }
 
 /// A layer's vertex numbers in the mesh: its Steiner points (`STEINER | k`) numbered from

@@ -138,36 +138,48 @@ impl TetMesh {
     /// differences of `f32` coordinates are exact in `f64`), computes each shape once. The
     /// result is the same, bit for bit, as computing every element.
     pub fn qualities(&self) -> Vec<TetQuality> {
-        const STRETCH: usize = 1 << 14;
-        const SLOTS: usize = 1 << 10;
         let mut out = vec![TetQuality::default(); self.tets.len()];
         out.par_chunks_mut(STRETCH)
             .zip(self.tets.par_chunks(STRETCH))
-            .for_each(|(out, tets)| {
-                let mut cache: Vec<Option<([u64; 9], TetQuality)>> = vec![None; SLOTS];
-                for (q, t) in out.iter_mut().zip(tets) {
-                    let e = edges(t.map(|v| self.positions[v as usize].map(f64::from)));
-                    let key: [u64; 9] = std::array::from_fn(|i| e[i / 3][i % 3].to_bits());
-                    let slot = key.iter().fold(0u64, |h, &x| {
-                        (h.rotate_left(5) ^ x).wrapping_mul(0x517c_c1b7_2722_0a95)
-                    }) >> (64 - SLOTS.trailing_zeros());
-                    let entry = &mut cache[slot as usize];
-                    *q = match entry {
-                        Some((k, quality)) if *k == key => *quality,
-                        _ => {
-                            let quality = TetQuality::of_edges(e);
-                            *entry = Some((key, quality));
-                            quality
-                        }
-                    };
-                }
-            });
+            .for_each(|(out, tets)| self.stretch_qualities(tets, out));
         out
     }
 
-    /// The mesh's quality summary.
+    /// The qualities of one stretch of tetrahedra into `out`, with the stretch's own cache.
+    fn stretch_qualities(&self, tets: &[[u32; 4]], out: &mut [TetQuality]) {
+        const SLOTS: usize = 1 << 10;
+        let mut cache: Vec<Option<([u64; 9], TetQuality)>> = vec![None; SLOTS];
+        for (q, t) in out.iter_mut().zip(tets) {
+            let e = edges(t.map(|v| self.positions[v as usize].map(f64::from)));
+            let key: [u64; 9] = std::array::from_fn(|i| e[i / 3][i % 3].to_bits());
+            let slot = key.iter().fold(0u64, |h, &x| {
+                (h.rotate_left(5) ^ x).wrapping_mul(0x517c_c1b7_2722_0a95)
+            }) >> (64 - SLOTS.trailing_zeros());
+            let entry = &mut cache[slot as usize];
+            *q = match entry {
+                Some((k, quality)) if *k == key => *quality,
+                _ => {
+                    let quality = TetQuality::of_edges(e);
+                    *entry = Some((key, quality));
+                    quality
+                }
+            };
+        }
+    }
+
+    /// The mesh's quality summary: [`TetReport::of`] the [`TetMesh::qualities`], made stretch
+    /// by stretch without holding them all (24 bytes a tetrahedron).
     pub fn quality_report(&self) -> TetReport {
-        TetReport::of(&self.qualities())
+        let parts: Vec<Partial> = self
+            .tets
+            .par_chunks(STRETCH)
+            .map(|tets| {
+                let mut out = vec![TetQuality::default(); tets.len()];
+                self.stretch_qualities(tets, &mut out);
+                Partial::of(&out)
+            })
+            .collect();
+        Partial::report(&parts)
     }
 
     /// The sharpest edge of the region's boundary (surface and walls, or for a mesh read from a
@@ -252,20 +264,17 @@ impl TetMesh {
     }
 }
 
-/// An edge of a volume mesh's boundary and the region's angle there
-/// ([`TetMesh::sharpest_boundary_edge`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BoundaryEdge {
-    /// The angle, in degrees, between the two boundary triangles, measured through the region
-    /// (180° where they lie flat, under 180° at a convex edge).
-    pub angle: f64,
-    /// The edge's vertices, the smaller first.
-    pub edge: [u32; 2],
+/// Tetrahedra are measured in stretches of this many, each with a cache of its own.
+const STRETCH: usize = 1 << 14;
+
+/// One stretch's part of a [`TetReport`].
+struct Partial {
+    report: TetReport,
+    sum: f64,
 }
 
-impl TetReport {
-    /// The summary of these tetrahedra's qualities.
-    pub fn of(qualities: &[TetQuality]) -> TetReport {
+impl Partial {
+    fn of(qualities: &[TetQuality]) -> Partial {
         let mut r = TetReport {
             tets: qualities.len(),
             min_dihedral: f64::INFINITY,
@@ -281,15 +290,59 @@ impl TetReport {
             let bin = ((q.min_dihedral / 5.0).max(0.0) as usize).min(17);
             r.min_dihedral_histogram[bin] += 1;
         }
-        r.mean_radius_ratio = if qualities.is_empty() {
-            0.0
-        } else {
-            sum / qualities.len() as f64
+        Partial { report: r, sum }
+    }
+
+    /// The parts joined in order.
+    fn report(parts: &[Partial]) -> TetReport {
+        let mut r = TetReport {
+            min_dihedral: f64::INFINITY,
+            max_dihedral: f64::NEG_INFINITY,
+            ..TetReport::default()
         };
-        if qualities.is_empty() {
+        let mut sum = 0.0;
+        for p in parts {
+            let q = &p.report;
+            r.tets += q.tets;
+            r.min_dihedral = r.min_dihedral.min(q.min_dihedral);
+            r.max_dihedral = r.max_dihedral.max(q.max_dihedral);
+            r.max_radius_ratio = r.max_radius_ratio.max(q.max_radius_ratio);
+            for (a, b) in r
+                .min_dihedral_histogram
+                .iter_mut()
+                .zip(q.min_dihedral_histogram)
+            {
+                *a += b;
+            }
+            sum += p.sum;
+        }
+        if r.tets == 0 {
             r.min_dihedral = 0.0;
             r.max_dihedral = 0.0;
+        } else {
+            r.mean_radius_ratio = sum / r.tets as f64;
         }
         r
+    }
+}
+
+/// An edge of a volume mesh's boundary and the region's angle there
+/// ([`TetMesh::sharpest_boundary_edge`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryEdge {
+    /// The angle, in degrees, between the two boundary triangles, measured through the region
+    /// (180° where they lie flat, under 180° at a convex edge).
+    pub angle: f64,
+    /// The edge's vertices, the smaller first.
+    pub edge: [u32; 2],
+}
+
+impl TetReport {
+    /// The summary of these tetrahedra's qualities.
+    pub fn of(qualities: &[TetQuality]) -> TetReport {
+        // Stretch by stretch, as [`TetMesh::quality_report`] sums them: the same mean, bit for
+        // bit, whichever way the qualities were had.
+        let parts: Vec<Partial> = qualities.chunks(STRETCH).map(Partial::of).collect();
+        Partial::report(&parts)
     }
 }
