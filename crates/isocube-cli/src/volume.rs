@@ -128,6 +128,22 @@ impl VolumeArgs {
     }
 }
 
+/// A loaded volume as meshed: in index space (spacing 1, origin 0, no direction) when
+/// `index_space` (`--index-space`), else as the file places it.
+pub(crate) fn in_frame(
+    index_space: bool,
+    (grid, orientation): (Grid, Orientation),
+) -> Result<(Grid, Orientation), Failure> {
+    if !index_space {
+        return Ok((grid, orientation));
+    }
+    let grid = grid
+        .with_spacing([1.0; 3])
+        .and_then(|g| g.with_origin([0.0; 3]))
+        .map_err(Failure::input)?;
+    Ok((grid, Orientation::IDENTITY))
+}
+
 /// A failure to read a volume, with a hint where the memory limit refused it.
 pub(crate) fn volume_failure(e: IoError) -> Failure {
     let context = match e {

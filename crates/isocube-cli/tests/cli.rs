@@ -1611,24 +1611,14 @@ fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
             }
         }
     }
-    std::fs::write(
-        dir.path().join("v.npy"),
-        common::npy(
-            "<f4",
-            &format!("({}, {}, {})", shape[0], shape[1], shape[2]),
-            &data,
-        ),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.path().join("w.npy"),
-        common::npy(
-            "<u2",
-            &format!("({}, {}, {})", shape[0], shape[1], shape[2]),
-            &stored,
-        ),
-    )
-    .unwrap();
+    let shape_text = format!("({}, {}, {})", shape[0], shape[1], shape[2]);
+    for (name, descr, bytes) in [("v.npy", "<f4", &data), ("w.npy", "<u2", &stored)] {
+        std::fs::write(
+            dir.path().join(name),
+            common::npy(descr, &shape_text, bytes),
+        )
+        .unwrap();
+    }
     let triangle = |p: [[f32; 3]; 3]| {
         let mut t = p.map(|x| x.map(f32::to_bits));
         t.sort_unstable();

@@ -331,18 +331,8 @@ fn run_slabs_in_memory(args: &Args, volume: impl SlabInput, quiet: bool) -> Resu
 
 /// The volume as meshed: in index space (spacing 1, origin 0, no direction) with
 /// `--index-space`, else as the file places it.
-fn in_frame(
-    args: &Args,
-    (grid, orientation): (Grid, Orientation),
-) -> Result<(Grid, Orientation), Failure> {
-    if !args.index_space {
-        return Ok((grid, orientation));
-    }
-    let grid = grid
-        .with_spacing([1.0; 3])
-        .and_then(|g| g.with_origin([0.0; 3]))
-        .map_err(Failure::input)?;
-    Ok((grid, Orientation::IDENTITY))
+fn in_frame(args: &Args, loaded: (Grid, Orientation)) -> Result<(Grid, Orientation), Failure> {
+    crate::volume::in_frame(args.index_space, loaded)
 }
 
 fn parse_chunk(s: &str) -> Result<[usize; 3], String> {

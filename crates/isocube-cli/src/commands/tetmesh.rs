@@ -153,16 +153,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                 .with_orientation(orientation)
         }
         (None, None) => {
-            let (grid, orientation) = args.volume.load_oriented()?;
-            let (grid, orientation) = if args.index_space {
-                let grid = grid
-                    .with_spacing([1.0; 3])
-                    .and_then(|g| g.with_origin([0.0; 3]))
-                    .map_err(Failure::input)?;
-                (grid, Orientation::IDENTITY)
-            } else {
-                (grid, orientation)
-            };
+            let loaded = args.volume.load_oriented()?;
+            let (grid, orientation) = crate::volume::in_frame(args.index_space, loaded)?;
             loaded_grid
                 .insert(grid)
                 .view()
@@ -310,10 +302,10 @@ fn finish(
     // formats the report is summed stretch by stretch, never holding them all.
     let (qualities, report) = if format == TetFormat::Vtu {
         let qualities = mesh.qualities();
-        let report = TetReport::of(&qualities);
+        let report = (!quiet).then(|| TetReport::of(&qualities));
         (Some(qualities), report)
     } else {
-        (None, mesh.quality_report())
+        (None, (!quiet).then(|| mesh.quality_report()))
     };
     let measured = started.elapsed();
     // The check (all cores) runs while the file is written (mostly the disk's time).
@@ -329,10 +321,10 @@ fn finish(
     );
     let (result, written) = write;
     result.map_err(|e| crate::io_failure(e, false))?;
-    if quiet {
-        return Ok(());
-    }
     drop(qualities);
+    let Some(report) = report.filter(|_| !quiet) else {
+        return Ok(());
+    };
     let s = &mesh.stats;
     eprintln!(
         "{}: {} tetrahedra, {} vertices ({} on the surface, {} grid points, {} inside cut cells); \
