@@ -1550,6 +1550,13 @@ fn quality_reads_tetrahedral_meshes() {
         let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(report["tetrahedra"].as_u64(), Some(tets));
         assert_eq!(report["inverted"].as_u64(), Some(0));
+        // The total beside the elements' own volumes (smallest, mean, largest).
+        let total = report["total_volume"].as_f64().unwrap();
+        let mean = report["volume"]["mean"].as_f64().unwrap();
+        assert!(
+            (total / tets as f64 - mean).abs() < 1e-5 * total,
+            "{total} {mean}"
+        );
         assert!(report["min_dihedral"]["min"].as_f64().unwrap() > 10.0);
         assert!(report["max_dihedral"]["max"].as_f64().unwrap() < 165.0);
         // The sphere's boundary has no edge sharper than the elements' angles allow.

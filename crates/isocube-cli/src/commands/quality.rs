@@ -166,7 +166,7 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
         fields.insert("tetrahedra".into(), json!(report.tets));
         fields.insert("inverted".into(), json!(check.inverted));
         fields.insert("flat".into(), json!(check.flat));
-        fields.insert("volume".into(), number(check.volume));
+        fields.insert("total_volume".into(), number(check.volume));
         for (name, r) in &rows {
             fields.insert((*name).into(), range(r));
         }

@@ -196,28 +196,31 @@ impl TetMesh {
             .first()
             .map_or([0.0; 3], |x| x.map(f64::from));
         let p = |v: u32| sub(self.positions[v as usize].map(f64::from), o);
-        let (inverted, flat, volume, chain) = self
+        // Sums are taken over fixed runs of elements, then in order: the same bits whatever
+        // the number of threads.
+        const RUN: usize = 1 << 14;
+        let runs: Vec<(usize, usize, f64, u64)> = self
             .tets
-            .par_iter()
-            .map(|t| {
-                let [a, b, c, d] = t.map(p);
-                let vol = dot(sub(b, a), cross(sub(c, a), sub(d, a))) / 6.0;
-                let sign = orientation(a, b, c, d);
-                let [i, j, k, l] = *t;
-                let chain = [[i, k, j], [i, j, l], [i, l, k], [j, k, l]]
-                    .into_iter()
-                    .fold(0u64, |s, f| s.wrapping_add(face_signature(f)));
-                (
-                    usize::from(sign < 0.0),
-                    usize::from(sign == 0.0),
-                    vol,
-                    chain,
-                )
+            .par_chunks(RUN)
+            .map(|run| {
+                let mut out = (0, 0, 0.0, 0u64);
+                for t in run {
+                    let [a, b, c, d] = t.map(p);
+                    out.2 += dot(sub(b, a), cross(sub(c, a), sub(d, a))) / 6.0;
+                    let sign = orientation(a, b, c, d);
+                    out.0 += usize::from(sign < 0.0);
+                    out.1 += usize::from(sign == 0.0);
+                    let [i, j, k, l] = *t;
+                    out.3 = [[i, k, j], [i, j, l], [i, l, k], [j, k, l]]
+                        .into_iter()
+                        .fold(out.3, |s, f| s.wrapping_add(face_signature(f)));
+                }
+                out
             })
-            .reduce(
-                || (0, 0, 0.0, 0),
-                |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2, x.3.wrapping_add(y.3)),
-            );
+            .collect();
+        let (inverted, flat, volume, chain) = runs.iter().fold((0, 0, 0.0, 0u64), |x, y| {
+            (x.0 + y.0, x.1 + y.1, x.2 + y.2, x.3.wrapping_add(y.3))
+        });
         let mut beyond = self.beyond.clone();
         beyond.sort_unstable();
         let boundary: Vec<[u32; 3]> = self
@@ -238,11 +241,17 @@ impl TetMesh {
             self.match_boundary(&boundary)
         };
         let enclosed = boundary
-            .par_iter()
-            .map(|t| {
-                let [a, b, c] = t.map(p);
-                dot(a, cross(b, c)) / 6.0
+            .par_chunks(RUN)
+            .map(|run| {
+                run.iter()
+                    .map(|t| {
+                        let [a, b, c] = t.map(p);
+                        dot(a, cross(b, c)) / 6.0
+                    })
+                    .sum::<f64>()
             })
+            .collect::<Vec<f64>>()
+            .iter()
             .sum();
         TetCheck {
             conforming: bad_faces == 0 && boundary_mismatch == 0,
