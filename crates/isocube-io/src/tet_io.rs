@@ -16,7 +16,7 @@ use super::blocks::{put_float, put_int, put_ints, put_le, write_blocks};
 use super::export::bbox;
 use super::mesh_io::write_atomic;
 use super::IoError;
-use isocube::volume::{TetMesh, TetQuality};
+use isocube::volume::{QualityColumns, TetMesh};
 
 /// A tetrahedral mesh file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -216,12 +216,12 @@ impl<'a> Groups<'a> {
 }
 
 /// Writes `mesh` to `path` in the format its extension names, atomically (a temporary file
-/// renamed over the target). `quality`, one entry per tetrahedron, is written as cell data where
-/// the format has it (`.vtu`).
+/// renamed over the target). `quality` ([`TetMesh::quality_columns`]), one entry per
+/// tetrahedron, is written as cell data where the format has it (`.vtu`).
 pub fn write_tet_mesh(
     path: &Path,
     mesh: &TetMesh,
-    quality: Option<&[TetQuality]>,
+    quality: Option<&QualityColumns>,
 ) -> Result<(), IoError> {
     let format = TetFormat::from_path(path).ok_or_else(|| {
         IoError::unsupported(
@@ -249,7 +249,7 @@ pub fn write_tet_mesh_as(
     path: &Path,
     format: TetFormat,
     mesh: &TetMesh,
-    quality: Option<&[TetQuality]>,
+    quality: Option<&QualityColumns>,
 ) -> Result<(), IoError> {
     write_atomic(path, &mut |w| {
         let mut w = io::BufWriter::with_capacity(1 << 20, w);
@@ -445,10 +445,18 @@ fn write_msh_binary(w: &mut impl Write, mesh: &TetMesh) -> io::Result<()> {
 /// VTK XML unstructured grid: tetrahedra only (cell type 10), appended raw with 64-bit block
 /// headers; cell data `region` and, when given, `min_dihedral`, `max_dihedral`,
 /// `radius_ratio` (`Float32`).
-fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>) -> io::Result<()> {
+fn write_vtu(
+    w: &mut impl Write,
+    mesh: &TetMesh,
+    quality: Option<&QualityColumns>,
+) -> io::Result<()> {
     let n = mesh.positions.len();
     let t = mesh.tets.len();
-    let quality = quality.filter(|q| q.len() == t);
+    let quality = quality.filter(|q| {
+        [&q.min_dihedral, &q.max_dihedral, &q.radius_ratio]
+            .iter()
+            .all(|c| c.len() == t)
+    });
     let mut offset = 0u64;
     let mut next = |bytes: u64| {
         let at = offset;
@@ -600,12 +608,10 @@ fn write_vtu(w: &mut impl Write, mesh: &TetMesh, quality: Option<&[TetQuality]>)
         })?;
     }
     if let Some(q) = quality {
-        let fields: [fn(&TetQuality) -> f64; 3] =
-            [|q| q.min_dihedral, |q| q.max_dihedral, |q| q.radius_ratio];
-        for field in fields {
+        for column in [&q.min_dihedral, &q.max_dihedral, &q.radius_ratio] {
             array(w, t, 4, &|r, b| {
-                for q in &q[r] {
-                    b.extend_from_slice(&(field(q) as f32).to_le_bytes());
+                for x in &column[r] {
+                    b.extend_from_slice(&x.to_le_bytes());
                 }
             })?;
         }

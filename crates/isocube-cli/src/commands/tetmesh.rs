@@ -11,7 +11,7 @@ use isocube::extract::{
 };
 use isocube::field::{Grid, Orientation, PlaneSource, SampleSpec};
 use isocube::quality::Strategy;
-use isocube::volume::{tetmesh, tetmesh_labels, TetError, TetReport};
+use isocube::volume::{tetmesh, tetmesh_labels, TetError};
 use isocube_io::{write_tet_mesh_as, TetFormat};
 
 use crate::volume::VolumeArgs;
@@ -298,12 +298,12 @@ fn finish(
         e => Failure::input(e),
     })?;
     let meshed = started.elapsed();
-    // Only `.vtu` files hold each element's quality (24 bytes a tetrahedron); for the other
-    // formats the report is summed stretch by stretch, never holding them all.
+    // Only `.vtu` files hold each element's quality (single precision, 12 bytes a
+    // tetrahedron); for the other formats the report is summed stretch by stretch, never
+    // holding them all.
     let (qualities, report) = if format == TetFormat::Vtu {
-        let qualities = mesh.qualities();
-        let report = (!quiet).then(|| TetReport::of(&qualities));
-        (Some(qualities), report)
+        let (columns, report) = mesh.quality_columns();
+        (Some(columns), Some(report))
     } else {
         (None, (!quiet).then(|| mesh.quality_report()))
     };
@@ -311,7 +311,7 @@ fn finish(
     // The check (all cores) runs while the file is written (mostly the disk's time).
     let (write, check) = rayon::join(
         || {
-            let result = write_tet_mesh_as(&args.output, format, &mesh, qualities.as_deref());
+            let result = write_tet_mesh_as(&args.output, format, &mesh, qualities.as_ref());
             (result, started.elapsed())
         },
         || {
