@@ -229,8 +229,8 @@ impl TetMesh {
     }
 
     /// The sharpest edge of the region's boundary (surface and walls, or for a mesh read from a
-    /// file the faces of one tetrahedron only): the smallest angle the
-    /// region makes there, in degrees, and the edge. The tetrahedra around a boundary edge
+    /// file the faces of one tetrahedron only): the smallest angle the region makes there, in
+    /// degrees, and the edge. The tetrahedra around a boundary edge
     /// share out that angle, so none of them has a larger dihedral angle there: no mesh
     /// keeping this boundary has a better smallest dihedral angle than the sharpest edge's.
     /// It tells a poor element forced by the surface (where it meets a wall at a grazing
