@@ -221,16 +221,7 @@ impl TetMesh {
         let (inverted, flat, volume, chain) = runs.iter().fold((0, 0, 0.0, 0u64), |x, y| {
             (x.0 + y.0, x.1 + y.1, x.2 + y.2, x.3.wrapping_add(y.3))
         });
-        let mut beyond = self.beyond.clone();
-        beyond.sort_unstable();
-        let boundary: Vec<[u32; 3]> = self
-            .surface
-            .iter()
-            .enumerate()
-            .filter(|(t, _)| beyond.binary_search(&(*t as u32)).is_err())
-            .map(|(_, &f)| f)
-            .chain(self.walls.iter().copied())
-            .collect();
+        let boundary = self.boundary_triangles();
         let expected = boundary
             .par_iter()
             .map(|&f| face_signature(f))
@@ -262,6 +253,20 @@ impl TetMesh {
             volume,
             enclosed,
         }
+    }
+
+    /// The triangles that bound the tetrahedra: the surface's but those beyond the grid, and
+    /// the walls.
+    pub(super) fn boundary_triangles(&self) -> Vec<[u32; 3]> {
+        let mut beyond = self.beyond.clone();
+        beyond.sort_unstable();
+        self.surface
+            .iter()
+            .enumerate()
+            .filter(|(t, _)| beyond.binary_search(&(*t as u32)).is_err())
+            .map(|(_, &f)| f)
+            .chain(self.walls.iter().copied())
+            .collect()
     }
 
     /// Matches the tetrahedra's faces one by one: the faces used otherwise than once each way,

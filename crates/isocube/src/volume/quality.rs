@@ -258,30 +258,27 @@ impl TetMesh {
             // Read from a file: the faces of one tetrahedron only.
             super::check::match_faces(&self.tets, self.positions.len()).1
         } else {
-            let mut beyond = self.beyond.clone();
-            beyond.sort_unstable();
-            self.surface
-                .iter()
-                .enumerate()
-                .filter(|(t, _)| beyond.binary_search(&(*t as u32)).is_err())
-                .map(|(_, &f)| f)
-                .chain(self.walls.iter().copied())
-                .collect()
+            self.boundary_triangles()
         };
-        // Half-edges (a, b) with the triangle's third corner, grouped by edge.
-        let mut halves: Vec<([u32; 2], u32)> = boundary
+        // Half-edges: the edge (lower vertex first), whether the triangle runs that way, and
+        // its third corner; grouped by edge.
+        let mut halves: Vec<([u32; 2], bool, u32)> = boundary
             .iter()
-            .flat_map(|f| (0..3).map(move |k| ([f[k], f[(k + 1) % 3]], f[(k + 2) % 3])))
+            .flat_map(|f| {
+                (0..3).map(move |k| {
+                    let (a, b) = (f[k], f[(k + 1) % 3]);
+                    ([a.min(b), a.max(b)], a < b, f[(k + 2) % 3])
+                })
+            })
             .collect();
-        halves.par_sort_unstable_by_key(|&([a, b], c)| (a.min(b), a.max(b), a, c));
+        halves.par_sort_unstable();
         let at = |v: u32| self.positions[v as usize].map(f64::from);
         halves
-            .par_chunk_by(|x, y| {
-                x.0[0].min(x.0[1]) == y.0[0].min(y.0[1]) && x.0[0].max(x.0[1]) == y.0[0].max(y.0[1])
-            })
-            .filter_map(|group| match group {
-                &[([a, b], c1), ([b2, _], c2)] if a != b2 => {
-                    let (a, b) = if a < b { (a, b) } else { (b, a) };
+            .par_chunk_by(|x, y| x.0 == y.0)
+            .filter_map(|group| match *group {
+                [([a, b], first_forward, c1), (_, second_forward, c2)]
+                    if first_forward != second_forward =>
+                {
                     // Seen along the edge: the angle from the first triangle's side to the
                     // second's, turning into the region (against the first one's outward
                     // normal).
@@ -294,7 +291,6 @@ impl TetMesh {
                     };
                     let (u1, u2) = (across(c1), across(c2));
                     // The first triangle runs a → b or b → a: its outward normal is ±e × u1.
-                    let first_forward = group[0].0 == [a, b];
                     let inward = cross(u1, e).map(|x| if first_forward { x } else { -x });
                     let y = dot(u2, inward) / dot(inward, inward).sqrt();
                     let x = dot(u2, u1) / dot(u1, u1).sqrt();
