@@ -320,7 +320,8 @@ mod tests {
         assert!((va - vb).abs() < 0.05 * va, "{va} {vb}");
         assert!(fine.tets.len() > 3 * coarse.tets.len());
         // With ternary snapping the elements between sections are as good as the grid's
-        // elsewhere; with the sections alone they are long and flat.
+        // elsewhere; with the sections alone they are long and flat (the improvement step
+        // lifts the worst of them, but not into the range, and the rest stay stretched).
         let ternary = options.with_method(Method::Ternary(
             Snapping::default()
                 .with_snap(0.3)
@@ -337,7 +338,7 @@ mod tests {
             "{qb:?}"
         );
         assert!(
-            qa.min_dihedral < 5.0 && qa.mean_radius_ratio > 1.5 * qb.mean_radius_ratio,
+            qa.min_dihedral < 10.0 && qa.mean_radius_ratio > 1.5 * qb.mean_radius_ratio,
             "{qa:?}"
         );
     }

@@ -1,7 +1,7 @@
 //! Quality improvement after the cells are filled. Where the surface cuts a cell thinly, the
 //! cone points and splits of a single cell cannot always avoid flat tetrahedra; across cells, a
 //! face or edge shared with a neighbour's tetrahedra often can be flipped away, and a Steiner
-//! point moved. Three operations, each taken only when it raises the worst dihedral score of the
+//! point moved. Four operations, each taken only when it raises the worst dihedral score of the
 //! tetrahedra it replaces and every new tetrahedron is positive by the exact predicate:
 //!
 //! - **2 → 3**: two tetrahedra sharing an interior face become three around the segment joining
@@ -11,7 +11,9 @@
 //! - **move**: a Steiner point, or a grid point no lattice tetrahedron holds, walks (a pattern
 //!   search) to where its worst tetrahedron is best;
 //! - **insert**: the poor tetrahedron and its neighbours across its faces become a star of
-//!   tetrahedra from a new Steiner point, placed by the same search.
+//!   tetrahedra from a new Steiner point, placed by the same search; where that is not enough,
+//!   the poor tetrahedron with some of those neighbours, or with the tetrahedra around one of
+//!   its edges, whichever star is best.
 //!
 //! Boundary triangles (the surface, the grid's walls) are faces of one tetrahedron only, so no
 //! flip touches them and no vertex on them moves; tetrahedra of grid points only (the lattice)
@@ -32,10 +34,15 @@ use super::quality::dihedral_extremes;
 /// a margin lets flips and moves around a poor element make room.
 const POOR: f64 = 12.0;
 
-/// Sweeps over the poor tetrahedra (each sweep also takes those the last one made).
+/// Sweeps over the poor tetrahedra (each sweep also takes those the last one made), then as many
+/// extended sweeps (more cavities for new points, longer searches) over what is left. Extended
+/// moves taken first win a cell's worst element locally but can block the flips that would lift
+/// it further, so they only work where the plain sweeps stopped.
 const SWEEPS: usize = 4;
 
-/// Halvings of a Steiner point's step before its search stops.
+/// Rounds of a point's search (each a step along the axes, or a halving of the step when none
+/// helps); extended sweeps search until the step has been halved this often, within eight times
+/// as many rounds.
 const STEPS: usize = 10;
 
 /// What the improvement step of [`super::tetmesh`] and [`super::tetmesh_labels`] did (see
@@ -134,10 +141,12 @@ pub(super) fn improve(
         incident,
         grid,
         steiner,
+        extended: false,
     };
     work.alive = vec![true; work.tets.len()];
     let mut queue = poor;
-    for _ in 0..SWEEPS {
+    for sweep in 0..2 * SWEEPS {
+        work.extended = sweep >= SWEEPS;
         let mut scored: Vec<(f64, u32)> = queue
             .iter()
             .filter(|&&t| work.alive[t as usize])
@@ -189,6 +198,7 @@ struct Work<'a> {
     incident: HashMap<u32, Vec<u32>>,
     grid: Range<u32>,
     steiner: Range<u32>,
+    extended: bool,
 }
 
 impl Work<'_> {
@@ -258,24 +268,74 @@ impl Work<'_> {
 
     /// Re-makes tetrahedron `t` and its neighbours across its faces as a star from a new
     /// Steiner point, if one can be placed where every new tetrahedron is positive and the worst
-    /// of them beats the worst of the old.
+    /// of them beats the worst of the old. In the extended sweeps other cavities are tried too,
+    /// the best star taken: `t` with any subset of those neighbours (a neighbour across a sliver
+    /// face often pins the point where the sliver's other side needs it) and the tetrahedra
+    /// around each of `t`'s edges (coning them removes the edge, or on the boundary the flat
+    /// wedge between two boundary faces).
     fn insert(&mut self, t: u32) -> bool {
         let tet = self.tets[t as usize];
-        let mut cavity = vec![t];
+        let mut neighbours = Vec::new();
         for d in tet {
             let face: Vec<u32> = tet.iter().copied().filter(|&v| v != d).collect();
             if let Some(across) = self.holding(&face) {
                 if let [a, b] = across[..] {
-                    cavity.push(if a == t { b } else { a });
+                    neighbours.push(if a == t { b } else { a });
                 }
             }
         }
-        if !self.may_replace(&cavity) {
-            return false;
+        let mut cavities: Vec<Vec<u32>> = vec![[t].into_iter().chain(neighbours.clone()).collect()];
+        if self.extended {
+            for mask in (0..(1u32 << neighbours.len()) - 1).rev() {
+                let some = neighbours
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| mask & (1 << k) != 0)
+                    .map(|(_, &n)| n);
+                cavities.push([t].into_iter().chain(some).collect());
+            }
+            for i in 0..4 {
+                for j in i + 1..4 {
+                    if let Some(ring) = self.holding(&[tet[i], tet[j]]) {
+                        if ring.len() > 1 {
+                            let others = ring.into_iter().filter(|&r| r != t);
+                            cavities.push([t].into_iter().chain(others).collect());
+                        }
+                    }
+                }
+            }
         }
+        let mut best: Option<(Vec<u32>, Vec<[u32; 4]>, [f32; 3], f64)> = None;
+        for cavity in cavities {
+            if let Some((star, at, worst)) = self.star_of(&cavity) {
+                if best.as_ref().is_none_or(|b| worst > b.3) {
+                    best = Some((cavity, star, at, worst));
+                }
+            }
+        }
+        let Some((cavity, mut star, at, _)) = best else {
+            return false;
+        };
+        let v = self.positions.len() as u32;
+        self.positions.push(at);
+        self.known.push(true);
+        self.steiner.end = self.steiner.end.max(v + 1);
+        star.sort_unstable();
+        self.replace(&cavity, &star);
+        true
+    }
+
+    /// The star from a new Steiner point that would replace the tetrahedra `cavity`, with the
+    /// point's position and the star's worst score, if one beats the cavity's worst.
+    fn star_of(&mut self, cavity: &[u32]) -> Option<(Vec<[u32; 4]>, [f32; 3], f64)> {
+        if !self.may_replace(cavity) {
+            return None;
+        }
+        let t = cavity[0];
+        let tet = self.tets[t as usize];
         // The cavity's outer faces, each turned so the cavity lies on its positive side.
         let mut faces: Vec<([u32; 3], [u32; 3])> = Vec::new();
-        for &c in &cavity {
+        for &c in cavity {
             let tet = self.tets[c as usize];
             for k in 0..4 {
                 let mut f = face(tet, k);
@@ -305,7 +365,7 @@ impl Work<'_> {
             .fold(f64::INFINITY, f64::min);
         // The new point, first at the centroid of the poor tetrahedron and of the cavity.
         let v = self.positions.len() as u32;
-        let mut star: Vec<[u32; 4]> = outer.iter().map(|f| [f[0], f[1], f[2], v]).collect();
+        let star: Vec<[u32; 4]> = outer.iter().map(|f| [f[0], f[1], f[2], v]).collect();
         let centroid = |vs: &mut dyn Iterator<Item = u32>, me: &Self| {
             let mut c = [0.0f64; 3];
             let mut n = 0.0;
@@ -333,22 +393,11 @@ impl Work<'_> {
                 }
             }
         }
-        let Some((at, worst)) = best else {
-            self.positions.pop();
-            self.known.pop();
-            return false;
-        };
-        let (at, worst) = self.search(v, &star, at, worst);
-        if worst <= old_worst {
-            self.positions.pop();
-            self.known.pop();
-            return false;
-        }
-        self.positions[v as usize] = at;
-        self.steiner.end = self.steiner.end.max(v + 1);
-        star.sort_unstable();
-        self.replace(&cavity, &star);
-        true
+        let found = best.map(|(at, worst)| self.search(v, &star, at, worst));
+        self.positions.pop();
+        self.known.pop();
+        let (at, worst) = found?;
+        (worst > old_worst).then_some((star, at, worst))
     }
 
     /// Replaces tetrahedra `old` by `new` (all of one label), reusing their slots.
@@ -517,7 +566,7 @@ impl Work<'_> {
 
     /// A pattern search for `v`'s position, from `start` (where the worst of `star` scores
     /// `before`): steps along the axes, a quarter of the mean edge length at first, halved when
-    /// no step helps. Returns the best position and its score; leaves `v` there.
+    /// no step helps ([`STEPS`]). Returns the best position and its score; leaves `v` there.
     fn search(
         &mut self,
         v: u32,
@@ -540,7 +589,11 @@ impl Work<'_> {
         let mut step = 0.25 * length / count.max(1.0);
         let mut best = before;
         let mut here = start;
-        for _ in 0..STEPS {
+        let rounds_at_most = if self.extended { 8 * STEPS } else { STEPS };
+        let mut halvings = 0;
+        let mut rounds = 0;
+        while halvings < STEPS && rounds < rounds_at_most {
+            rounds += 1;
             let mut moved = false;
             for dir in 0..6 {
                 let mut q = here.map(f64::from);
@@ -557,6 +610,7 @@ impl Work<'_> {
             }
             if !moved {
                 step *= 0.5;
+                halvings += 1;
             }
         }
         self.positions[v as usize] = here;
