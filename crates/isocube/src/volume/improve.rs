@@ -189,6 +189,13 @@ pub(super) fn improve(
     stats
 }
 
+/// Tetrahedra coned from a new Steiner point (numbered next), its position and their worst score.
+struct Star {
+    tets: Vec<[u32; 4]>,
+    at: [f32; 3],
+    worst: f64,
+}
+
 struct Work<'a> {
     positions: &'a mut Vec<[f32; 3]>,
     tets: &'a mut Vec<[u32; 4]>,
@@ -305,29 +312,29 @@ impl Work<'_> {
                 }
             }
         }
-        let mut best: Option<(Vec<u32>, Vec<[u32; 4]>, [f32; 3], f64)> = None;
+        let mut best: Option<(Vec<u32>, Star)> = None;
         for cavity in cavities {
-            if let Some((star, at, worst)) = self.star_of(&cavity) {
-                if best.as_ref().is_none_or(|b| worst > b.3) {
-                    best = Some((cavity, star, at, worst));
+            if let Some(star) = self.star_of(&cavity) {
+                if best.as_ref().is_none_or(|b| star.worst > b.1.worst) {
+                    best = Some((cavity, star));
                 }
             }
         }
-        let Some((cavity, mut star, at, _)) = best else {
+        let Some((cavity, Star { mut tets, at, .. })) = best else {
             return false;
         };
         let v = self.positions.len() as u32;
         self.positions.push(at);
         self.known.push(true);
         self.steiner.end = self.steiner.end.max(v + 1);
-        star.sort_unstable();
-        self.replace(&cavity, &star);
+        tets.sort_unstable();
+        self.replace(&cavity, &tets);
         true
     }
 
-    /// The star from a new Steiner point that would replace the tetrahedra `cavity`, with the
-    /// point's position and the star's worst score, if one beats the cavity's worst.
-    fn star_of(&mut self, cavity: &[u32]) -> Option<(Vec<[u32; 4]>, [f32; 3], f64)> {
+    /// The star from a new Steiner point that would replace the tetrahedra `cavity`, if one
+    /// beats the cavity's worst.
+    fn star_of(&mut self, cavity: &[u32]) -> Option<Star> {
         if !self.may_replace(cavity) {
             return None;
         }
@@ -397,7 +404,11 @@ impl Work<'_> {
         self.positions.pop();
         self.known.pop();
         let (at, worst) = found?;
-        (worst > old_worst).then_some((star, at, worst))
+        (worst > old_worst).then_some(Star {
+            tets: star,
+            at,
+            worst,
+        })
     }
 
     /// Replaces tetrahedra `old` by `new` (all of one label), reusing their slots.
