@@ -1,0 +1,350 @@
+"""Isosurfaces that are correct, good and fast, from NumPy arrays.
+
+isocube extracts watertight isosurfaces with Marching Cubes 33's topology (the trilinear
+interpolant's), or with ternary snapping (grid points near the level become surface vertices,
+so no triangle is a sliver). Arrays are read where they lie, whatever their memory order, and
+the meshes come back as arrays that own the engine's buffers.
+
+>>> import numpy as np
+>>> import isocube
+>>> x, y, z = np.mgrid[-1:1:32j, -1:1:32j, -1:1:32j]
+>>> mesh = isocube.extract(np.sqrt(x**2 + y**2 + z**2) - 0.8, spacing=(2 / 31,) * 3)
+>>> mesh.triangles.shape[1], mesh.vertices.dtype.name
+(3, 'float32')
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+import numpy as np
+
+from ._isocube import Error, InputError, MemoryLimitError, __version__
+from ._isocube import extract as _extract
+
+__all__ = [
+    "Error",
+    "InputError",
+    "MemoryLimitError",
+    "Mesh",
+    "__version__",
+    "extract",
+    "marching_cubes",
+]
+
+ArrayLike = Union[np.ndarray, Sequence[Any]]
+
+
+@dataclass
+class Mesh:
+    """A triangle mesh: the isosurface :func:`extract` makes.
+
+    Attributes
+    ----------
+    vertices : (V, 3) float32 ndarray
+        Vertex positions, in the volume's index order (``volume[i, j, k]`` → ``(i, j, k)``),
+        scaled by the spacing and moved by the origin.
+    triangles : (F, 3) uint32 ndarray
+        Vertex indices, counter-clockwise seen from the side above the level (the side the
+        triangles face; with ``flip=True`` the side below).
+    normals : (V, 3) float32 ndarray or None
+        Unit normals from the field's gradient, towards the side the triangles face.
+    values : (V,) float32 ndarray or None
+        The largest value among the grid points around each vertex.
+    stats : dict
+        Counts from the extraction: ``cells``, ``active_cells``, ``tunnels``,
+        ``snapped_points``, ...
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import isocube
+    >>> volume = np.zeros((4, 4, 4), np.float32)
+    >>> volume[1:3, 1:3, 1:3] = 1.0
+    >>> mesh = isocube.extract(volume, 0.5)
+    >>> mesh.is_watertight()
+    True
+    >>> len(mesh.triangles), mesh.stats["active_cells"]
+    (44, 26)
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    normals: np.ndarray | None = None
+    values: np.ndarray | None = None
+    stats: dict[str, int] = field(default_factory=dict)
+
+    def is_watertight(self) -> bool:
+        """Whether every edge is shared by exactly two triangles, in opposite directions.
+
+        >>> import numpy as np
+        >>> import isocube
+        >>> isocube.extract(np.arange(8.0).reshape(2, 2, 2), 3.5).is_watertight()
+        False
+        """
+        t = self.triangles.astype(np.int64)
+        if len(t) == 0:
+            return False
+        edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+        n = np.int64(len(self.vertices))
+        directed = edges[:, 0] * n + edges[:, 1]
+        reverse = edges[:, 1] * n + edges[:, 0]
+        if len(np.unique(directed)) != len(directed):
+            return False
+        return bool(np.isin(reverse, directed).all())
+
+    def napari(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ``(vertices, faces, values)`` tuple napari's Surface layer takes.
+
+        >>> import numpy as np
+        >>> import isocube
+        >>> v, f, values = isocube.extract(np.arange(8.0).reshape(2, 2, 2), 3.5).napari()
+        >>> len(values) == len(v)
+        True
+        """
+        values = self.values
+        if values is None:
+            values = np.zeros(len(self.vertices), np.float32)
+        return self.vertices, self.triangles, values
+
+
+def _volume(volume: ArrayLike) -> np.ndarray:
+    """The volume as a 3-D float32 array, the given one where it already is one (any strides)."""
+    a = np.asarray(volume)
+    if a.ndim != 3:
+        raise InputError(f"the volume must have three dimensions, not {a.ndim}")
+    if a.dtype != np.float32 or any(s < 0 or s % 4 for s in a.strides):
+        a = np.asarray(a, dtype=np.float32)
+        if any(s < 0 or s % 4 for s in a.strides):
+            a = np.ascontiguousarray(a)
+    return a
+
+
+def _triple(name: str, value: ArrayLike) -> tuple[float, float, float]:
+    t = tuple(float(x) for x in np.asarray(value, dtype=np.float64).ravel())
+    if len(t) != 3:
+        raise InputError(f"`{name}` must consist of three numbers, not {len(t)}")
+    return (t[0], t[1], t[2])
+
+
+def extract(
+    volume: ArrayLike,
+    level: float = 0.0,
+    *,
+    spacing: ArrayLike = (1.0, 1.0, 1.0),
+    origin: ArrayLike = (0.0, 0.0, 0.0),
+    method: str = "mc",
+    topology: str = "mc33",
+    triangulate: str = "fan",
+    snap: float = 0.3,
+    zero_threshold: float = 0.0,
+    snap_position: str = "crossing",
+    flip: bool = False,
+    normals: bool = True,
+    values: bool = False,
+    max_memory: int | None = None,
+) -> Mesh:
+    """Extracts the isosurface of `volume` at `level`.
+
+    Parameters
+    ----------
+    volume : (M, N, P) array_like
+        The field; ``float32`` arrays are read where they lie (C or Fortran order, views,
+        ``np.memmap``), other dtypes are converted first.
+    level : float
+        The isovalue.
+    spacing, origin : three floats
+        Distance between neighbouring points along each array axis, and the position of
+        ``volume[0, 0, 0]``.
+    method : {'mc', 'ternary'}
+        Marching Cubes, or ternary extraction (grid points near the level snapped onto the
+        surface).
+    topology : {'mc33', 'classic'}
+        The trilinear interpolant's topology (watertight, no ambiguity left), or the classic
+        table's.
+    triangulate : {'fan', 'local', 'optimal'}
+        How each cell's polygons become triangles.
+    snap, zero_threshold, snap_position
+        Ternary: snap a grid point when a crossing lies within this fraction of an edge; count
+        values this close to the level as on it; put a snapped point's vertex on the grid point
+        (``'grid'``) or the nearest crossing (``'crossing'``).
+    flip : bool
+        Face the triangles towards the side below the level.
+    normals, values : bool
+        Compute vertex normals (from the gradient) and values (see :class:`Mesh`).
+    max_memory : int, optional
+        Refuse work whose mesh would need more bytes than this.
+
+    Returns
+    -------
+    Mesh
+
+    Raises
+    ------
+    InputError
+        A bad option or a volume that cannot be meshed.
+    MemoryLimitError
+        The mesh would need more than `max_memory` bytes.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import isocube
+    >>> x, y, z = np.mgrid[-1:1:40j, -1:1:40j, -1:1:40j]
+    >>> r = np.sqrt(x**2 + y**2 + z**2)
+    >>> mesh = isocube.extract(r, 0.7, method="ternary", snap=0.3)
+    >>> mesh.is_watertight()
+    True
+    """
+    a = _volume(volume)
+    v, t, n, vals, stats = _extract(
+        a,
+        float(level),
+        spacing=_triple("spacing", spacing),
+        origin=_triple("origin", origin),
+        method=method,
+        topology=topology,
+        triangulate=triangulate,
+        snap=float(snap),
+        zero_threshold=float(zero_threshold),
+        snap_position=snap_position,
+        flip=bool(flip),
+        normals=bool(normals),
+        values=bool(values),
+        max_memory=max_memory,
+    )
+    return Mesh(v, t, n, vals, stats)
+
+
+def marching_cubes(
+    volume: np.ndarray,
+    level: float | None = None,
+    *,
+    spacing: ArrayLike = (1.0, 1.0, 1.0),
+    gradient_direction: str = "descent",
+    step_size: int = 1,
+    allow_degenerate: bool = True,
+    method: str = "lewiner",
+    mask: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A drop-in for :func:`skimage.measure.marching_cubes`, watertight.
+
+    Takes the same arguments and raises the same exceptions; ``method='lewiner'`` meshes with
+    Marching Cubes 33's topology, ``'lorensen'`` with the classic table's.
+
+    Parameters
+    ----------
+    volume : (M, N, P) ndarray
+    level : float, optional
+        The isovalue; by default halfway between the volume's smallest and largest value.
+    spacing : three floats
+    gradient_direction : {'descent', 'ascent'}
+        As scikit-image: with ``'descent'`` the triangles face the side above the level,
+        with ``'ascent'`` the side below; the normals point down the gradient either way.
+    step_size : int
+        Only 1 is supported so far (others raise ``NotImplementedError``).
+    allow_degenerate : bool
+        With ``False``, triangles of no area are removed.
+    method : {'lewiner', 'lorensen'}
+    mask : (M, N, P) bool ndarray, optional
+        Only the cubes whose last corner (largest index on every axis) is ``True`` are meshed,
+        as scikit-image does.
+
+    Returns
+    -------
+    verts : (V, 3) ndarray
+        float32, or float64 when scaled by a float64 `spacing` (as scikit-image).
+    faces : (F, 3) int32 ndarray
+    normals : (V, 3) float32 ndarray
+    values : (V,) float32 ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import isocube
+    >>> x, y, z = np.mgrid[-1:1:20j, -1:1:20j, -1:1:20j]
+    >>> verts, faces, normals, values = isocube.marching_cubes(x**2 + y**2 + z**2, 0.5)
+    >>> verts.shape[1], faces.dtype.name
+    (3, 'int32')
+    """
+    if method == "lorensen":
+        topology = "classic"
+    elif method == "lewiner":
+        topology = "mc33"
+    else:
+        raise ValueError("method should be either 'lewiner' or 'lorensen'")
+    if not isinstance(volume, np.ndarray) or volume.ndim != 3:
+        raise ValueError("Input volume should be a 3D numpy array.")
+    if volume.shape[0] < 2 or volume.shape[1] < 2 or volume.shape[2] < 2:
+        raise ValueError("Input array must be at least 2x2x2.")
+    a = _volume(volume)
+    lo, hi = float(a.min()), float(a.max())
+    if level is None:
+        level = 0.5 * (lo + hi)
+    else:
+        level = float(level)
+        if level < lo or level > hi:
+            raise ValueError("Surface level must be within volume data range.")
+    if len(spacing) != 3:
+        raise ValueError("`spacing` must consist of three floats.")
+    step_size = int(step_size)
+    if step_size < 1:
+        raise ValueError("step_size must be at least one.")
+    if step_size != 1:
+        raise NotImplementedError("isocube.marching_cubes meshes every cube: step_size=1 only")
+    if gradient_direction not in ("descent", "ascent"):
+        raise ValueError(
+            f"Incorrect input {gradient_direction} in `gradient_direction`, see docstring."
+        )
+    if mask is not None and mask.shape != volume.shape:
+        raise ValueError("volume and mask must have the same shape.")
+    # scikit-image's normals point down the gradient whatever the direction, and its faces
+    # turn with it: isocube's face the side below the level with `flip`, their normals too.
+    mesh = extract(a, level, topology=topology, flip=True, values=True)
+    if len(mesh.vertices) == 0:
+        raise RuntimeError("No surface found at the given iso value.")
+    faces = mesh.triangles
+    if mask is not None:
+        faces = faces[_cubes_kept(mesh, np.asarray(mask, dtype=bool))]
+    if not allow_degenerate:
+        p = mesh.vertices[faces].astype(np.float64)
+        area2 = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+        faces = faces[area2 > 0]
+    verts, faces, normals, values = _compact(mesh, faces)
+    if gradient_direction == "descent":
+        faces = faces[:, ::-1]
+    if not np.array_equal(spacing, (1, 1, 1)):
+        # As scikit-image: scaled after meshing (float64 results for float64 spacings).
+        verts = verts * np.r_[spacing]
+    return verts, np.ascontiguousarray(faces, dtype=np.int32), normals, values
+
+
+def _cubes_kept(mesh: Mesh, mask: np.ndarray) -> np.ndarray:
+    """Which triangles lie in a cube whose last corner the mask keeps (index space)."""
+    centroid = mesh.vertices[mesh.triangles].astype(np.float64).mean(axis=1)
+    upper = np.minimum(np.floor(centroid).astype(np.int64) + 1, np.array(mask.shape) - 1)
+    upper = np.maximum(upper, 1)
+    kept: np.ndarray = mask[upper[:, 0], upper[:, 1], upper[:, 2]]
+    return kept
+
+
+def _compact(
+    mesh: Mesh, faces: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The vertices `faces` use, renumbered in order (the mesh's arrays when all are used)."""
+    n = len(mesh.vertices)
+    normals = mesh.normals if mesh.normals is not None else np.zeros((n, 3), np.float32)
+    values = mesh.values if mesh.values is not None else np.zeros(n, np.float32)
+    if len(faces) == len(mesh.triangles):
+        return mesh.vertices, faces, normals, values
+    used = np.zeros(n, bool)
+    used[faces.ravel()] = True
+    number = np.cumsum(used) - 1
+    return (
+        mesh.vertices[used],
+        number[faces].astype(np.uint32),
+        normals[used],
+        values[used],
+    )

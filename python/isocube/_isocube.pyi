@@ -1,0 +1,34 @@
+"""Type stubs of the extension module (see isocube/__init__.py for the documented API)."""
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class Error(Exception): ...
+class InputError(Error): ...
+class MemoryLimitError(Error): ...
+
+def extract(
+    volume: npt.NDArray[np.float32],
+    level: float,
+    *,
+    spacing: tuple[float, float, float],
+    origin: tuple[float, float, float],
+    method: str,
+    topology: str,
+    triangulate: str,
+    snap: float,
+    zero_threshold: float,
+    snap_position: str,
+    flip: bool,
+    normals: bool,
+    values: bool,
+    max_memory: int | None,
+) -> tuple[
+    npt.NDArray[np.float32],
+    npt.NDArray[np.uint32],
+    npt.NDArray[np.float32] | None,
+    npt.NDArray[np.float32] | None,
+    dict[str, int],
+]: ...

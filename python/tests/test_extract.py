@@ -1,0 +1,153 @@
+"""isocube.extract from NumPy: the arrays as they come, the arrays that go out, errors."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+import isocube
+
+
+def sphere(n: int = 48, dtype: type = np.float32) -> np.ndarray:
+    x, y, z = np.mgrid[-1 : 1 : n * 1j, -1 : 1 : n * 1j, -1 : 1 : n * 1j]
+    # Not symmetric in the axes, so a transposed array meshes differently.
+    field: np.ndarray = (np.sqrt((1.3 * x) ** 2 + y**2 + (0.8 * z) ** 2) - 0.7).astype(dtype)
+    return field
+
+
+def edge_counts(triangles: np.ndarray) -> tuple[int, int]:
+    """(boundary edges, non-manifold edges) of an indexed triangle mesh."""
+    t = np.asarray(triangles, dtype=np.int64)
+    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    return int((counts == 1).sum()), int((counts > 2).sum())
+
+
+def test_a_closed_surface_is_watertight_and_encloses_its_volume() -> None:
+    n = 64
+    mesh = isocube.extract(sphere(n), 0.0, spacing=(2 / (n - 1),) * 3)
+    assert mesh.is_watertight()
+    assert edge_counts(mesh.triangles) == (0, 0)
+    p = mesh.vertices[mesh.triangles].astype(np.float64)
+    volume = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6
+    # An ellipsoid of semi-axes 0.7/1.3, 0.7, 0.7/0.8; triangles face away from the inside.
+    exact = 4 / 3 * np.pi * 0.7**3 / (1.3 * 0.8)
+    assert abs(volume - exact) < 0.01 * exact
+
+
+def test_outputs_own_the_engines_buffers() -> None:
+    mesh = isocube.extract(sphere(), 0.0)
+    for a, dtype in [
+        (mesh.vertices, np.float32),
+        (mesh.triangles, np.uint32),
+        (mesh.normals, np.float32),
+    ]:
+        assert a is not None and a.dtype == dtype and a.shape[1] == 3
+        assert a.flags.c_contiguous and a.flags.writeable
+        # Not NumPy's allocation: a view of the buffer Rust filled, kept alive by its base.
+        assert not a.flags.owndata and a.base is not None
+    normals = mesh.normals
+    assert normals is not None
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-5)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64, np.int16, np.uint8])
+def test_memory_order_and_dtype_do_not_change_the_mesh(dtype: type) -> None:
+    a: np.ndarray = (sphere(40) * 100).astype(dtype)
+    reference = isocube.extract(np.ascontiguousarray(a), 10.0)
+    for b in [np.asfortranarray(a), np.ascontiguousarray(a)[:, :, :], np.asfortranarray(a)[...]]:
+        mesh = isocube.extract(b, 10.0)
+        assert np.array_equal(mesh.vertices, reference.vertices)
+        assert np.array_equal(mesh.triangles, reference.triangles)
+
+
+def test_strided_views_are_read_in_place() -> None:
+    a = sphere(80)
+    view = a[::2, 1::2, ::3]
+    assert not view.flags.c_contiguous and not view.flags.f_contiguous
+    mesh = isocube.extract(view, 0.0)
+    copied = isocube.extract(np.ascontiguousarray(view), 0.0)
+    assert np.array_equal(mesh.vertices, copied.vertices)
+    assert np.array_equal(mesh.triangles, copied.triangles)
+    # A reversed axis (a negative stride) is copied first, with the same result.
+    flipped = isocube.extract(a[::-1], 0.0)
+    assert len(flipped.triangles) == len(
+        isocube.extract(np.ascontiguousarray(a[::-1]), 0.0).triangles
+    )
+
+
+def test_spacing_and_origin_place_the_vertices() -> None:
+    a = sphere(32)
+    plain = isocube.extract(a, 0.0)
+    placed = isocube.extract(a, 0.0, spacing=(0.5, 2.0, 3.0), origin=(1.0, -2.0, 5.0))
+    assert np.array_equal(plain.triangles, placed.triangles)
+    expected = plain.vertices.astype(np.float64) * [0.5, 2.0, 3.0] + [1.0, -2.0, 5.0]
+    assert np.allclose(placed.vertices, expected, atol=1e-4)
+
+
+def test_ternary_snapping_leaves_no_short_edges() -> None:
+    a = sphere(48)
+    mc = isocube.extract(a, 0.0)
+    ternary = isocube.extract(a, 0.0, method="ternary", snap=0.3, snap_position="grid")
+    assert ternary.is_watertight()
+    assert ternary.stats["snapped_points"] > 0
+
+    def shortest(m: isocube.Mesh) -> float:
+        p = m.vertices[m.triangles].astype(np.float64)
+        return float(
+            min(np.linalg.norm(p[:, i] - p[:, (i + 1) % 3], axis=1).min() for i in range(3))
+        )
+
+    # Crossings within 0.3 of a corner are gone: no edge shorter than the snap leaves.
+    assert shortest(ternary) > 10 * shortest(mc)
+
+
+def test_flip_turns_the_triangles_and_the_normals() -> None:
+    a = sphere(32)
+    up = isocube.extract(a, 0.0)
+    down = isocube.extract(a, 0.0, flip=True)
+    assert np.array_equal(up.vertices, down.vertices)
+    assert np.array_equal(np.sort(up.triangles, axis=1), np.sort(down.triangles, axis=1))
+    assert up.normals is not None and down.normals is not None
+    assert np.allclose(up.normals, -down.normals)
+
+
+def test_bad_options_raise_input_errors() -> None:
+    a = sphere(16)
+    with pytest.raises(isocube.InputError, match="method"):
+        isocube.extract(a, 0.0, method="dual")
+    with pytest.raises(isocube.InputError, match="topology"):
+        isocube.extract(a, 0.0, topology="mc34")
+    with pytest.raises(isocube.InputError, match="snap"):
+        isocube.extract(a, 0.0, method="ternary", snap=0.9)
+    with pytest.raises(isocube.InputError, match="three"):
+        isocube.extract(a[0], 0.0)
+    with pytest.raises(isocube.InputError):
+        isocube.extract(a, 0.0, spacing=(1.0, 2.0))
+    assert issubclass(isocube.InputError, isocube.Error)
+    assert issubclass(isocube.MemoryLimitError, isocube.Error)
+
+
+def test_a_memory_limit_is_a_typed_error() -> None:
+    with pytest.raises(isocube.MemoryLimitError):
+        isocube.extract(sphere(64), 0.0, max_memory=1000)
+
+
+def test_two_threads_extract_at_once() -> None:
+    a = sphere(96)
+    reference = isocube.extract(a, 0.0)
+    results: list[isocube.Mesh] = []
+
+    def work() -> None:
+        results.append(isocube.extract(a, 0.0))
+
+    threads = [threading.Thread(target=work) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(results) == 2
+    for mesh in results:
+        assert np.array_equal(mesh.triangles, reference.triangles)

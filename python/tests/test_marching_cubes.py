@@ -1,0 +1,138 @@
+"""isocube.marching_cubes as a drop-in for scikit-image's: the same checks, the same outputs,
+and watertight where scikit-image's surface is not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import isocube
+from isocube import marching_cubes
+
+skimage_measure = pytest.importorskip("skimage.measure")
+skimage_draw = pytest.importorskip("skimage.draw")
+
+
+def edge_counts(faces: np.ndarray) -> tuple[int, int]:
+    """(boundary edges, non-manifold edges)."""
+    t = np.asarray(faces, dtype=np.int64)
+    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    return int((counts == 1).sum()), int((counts > 2).sum())
+
+
+def signed_volume(verts: np.ndarray, faces: np.ndarray) -> float:
+    p = verts[faces].astype(np.float64)
+    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6)
+
+
+def test_bad_input_raises_what_scikit_image_raises() -> None:
+    for method in ("lewiner", "lorensen"):
+        with pytest.raises(ValueError, match="at least 2x2x2"):
+            marching_cubes(np.zeros((2, 2, 1)), 0, method=method)
+        with pytest.raises(ValueError, match="within volume data range"):
+            marching_cubes(np.zeros((2, 2, 2)), 1, method=method)
+        with pytest.raises(ValueError, match="three floats"):
+            marching_cubes(np.ones((3, 3, 3)) * np.arange(3), 1, spacing=(1, 2), method=method)
+        with pytest.raises(ValueError, match="3D numpy array"):
+            marching_cubes(np.zeros((20, 20)), 0, method=method)
+    with pytest.raises(ValueError, match="lewiner"):
+        marching_cubes(np.ones((3, 3, 3)), 1.0, method="abcd")
+    with pytest.raises(ValueError, match="same shape"):
+        marching_cubes(np.arange(27.0).reshape(3, 3, 3), 5.0, mask=np.array([]))
+    with pytest.raises(ValueError, match="gradient_direction"):
+        marching_cubes(np.arange(27.0).reshape(3, 3, 3), 5.0, gradient_direction="up")
+    with pytest.raises(RuntimeError, match="No surface"):
+        marching_cubes(np.ones((3, 3, 3)), 1.0)
+
+
+@pytest.mark.parametrize("method", ["lewiner", "lorensen"])
+@pytest.mark.parametrize("direction", ["descent", "ascent"])
+def test_outputs_match_scikit_image_on_an_ellipsoid(method: str, direction: str) -> None:
+    spacing = np.array([1.0, 10 / 6.0, 16 / 6.0])
+    volume = skimage_draw.ellipsoid(6, 10, 16, spacing=spacing, levelset=True)
+    ours = marching_cubes(volume, 0.0, spacing=spacing, method=method, gradient_direction=direction)
+    theirs = skimage_measure.marching_cubes(
+        volume, 0.0, spacing=spacing, method=method, gradient_direction=direction
+    )
+    for a, b in zip(ours, theirs):
+        assert a.dtype == b.dtype and a.shape[1:] == b.shape[1:]
+    verts, faces, normals, values = ours
+    # The same surface: the same vertices (scikit-image repeats some), area and orientation.
+    assert np.array_equal(np.unique(verts, axis=0), np.unique(theirs[0], axis=0))
+    area = skimage_measure.mesh_surface_area(verts, faces)
+    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-5)
+    assert signed_volume(verts, faces) == pytest.approx(signed_volume(*theirs[:2]), rel=1e-5)
+    # Normals down the gradient, unit length, whichever way the faces turn.
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-4)
+    centre = np.array(volume.shape) / 2 * spacing
+    outward = np.einsum("ij,ij->i", normals, verts - centre)
+    assert (outward < 0).mean() > 0.99
+    # Open only where the grid's box cuts the surface.
+    t = faces.astype(np.int64)
+    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    edges, counts = np.unique(e, axis=0, return_counts=True)
+    assert counts.max() == 2
+    ends = verts[edges[counts == 1]] / spacing
+    top = np.array(volume.shape) - 1
+    on_box = ((np.abs(ends) < 1e-4) | (np.abs(ends - top) < 1e-4)).any(axis=2).all(axis=1)
+    assert on_box.all()
+    assert len(values) == len(verts)
+
+
+def test_tied_integer_volumes_are_watertight_where_scikit_images_are_not() -> None:
+    rng = np.random.default_rng(5)
+    ours_open = theirs_open = 0
+    compared = 0
+    for _ in range(20):
+        volume = np.zeros((14, 15, 16))
+        volume[1:-1, 1:-1, 1:-1] = rng.integers(0, 3, (12, 13, 14))
+        for level in (1.0, 2.0):
+            if not (volume > level).any():
+                continue
+            verts, faces = marching_cubes(volume, level)[:2]
+            open_edges, non_manifold = edge_counts(faces)
+            ours_open += open_edges + non_manifold
+            sv, sf = skimage_measure.marching_cubes(volume, level)[:2]
+            sk_open, sk_non_manifold = edge_counts(sf)
+            theirs_open += sk_open + sk_non_manifold
+            if sk_open == 0 and sk_non_manifold == 0:
+                compared += 1
+                assert signed_volume(verts, faces) == pytest.approx(signed_volume(sv, sf), rel=1e-3)
+    assert ours_open == 0
+    assert theirs_open > 0
+
+
+def test_a_mask_keeps_the_cubes_scikit_image_keeps() -> None:
+    volume = skimage_draw.ellipsoid(6, 10, 16, levelset=True)
+    everywhere = np.ones_like(volume, dtype=bool)
+    plain = marching_cubes(volume, 0)
+    masked = marching_cubes(volume, 0, mask=everywhere)
+    for a, b in zip(plain, masked):
+        assert np.array_equal(a, b)
+    mask = everywhere.copy()
+    mask[:10, :, :] = False
+    mask[:, :, 20:] = False
+    verts, faces = marching_cubes(volume, 0, mask=mask)[:2]
+    sv, sf = skimage_measure.marching_cubes(volume, 0, mask=mask)[:2]
+    assert skimage_measure.mesh_surface_area(verts, faces) == pytest.approx(
+        skimage_measure.mesh_surface_area(sv, sf), rel=1e-4
+    )
+    assert np.array_equal(np.unique(verts, axis=0), np.unique(sv, axis=0))
+
+
+def test_degenerate_triangles_can_be_dropped() -> None:
+    # Values at the level on grid points make triangles of no area.
+    volume = np.zeros((6, 6, 6))
+    volume[2:4, 2:4, 2:4] = 1.0
+    volume[2, 2, 2] = 0.5
+    verts, faces = marching_cubes(volume, 0.5, allow_degenerate=False)[:2]
+    p = verts[faces].astype(np.float64)
+    area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    assert (area > 0).all()
+    assert faces.max() < len(verts)
+
+
+def test_the_library_error_is_also_caught_as_isocubes() -> None:
+    with pytest.raises(isocube.Error):
+        isocube.extract(np.zeros((3, 3, 3)), 0.0, method="dual")
