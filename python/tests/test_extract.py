@@ -151,3 +151,32 @@ def test_two_threads_extract_at_once() -> None:
     assert len(results) == 2
     for mesh in results:
         assert np.array_equal(mesh.triangles, reference.triangles)
+
+
+def test_ctrl_c_stops_the_work_soon() -> None:
+    import os
+    import signal
+    import time
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals reach the main thread only")
+    # Large enough to take well over the interrupt's delay on any machine. (Marching Cubes: the
+    # ternary pre-pass over the whole volume does not stop yet.)
+    n = 320
+    x = np.linspace(-1, 1, n, dtype=np.float32)
+    volume = (
+        np.sin(9 * x)[:, None, None] * np.cos(7 * x)[None, :, None] + np.sin(8 * x)[None, None, :]
+    )
+    start = time.perf_counter()
+    isocube.extract(volume, 0.1)
+    whole = time.perf_counter() - start
+    delay = whole / 4
+    timer = threading.Timer(delay, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        isocube.extract(volume, 0.1)
+    stopped = time.perf_counter() - start
+    timer.join()
+    # Stopped within 0.2 s of the signal, and before the work would have finished.
+    assert stopped < delay + 0.2 and stopped < whole, (delay, stopped, whole)
