@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
 import threading
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,10 +160,6 @@ def test_two_threads_extract_at_once() -> None:
 
 
 def test_ctrl_c_stops_the_work_soon() -> None:
-    import os
-    import signal
-    import time
-
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signals reach the main thread only")
     # Large enough to take well over the interrupt's delay on any machine. (Marching Cubes: the
@@ -180,3 +182,71 @@ def test_ctrl_c_stops_the_work_soon() -> None:
     timer.join()
     # Stopped within 0.2 s of the signal, and before the work would have finished.
     assert stopped < delay + 0.2 and stopped < whole, (delay, stopped, whole)
+
+
+# Run in a fresh interpreter per array, so no memory an earlier run freed is counted as free.
+MEMMAP_PROBE = """
+import sys, threading, time
+import numpy as np
+import isocube
+
+def anonymous_mib():
+    # The process's resident anonymous memory: its own, not pages of mapped files.
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("RssAnon:"):
+                return float(line.split()[1]) / 1024
+
+def peak_during(work):
+    peak, done = [anonymous_mib()], threading.Event()
+    def sample():
+        while not done.is_set():
+            peak[0] = max(peak[0], anonymous_mib())
+            time.sleep(0.001)
+    sampler = threading.Thread(target=sample)
+    sampler.start()
+    result = work()
+    done.set()
+    sampler.join()
+    return result, max(peak[0], anonymous_mib())
+
+path, n, order, copy = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4] == "copy"
+mapped = np.memmap(path, dtype=np.float32, mode="r", shape=(n, n, n))
+a = mapped if order == "C" else mapped.T
+assert a.flags.f_contiguous == (order == "F")
+before = anonymous_mib()
+mesh, peak = peak_during(lambda: isocube.extract(np.array(a) if copy else a, 0.0, normals=False))
+assert mesh.is_watertight()
+print(peak - before, (mesh.vertices.nbytes + mesh.triangles.nbytes) / 2**20)
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="needs Linux's /proc")
+def test_a_memory_mapped_volume_is_meshed_in_place(tmp_path: Path) -> None:
+    """A 512³ float32 np.memmap, C order and its Fortran-ordered transpose: the process's own
+    memory grows by less than the mesh and 64 MiB (a copy of the volume would be 512 MiB)."""
+    n = 512
+    path = tmp_path / "volume.f32"
+    volume = np.memmap(path, dtype=np.float32, mode="w+", shape=(n, n, n))
+    x = np.linspace(-1, 1, n, dtype=np.float32)
+    for i in range(n):  # a sphere's distance, written plane by plane
+        volume[i] = np.sqrt(x[i] ** 2 + x[:, None] ** 2 + x[None, :] ** 2) - 0.7
+    volume.flush()
+    del volume
+
+    def probe(order: str, copy: bool) -> tuple[float, float]:
+        out = subprocess.run(
+            [sys.executable, "-c", MEMMAP_PROBE, str(path), str(n), order, "copy" if copy else ""],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout.split()
+        return float(out[0]), float(out[1])
+
+    for order in ("C", "F"):
+        grown, mesh_mib = probe(order, copy=False)
+        print(f"{order}: grew {grown:.1f} MiB, mesh {mesh_mib:.1f} MiB")
+        assert grown < mesh_mib + 64, (order, grown, mesh_mib)
+    # The measurement can fail: a copy of the volume shows.
+    grown, _ = probe("F", copy=True)
+    assert grown > 400, grown
