@@ -23,6 +23,7 @@ import numpy as np
 
 from ._isocube import Error, InputError, MemoryLimitError, __version__
 from ._isocube import extract as _extract
+from ._isocube import marching_cubes as _marching_cubes
 
 __all__ = [
     "Error",
@@ -54,8 +55,8 @@ class Mesh:
     values : (V,) float32 ndarray or None
         The largest value among the grid points around each vertex.
     stats : dict
-        Counts from the extraction: ``cells``, ``active_cells``, ``tunnels``,
-        ``snapped_points``, ...
+        Counts from the extraction (``cells``, ``active_cells``, ``tunnels``,
+        ``snapped_points``, ...) and ``seconds``, the engine's time.
 
     Examples
     --------
@@ -74,7 +75,7 @@ class Mesh:
     triangles: np.ndarray
     normals: np.ndarray | None = None
     values: np.ndarray | None = None
-    stats: dict[str, int] = field(default_factory=dict)
+    stats: dict[str, float] = field(default_factory=dict)
 
     def is_watertight(self) -> bool:
         """Whether every edge is shared by exactly two triangles, in opposite directions.
@@ -279,14 +280,8 @@ def marching_cubes(
         raise ValueError("Input volume should be a 3D numpy array.")
     if volume.shape[0] < 2 or volume.shape[1] < 2 or volume.shape[2] < 2:
         raise ValueError("Input array must be at least 2x2x2.")
-    a = _volume(volume)
-    lo, hi = float(a.min()), float(a.max())
-    if level is None:
-        level = 0.5 * (lo + hi)
-    else:
+    if level is not None:
         level = float(level)
-        if level < lo or level > hi:
-            raise ValueError("Surface level must be within volume data range.")
     if len(spacing) != 3:
         raise ValueError("`spacing` must consist of three floats.")
     step_size = int(step_size)
@@ -300,30 +295,28 @@ def marching_cubes(
         )
     if mask is not None and mask.shape != volume.shape:
         raise ValueError("volume and mask must have the same shape.")
-    # scikit-image's normals point down the gradient whatever the direction, and its faces
-    # turn with it: isocube's face the side below the level with `flip`, their normals too.
-    mesh = extract(a, level, topology=topology, flip=True, values=True)
-    if len(mesh.vertices) == 0:
-        raise RuntimeError("No surface found at the given iso value.")
-    faces = mesh.triangles
+    # The level's range check, the mesh, the faces' turn and dtype, in one pass of the engine.
+    verts, faces, normals, values = _marching_cubes(
+        _volume(volume), level, topology=topology, descent=gradient_direction == "descent"
+    )
+    keep: np.ndarray | None = None
     if mask is not None:
-        faces = faces[_cubes_kept(mesh, np.asarray(mask, dtype=bool))]
+        keep = _cubes_kept(verts, faces, np.asarray(mask, dtype=bool))
     if not allow_degenerate:
-        p = mesh.vertices[faces].astype(np.float64)
+        p = verts[faces].astype(np.float64)
         area2 = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-        faces = faces[area2 > 0]
-    verts, faces, normals, values = _compact(mesh, faces)
-    if gradient_direction == "descent":
-        faces = faces[:, ::-1]
+        keep = area2 > 0 if keep is None else keep & (area2 > 0)
+    if keep is not None and not keep.all():
+        verts, faces, normals, values = _compact(verts, faces[keep], normals, values)
     if not np.array_equal(spacing, (1, 1, 1)):
         # As scikit-image: scaled after meshing (float64 results for float64 spacings).
         verts = verts * np.r_[spacing]
-    return verts, np.ascontiguousarray(faces, dtype=np.int32), normals, values
+    return verts, faces, normals, values
 
 
-def _cubes_kept(mesh: Mesh, mask: np.ndarray) -> np.ndarray:
+def _cubes_kept(verts: np.ndarray, faces: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Which triangles lie in a cube whose last corner the mask keeps (index space)."""
-    centroid = mesh.vertices[mesh.triangles].astype(np.float64).mean(axis=1)
+    centroid = verts[faces].astype(np.float64).mean(axis=1)
     upper = np.minimum(np.floor(centroid).astype(np.int64) + 1, np.array(mask.shape) - 1)
     upper = np.maximum(upper, 1)
     kept: np.ndarray = mask[upper[:, 0], upper[:, 1], upper[:, 2]]
@@ -331,20 +324,10 @@ def _cubes_kept(mesh: Mesh, mask: np.ndarray) -> np.ndarray:
 
 
 def _compact(
-    mesh: Mesh, faces: np.ndarray
+    verts: np.ndarray, faces: np.ndarray, normals: np.ndarray, values: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The vertices `faces` use, renumbered in order (the mesh's arrays when all are used)."""
-    n = len(mesh.vertices)
-    normals = mesh.normals if mesh.normals is not None else np.zeros((n, 3), np.float32)
-    values = mesh.values if mesh.values is not None else np.zeros(n, np.float32)
-    if len(faces) == len(mesh.triangles):
-        return mesh.vertices, faces, normals, values
-    used = np.zeros(n, bool)
+    """The vertices `faces` use, renumbered in order."""
+    used = np.zeros(len(verts), bool)
     used[faces.ravel()] = True
-    number = np.cumsum(used) - 1
-    return (
-        mesh.vertices[used],
-        number[faces].astype(np.uint32),
-        normals[used],
-        values[used],
-    )
+    number = (np.cumsum(used) - 1).astype(np.int32)
+    return verts[used], number[faces], normals[used], values[used]

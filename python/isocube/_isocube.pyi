@@ -30,5 +30,17 @@ def extract(
     npt.NDArray[np.uint32],
     npt.NDArray[np.float32] | None,
     npt.NDArray[np.float32] | None,
-    dict[str, int],
+    dict[str, float],
+]: ...
+def marching_cubes(
+    volume: npt.NDArray[np.float32],
+    level: float | None,
+    *,
+    topology: str,
+    descent: bool,
+) -> tuple[
+    npt.NDArray[np.float32],
+    npt.NDArray[np.int32],
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float32],
 ]: ...

@@ -12,13 +12,14 @@ use std::time::{Duration, Instant};
 use isocube::extract::{
     extract_into, ExtractError, ExtractOptions, ExtractStats, Method, SnapPosition, Snapping,
 };
-use isocube::field::GridView;
+use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rayon::prelude::*;
 
 create_exception!(
     _isocube,
@@ -78,8 +79,14 @@ fn extract_error(e: ExtractError) -> PyErr {
     }
 }
 
-fn stats_dict<'py>(py: Python<'py>, stats: &ExtractStats) -> PyResult<Bound<'py, PyDict>> {
+/// The extraction's counts, and the seconds the engine took (the call less the Python layer).
+fn stats_dict<'py>(
+    py: Python<'py>,
+    stats: &ExtractStats,
+    seconds: f64,
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
+    d.set_item("seconds", seconds)?;
     d.set_item("cells", stats.cells)?;
     d.set_item("active_cells", stats.active_cells)?;
     d.set_item("skipped_cells", stats.skipped_cells)?;
@@ -104,14 +111,16 @@ type Extracted<'py> = (
 /// around its edge; for a vertex inside a cell, that cell's corners): as scikit-image's
 /// `values`, the largest corner value of the cubes that make the vertex (a colour scale's
 /// input, not an interpolation).
-fn vertex_values(grid: &GridView, positions: &[[f32; 3]]) -> Vec<f32> {
+fn vertex_values(grid: &GridView, order: [usize; 3], positions: &[[f32; 3]]) -> Vec<f32> {
     let (origin, spacing, dims) = (grid.origin(), grid.spacing(), grid.dims());
     positions
-        .iter()
+        .par_iter()
         .map(|p| {
             let mut range = [[0usize; 2]; 3];
             for a in 0..3 {
-                let q = (f64::from(p[a]) - origin[a]) / spacing[a];
+                // Grid axis `a` is the array's axis `order[a]`.
+                let w = order[a];
+                let q = (f64::from(p[w]) - origin[w]) / spacing[a];
                 let near = q.round();
                 // A coordinate within rounding of a grid plane lies on it: the cells on both
                 // sides of the plane hold the vertex.
@@ -134,6 +143,106 @@ fn vertex_values(grid: &GridView, positions: &[[f32; 3]]) -> Vec<f32> {
             best
         })
         .collect()
+}
+
+/// A `float32` volume indexed `volume[x, y, z]` as a grid view in its memory order, and that
+/// order (grid axis `a` is the array's axis `order[a]`).
+fn view_of<'a>(
+    volume: &'a PyReadonlyArray3<'_, f32>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+) -> PyResult<(GridView<'a>, [usize; 3])> {
+    let shape = volume.shape();
+    let dims = [shape[0], shape[1], shape[2]];
+    let item = std::mem::size_of::<f32>() as isize;
+    let mut strides = [0usize; 3];
+    for (axis, &s) in volume.strides().iter().enumerate() {
+        if s < 0 || s % item != 0 {
+            return Err(PyValueError::new_err(
+                "the volume's strides must be positive multiples of 4 bytes (isocube.extract \
+                 copies other arrays first)",
+            ));
+        }
+        strides[axis] = (s / item) as usize;
+    }
+    // The span from the first element to the last, in elements: what the view may read.
+    let span = 1
+        + (0..3)
+            .map(|a| dims[a].saturating_sub(1) * strides[a])
+            .sum::<usize>();
+    let samples: &[f32] = if dims.contains(&0) {
+        &[]
+    } else {
+        // SAFETY: NumPy guarantees every element `data + Σ i_a·stride_a` of the array lies in
+        // its buffer; with positive strides the farthest is `span - 1` elements on, and the
+        // readonly borrow keeps the buffer alive and unchanged by Rust while this runs.
+        unsafe { std::slice::from_raw_parts(volume.data() as *const f32, span) }
+    };
+    // Meshed in memory order (the fastest axis as the grid's x), as the command line meshes a
+    // mapped file: a C-order array read along its last axis, not across it (several times
+    // faster), and the same mesh as `isocube extract` on the array saved as `.npy`. The grid's
+    // frame is turned back to the array's index order by an axis permutation.
+    let mut order = [0usize, 1, 2];
+    order.sort_by_key(|&a| (strides[a], a));
+    let grid = GridView::strided(samples, order.map(|a| dims[a]), order.map(|a| strides[a]))
+        .and_then(|g| g.with_spacing(order.map(|a| spacing[a])))
+        .and_then(|g| g.with_origin(origin))
+        .map_err(|e| InputError::new_err(e.to_string()))?
+        .with_orientation(Orientation::axes(order).expect("a permutation of the axes"));
+    Ok((grid, order))
+}
+
+/// What one extraction made: the mesh, its counts, vertex values if asked, the engine's seconds.
+struct Run {
+    mesh: Mesh,
+    stats: ExtractStats,
+    values: Option<Vec<f32>>,
+    seconds: f64,
+}
+
+/// Extracts with the GIL released, asking Python every [`SIGNAL_CHECK`] whether Ctrl-C was
+/// pressed (then the work stops and the `KeyboardInterrupt` is raised).
+fn run(
+    py: Python<'_>,
+    grid: GridView<'_>,
+    order: [usize; 3],
+    options: &ExtractOptions,
+    values: bool,
+) -> PyResult<Run> {
+    let mut mesh = Mesh::new();
+    let mut interrupted: Option<PyErr> = None;
+    let result = py.detach(|| {
+        let mut last = Instant::now();
+        let mut progress = |_: usize, _: usize| {
+            if last.elapsed() < SIGNAL_CHECK {
+                return ControlFlow::Continue(());
+            }
+            last = Instant::now();
+            match Python::attach(|py| py.check_signals()) {
+                Ok(()) => ControlFlow::Continue(()),
+                Err(e) => {
+                    interrupted = Some(e);
+                    ControlFlow::Break(())
+                }
+            }
+        };
+        let started = Instant::now();
+        let stats = extract_into(grid, options, &mut mesh, &mut progress)?;
+        let values = values.then(|| vertex_values(&grid, order, &mesh.positions));
+        Ok((stats, values, started.elapsed().as_secs_f64()))
+    });
+    match result {
+        Ok((stats, values, seconds)) => Ok(Run {
+            mesh,
+            stats,
+            values,
+            seconds,
+        }),
+        Err(ExtractError::Cancelled) => {
+            Err(interrupted.unwrap_or_else(|| PyKeyboardInterrupt::new_err(())))
+        }
+        Err(e) => Err(extract_error(e)),
+    }
 }
 
 /// Extracts the isosurface of a `float32` volume indexed `volume[x, y, z]` (any positive
@@ -162,36 +271,7 @@ fn extract<'py>(
     values: bool,
     max_memory: Option<u64>,
 ) -> PyResult<Extracted<'py>> {
-    let shape = volume.shape();
-    let dims = [shape[0], shape[1], shape[2]];
-    let item = std::mem::size_of::<f32>() as isize;
-    let mut strides = [0usize; 3];
-    for (axis, &s) in volume.strides().iter().enumerate() {
-        if s < 0 || s % item != 0 {
-            return Err(PyValueError::new_err(
-                "the volume's strides must be positive multiples of 4 bytes (isocube.extract \
-                 copies other arrays first)",
-            ));
-        }
-        strides[axis] = (s / item) as usize;
-    }
-    // The span from the first element to the last, in elements: what the view may read.
-    let span = 1
-        + (0..3)
-            .map(|a| dims[a].saturating_sub(1) * strides[a])
-            .sum::<usize>();
-    let samples: &[f32] = if dims.contains(&0) {
-        &[]
-    } else {
-        // SAFETY: NumPy guarantees every element `data + Σ i_a·stride_a` of the array lies in
-        // its buffer; with positive strides the farthest is `span - 1` elements on, and the
-        // readonly borrow keeps the buffer alive and unchanged by Rust while this runs.
-        unsafe { std::slice::from_raw_parts(volume.data() as *const f32, span) }
-    };
-    let grid = GridView::strided(samples, dims, strides)
-        .and_then(|g| g.with_spacing(spacing))
-        .and_then(|g| g.with_origin(origin))
-        .map_err(|e| InputError::new_err(e.to_string()))?;
+    let (grid, order) = view_of(&volume, spacing, origin)?;
     let method = match method {
         "mc" => Method::MarchingCubes,
         "ternary" => Method::Ternary(
@@ -214,34 +294,12 @@ fn extract<'py>(
         .with_triangulation(parse(triangulate)?)
         .with_method(method)
         .with_max_memory(max_memory);
-    let mut mesh = Mesh::new();
-    let mut interrupted: Option<PyErr> = None;
-    let result = py.detach(|| {
-        let mut last = Instant::now();
-        let mut progress = |_: usize, _: usize| {
-            if last.elapsed() < SIGNAL_CHECK {
-                return ControlFlow::Continue(());
-            }
-            last = Instant::now();
-            match Python::attach(|py| py.check_signals()) {
-                Ok(()) => ControlFlow::Continue(()),
-                Err(e) => {
-                    interrupted = Some(e);
-                    ControlFlow::Break(())
-                }
-            }
-        };
-        let stats = extract_into(grid, &options, &mut mesh, &mut progress)?;
-        let values = values.then(|| vertex_values(&grid, &mesh.positions));
-        Ok((stats, values))
-    });
-    let (stats, values) = match result {
-        Ok(done) => done,
-        Err(ExtractError::Cancelled) => {
-            return Err(interrupted.unwrap_or_else(|| PyKeyboardInterrupt::new_err(())));
-        }
-        Err(e) => return Err(extract_error(e)),
-    };
+    let Run {
+        mesh,
+        stats,
+        values,
+        seconds,
+    } = run(py, grid, order, &options, values)?;
     let Mesh {
         positions,
         normals: vertex_normals,
@@ -255,14 +313,120 @@ fn extract<'py>(
         rows_array(py, triangles)?,
         normals,
         values.map(|v| PyArray1::from_vec(py, v)),
-        stats_dict(py, &stats)?,
+        stats_dict(py, &stats, seconds)?,
     ))
 }
+
+/// The smallest and largest value of a view, over all threads (NaNs left out).
+fn value_range(grid: &GridView) -> (f32, f32) {
+    fn fold(values: &[f32]) -> (f32, f32) {
+        // Plain comparisons, so that the loop vectorises.
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for &v in values {
+            lo = if v < lo { v } else { lo };
+            hi = if v > hi { v } else { hi };
+        }
+        (lo, hi)
+    }
+    let both = |a: (f32, f32), b: (f32, f32)| (a.0.min(b.0), a.1.max(b.1));
+    let none = || (f32::INFINITY, f32::NEG_INFINITY);
+    let [nx, ny, nz] = grid.dims();
+    let values = grid.values();
+    if values.len() == nx * ny * nz {
+        // Every element of the buffer is a point: one sweep of memory.
+        return values.par_chunks(1 << 16).map(fold).reduce(none, both);
+    }
+    (0..nz)
+        .into_par_iter()
+        .map(|k| {
+            let mut range = none();
+            for j in 0..ny {
+                for i in 0..nx {
+                    let v = grid.value(i, j, k);
+                    range = both(range, (v, v));
+                }
+            }
+            range
+        })
+        .reduce(none, both)
+}
+
+/// scikit-image's `marching_cubes` after its argument checks (`isocube.marching_cubes`): the
+/// level (by default halfway through the value range) checked against the range, the mesh in
+/// index space with normals down the gradient, faces as `int32` turned as `descent` asks
+/// (towards the side above the level) or not (below), and vertex values.
+#[pyfunction]
+#[pyo3(signature = (volume, level, *, topology, descent))]
+fn marching_cubes<'py>(
+    py: Python<'py>,
+    volume: PyReadonlyArray3<'py, f32>,
+    level: Option<f64>,
+    topology: &str,
+    descent: bool,
+) -> PyResult<McOutput<'py>> {
+    let (grid, order) = view_of(&volume, [1.0; 3], [0.0; 3])?;
+    let (lo, hi) = py.detach(|| value_range(&grid));
+    let level = match level {
+        // In single precision, as scikit-image computes it from NumPy's float32 scalars.
+        None => 0.5 * (lo + hi),
+        Some(l) if l < f64::from(lo) || l > f64::from(hi) => {
+            return Err(PyValueError::new_err(
+                "Surface level must be within volume data range.",
+            ))
+        }
+        Some(l) => l as f32,
+    };
+    // isocube's normals follow its faces; scikit-image's point down the gradient whatever the
+    // direction: faces towards the side below the level (`flip`), turned back for `descent`.
+    let options = ExtractOptions::default()
+        .with_level(level)
+        .with_flip(true)
+        .with_topology(parse(topology)?);
+    let Run { mesh, values, .. } = run(py, grid, order, &options, true)?;
+    if mesh.triangles.is_empty() {
+        return Err(PyRuntimeError::new_err(
+            "No surface found at the given iso value.",
+        ));
+    }
+    let faces: Vec<[i32; 3]> = mesh
+        .triangles
+        .into_iter()
+        .map(|[a, b, c]| {
+            let t = [a as i32, b as i32, c as i32];
+            if descent {
+                [t[2], t[1], t[0]]
+            } else {
+                t
+            }
+        })
+        .collect();
+    let n = mesh.positions.len();
+    let normals = if mesh.normals.len() == n {
+        mesh.normals
+    } else {
+        vec![[0.0; 3]; n]
+    };
+    Ok((
+        rows_array(py, mesh.positions)?,
+        rows_array(py, faces)?,
+        rows_array(py, normals)?,
+        PyArray1::from_vec(py, values.unwrap_or_default()),
+    ))
+}
+
+/// `marching_cubes`' arrays: vertices, faces, normals, values.
+type McOutput<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<i32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<f32>>,
+);
 
 /// The extension module.
 #[pymodule]
 fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(extract, m)?)?;
+    m.add_function(wrap_pyfunction!(marching_cubes, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("MemoryLimitError", m.py().get_type::<MemoryLimitError>())?;
