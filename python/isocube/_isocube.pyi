@@ -7,6 +7,7 @@ __version__: str
 
 class Error(Exception): ...
 class InputError(Error): ...
+class FormatError(Error): ...
 class MemoryLimitError(Error): ...
 
 def extract(
@@ -44,3 +45,12 @@ def marching_cubes(
     npt.NDArray[np.float32],
     npt.NDArray[np.float32],
 ]: ...
+def save_mesh(
+    path: str,
+    vertices: npt.NDArray[np.float32],
+    triangles: npt.NDArray[np.uint32],
+    normals: npt.NDArray[np.float32] | None,
+    values: npt.NDArray[np.float32] | None,
+    values_name: str,
+    ascii: bool,
+) -> None: ...

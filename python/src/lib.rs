@@ -35,6 +35,12 @@ create_exception!(
 );
 create_exception!(
     _isocube,
+    FormatError,
+    Error,
+    "A file could not be read or written: its message names the file, the position and why."
+);
+create_exception!(
+    _isocube,
     MemoryLimitError,
     Error,
     "The work would need more memory than allowed."
@@ -422,13 +428,74 @@ type McOutput<'py> = (
     Bound<'py, PyArray1<f32>>,
 );
 
+/// Rows of a `(n, 3)` array (C-contiguous: the Python layer makes it so).
+fn rows<T: numpy::Element + Copy>(a: &numpy::PyReadonlyArray2<'_, T>) -> PyResult<Vec<[T; 3]>> {
+    if a.shape()[1] != 3 {
+        return Err(InputError::new_err(format!(
+            "expected an array of shape (n, 3), not {:?}",
+            a.shape()
+        )));
+    }
+    let flat = a
+        .as_slice()
+        .map_err(|_| InputError::new_err("expected a C-contiguous array"))?;
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+/// Writes a mesh in the format its path's extension names (`.ply`, `.obj`, `.stl`, `.off`,
+/// `.glb`, `.vtp`, `.vtk`, `.msh`), atomically (a temporary file renamed over the target): the
+/// same writer, and so the same bytes, as the command line's.
+#[pyfunction]
+#[pyo3(signature = (path, vertices, triangles, normals, values, values_name, ascii))]
+#[allow(clippy::too_many_arguments)]
+fn save_mesh(
+    py: Python<'_>,
+    path: std::path::PathBuf,
+    vertices: numpy::PyReadonlyArray2<'_, f32>,
+    triangles: numpy::PyReadonlyArray2<'_, u32>,
+    normals: Option<numpy::PyReadonlyArray2<'_, f32>>,
+    values: Option<numpy::PyReadonlyArray1<'_, f32>>,
+    values_name: &str,
+    ascii: bool,
+) -> PyResult<()> {
+    let mesh = Mesh {
+        positions: rows(&vertices)?,
+        triangles: rows(&triangles)?,
+        normals: normals.as_ref().map(rows).transpose()?.unwrap_or_default(),
+    };
+    let values: Option<&[f32]> = values
+        .as_ref()
+        .map(|v| {
+            v.as_slice()
+                .map_err(|_| InputError::new_err("expected contiguous values"))
+        })
+        .transpose()?;
+    let mut options = isocube_io::MeshWriteOptions::default();
+    options.ascii = ascii;
+    options.normals = !mesh.normals.is_empty();
+    let written = py.detach(|| {
+        isocube_io::write_mesh_with_values(
+            &path,
+            &mesh,
+            &options,
+            values.map(|values| isocube_io::VertexValues {
+                name: values_name,
+                values,
+            }),
+        )
+    });
+    written.map_err(|e| FormatError::new_err(e.to_string()))
+}
+
 /// The extension module.
 #[pymodule]
 fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(extract, m)?)?;
     m.add_function(wrap_pyfunction!(marching_cubes, m)?)?;
+    m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
+    m.add("FormatError", m.py().get_type::<FormatError>())?;
     m.add("MemoryLimitError", m.py().get_type::<MemoryLimitError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
