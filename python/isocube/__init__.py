@@ -25,6 +25,7 @@ import numpy as np
 from ._isocube import Error, FormatError, InputError, MemoryLimitError, __version__
 from ._isocube import extract as _extract
 from ._isocube import marching_cubes as _marching_cubes
+from ._isocube import read_volume as _read_volume
 from ._isocube import save_mesh as _save_mesh
 
 __all__ = [
@@ -33,9 +34,11 @@ __all__ = [
     "InputError",
     "MemoryLimitError",
     "Mesh",
+    "Volume",
     "__version__",
     "extract",
     "marching_cubes",
+    "read_volume",
 ]
 
 ArrayLike = Union[np.ndarray, Sequence[Any]]
@@ -190,6 +193,7 @@ def extract(
     normals: bool = True,
     values: bool = False,
     max_memory: int | None = None,
+    direction: ArrayLike | None = None,
 ) -> Mesh:
     """Extracts the isosurface of `volume` at `level`.
 
@@ -221,6 +225,10 @@ def extract(
         Compute vertex normals (from the gradient) and values (see :class:`Mesh`).
     max_memory : int, optional
         Refuse work whose mesh would need more bytes than this.
+    direction : (3, 3) array_like, optional
+        How the array's axes lie in the world (column ``a``: the unit vector of axis ``a``, as
+        :func:`read_volume` gives it): vertices are turned about `origin`, normals with them,
+        and a reflection keeps the triangles facing the side above the level.
 
     Returns
     -------
@@ -259,8 +267,103 @@ def extract(
         normals=bool(normals),
         values=bool(values),
         max_memory=max_memory,
+        direction=None if direction is None else _matrix(direction),
     )
     return Mesh(v, t, n, vals, stats)
+
+
+def _matrix(value: ArrayLike) -> list[list[float]]:
+    m = np.asarray(value, dtype=np.float64)
+    if m.shape != (3, 3):
+        raise InputError(f"`direction` must be a 3 × 3 matrix, not of shape {m.shape}")
+    return [[float(x) for x in row] for row in m]
+
+
+@dataclass
+class Volume:
+    """A volume read from a file: values indexed ``[x, y, z]`` and where they lie.
+
+    Attributes
+    ----------
+    values : (X, Y, Z) float32 ndarray
+        Fortran-ordered (``x`` fastest, as most volume files store it), owning the reader's
+        buffer.
+    spacing, origin : tuple of three floats
+    direction : (3, 3) list
+        Column ``a`` is the world vector of axis ``a`` (identity for files without one).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import isocube
+    >>> path = os.path.join(tempfile.mkdtemp(), "cube.npy")
+    >>> np.save(path, np.arange(27, dtype=np.float32).reshape(3, 3, 3))
+    >>> volume = isocube.read_volume(path)
+    >>> volume.values.shape, volume.values[1, 0, 0]
+    ((3, 3, 3), np.float32(9.0))
+    >>> volume.extract(13.5).is_watertight()
+    False
+    """
+
+    values: np.ndarray
+    spacing: tuple[float, float, float]
+    origin: tuple[float, float, float]
+    direction: list[list[float]]
+
+    def extract(self, level: float = 0.0, **options: Any) -> Mesh:
+        """:func:`extract` with the volume's spacing, origin and direction."""
+        return extract(
+            self.values,
+            level,
+            spacing=self.spacing,
+            origin=self.origin,
+            direction=self.direction,
+            **options,
+        )
+
+
+def read_volume(
+    path: str | os.PathLike[str],
+    *,
+    spacing: ArrayLike | None = None,
+    origin: ArrayLike | None = None,
+    max_memory: int | None = None,
+    npy_axes: str = "xyz",
+) -> Volume:
+    """Reads a volume file as ``isocube extract`` does: by extension ``.npy``, ``.nrrd`` /
+    ``.nhdr``, ``.nii`` / ``.nii.gz``, ``.mha`` / ``.mhd``, ``.tif`` / ``.tiff`` (a stack),
+    ``.vti``; a folder as a DICOM series (sorted along its normal, rescaled).
+
+    Parameters
+    ----------
+    path : path-like
+    spacing, origin : three floats, optional
+        Override the file's.
+    max_memory : int, optional
+        Refuse files whose reading would take more bytes (checked before allocating).
+    npy_axes : {'xyz', 'zyx'}
+        How a ``.npy`` array's axes map to x, y, z.
+
+    Raises
+    ------
+    FormatError
+        The file cannot be read: the message names it, the position and why.
+    MemoryLimitError
+        Reading would take more than `max_memory`.
+
+    Examples
+    --------
+    See :class:`Volume`.
+    """
+    values, s, o, d = _read_volume(
+        os.fspath(path),
+        spacing=None if spacing is None else _triple("spacing", spacing),
+        origin=None if origin is None else _triple("origin", origin),
+        max_memory=max_memory,
+        npy_axes=npy_axes,
+    )
+    return Volume(values, (s[0], s[1], s[2]), (o[0], o[1], o[2]), [list(row) for row in d])
 
 
 def marching_cubes(

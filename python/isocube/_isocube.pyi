@@ -26,6 +26,7 @@ def extract(
     normals: bool,
     values: bool,
     max_memory: int | None,
+    direction: list[list[float]] | None = None,
 ) -> tuple[
     npt.NDArray[np.float32],
     npt.NDArray[np.uint32],
@@ -54,3 +55,16 @@ def save_mesh(
     values_name: str,
     ascii: bool,
 ) -> None: ...
+def read_volume(
+    path: str,
+    *,
+    spacing: tuple[float, float, float] | None = None,
+    origin: tuple[float, float, float] | None = None,
+    max_memory: int | None = None,
+    npy_axes: str = "xyz",
+) -> tuple[
+    npt.NDArray[np.float32],
+    list[float],
+    list[float],
+    list[list[float]],
+]: ...

@@ -257,7 +257,7 @@ fn run(
 #[pyfunction]
 #[pyo3(signature = (
     volume, level, *, spacing, origin, method, topology, triangulate, snap, zero_threshold,
-    snap_position, flip, normals, values, max_memory
+    snap_position, flip, normals, values, max_memory, direction=None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn extract<'py>(
@@ -276,8 +276,16 @@ fn extract<'py>(
     normals: bool,
     values: bool,
     max_memory: Option<u64>,
+    direction: Option<[[f64; 3]; 3]>,
 ) -> PyResult<Extracted<'py>> {
     let (grid, order) = view_of(&volume, spacing, origin)?;
+    let turn = direction
+        .map(|d| {
+            Orientation::new(d).ok_or_else(|| {
+                InputError::new_err("the direction must be a finite, non-singular 3 × 3 matrix")
+            })
+        })
+        .transpose()?;
     let method = match method {
         "mc" => Method::MarchingCubes,
         "ternary" => Method::Ternary(
@@ -301,11 +309,15 @@ fn extract<'py>(
         .with_method(method)
         .with_max_memory(max_memory);
     let Run {
-        mesh,
+        mut mesh,
         stats,
         values,
         seconds,
     } = run(py, grid, order, &options, values)?;
+    // Turned into the world after the values are found in the array's frame.
+    if let Some(turn) = turn {
+        turn.orient_mesh(&mut mesh, origin);
+    }
     let Mesh {
         positions,
         normals: vertex_normals,
@@ -487,12 +499,52 @@ fn save_mesh(
     written.map_err(|e| FormatError::new_err(e.to_string()))
 }
 
+/// A volume file's values, indexed `[x, y, z]` (a Fortran-ordered array owning the reader's
+/// buffer), spacing, origin and direction (columns: the world vectors of the axes).
+type ReadVolume<'py> = (
+    Bound<'py, numpy::PyArray3<f32>>,
+    [f64; 3],
+    [f64; 3],
+    [[f64; 3]; 3],
+);
+
+/// Reads a volume file as the command line does: by extension (`.npy`, `.nrrd`/`.nhdr`,
+/// `.nii`/`.nii.gz`, `.mha`/`.mhd`, `.tif`/`.tiff`, `.vti`), a folder as a DICOM series.
+#[pyfunction]
+#[pyo3(signature = (path, *, spacing=None, origin=None, max_memory=None, npy_axes="xyz"))]
+fn read_volume<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+    spacing: Option<[f64; 3]>,
+    origin: Option<[f64; 3]>,
+    max_memory: Option<u64>,
+    npy_axes: &str,
+) -> PyResult<ReadVolume<'py>> {
+    let mut options = isocube_io::VolumeOptions::default();
+    options.spacing = spacing;
+    options.origin = origin;
+    options.max_memory = max_memory;
+    options.npy_axes = npy_axes
+        .parse()
+        .map_err(|e: String| InputError::new_err(e))?;
+    let read = py.detach(|| isocube_io::read_volume_oriented(&path, &options));
+    let (grid, orientation) = read.map_err(|e| match e {
+        isocube_io::IoError::TooLarge { .. } => MemoryLimitError::new_err(e.to_string()),
+        e => FormatError::new_err(e.to_string()),
+    })?;
+    let (dims, spacing, origin) = (grid.dims(), grid.spacing(), grid.origin());
+    let values = numpy::PyArray1::from_vec(py, grid.into_values())
+        .reshape_with_order(dims, numpy::npyffi::NPY_ORDER::NPY_FORTRANORDER)?;
+    Ok((values, spacing, origin, orientation.direction()))
+}
+
 /// The extension module.
 #[pymodule]
 fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(extract, m)?)?;
     m.add_function(wrap_pyfunction!(marching_cubes, m)?)?;
     m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(read_volume, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;

@@ -1,0 +1,68 @@
+"""isocube.read_volume on the repository's test volumes (every format the command line reads):
+the values, where they lie, and the surface the command line makes from the same file."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import isocube
+
+from .test_save import cli
+
+DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "volumes"
+
+
+def expected() -> dict[str, Any]:
+    loaded: dict[str, Any] = json.loads((DATA / "expected.json").read_text())
+    return loaded
+
+
+@pytest.mark.parametrize("name", sorted(expected()["files"]))
+def test_values_and_their_places_are_the_files(name: str) -> None:
+    spec = expected()
+    volume = isocube.read_volume(DATA / name)
+    dims = spec["dims"]
+    assert volume.values.shape == tuple(dims) and volume.values.dtype == np.float32
+    i, j, k = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
+    # Stored values are 100 + i + 10 j + 100 k; the files' rescaling gives the real ones.
+    file = spec["files"][name]
+    real = (100 + i + 10 * j + 100 * k) * file["scale"] + file["offset"]
+    assert np.allclose(volume.values, real, atol=1e-3)
+    # World position of point (i, j, k): origin + direction · (spacing ∘ (i, j, k)).
+    linear = np.asarray(spec["files"][name]["linear"], dtype=np.float64)
+    ours = np.asarray(volume.direction) * np.asarray(volume.spacing)
+    assert np.allclose(ours, linear, atol=1e-9)
+    assert np.allclose(volume.origin, spec["files"][name]["origin"], atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(expected()["files"]))
+def test_the_surface_is_the_command_lines(tmp_path: Path, name: str) -> None:
+    ours, theirs = tmp_path / "python.ply", tmp_path / "cli.ply"
+    file = expected()["files"][name]
+    level = 400.5 * file["scale"] + file["offset"]
+    mesh = isocube.read_volume(DATA / name).extract(level)
+    assert len(mesh.triangles) > 50
+    mesh.save(ours)
+    subprocess.run(
+        [cli(), "extract", str(DATA / name), "-o", str(theirs), "--level", str(level)],
+        check=True,
+        capture_output=True,
+    )
+    assert ours.read_bytes() == theirs.read_bytes()
+
+
+def test_a_missing_or_broken_file_is_a_format_error(tmp_path: Path) -> None:
+    with pytest.raises(isocube.FormatError, match="nothing.nii"):
+        isocube.read_volume(tmp_path / "nothing.nii")
+    broken = tmp_path / "broken.npy"
+    broken.write_bytes(b"\x93NUMPY\x01\x00garbage")
+    with pytest.raises(isocube.FormatError, match="broken.npy"):
+        isocube.read_volume(broken)
+    with pytest.raises(isocube.MemoryLimitError):
+        isocube.read_volume(DATA / "plain.mhd", max_memory=100)
