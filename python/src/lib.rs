@@ -22,25 +22,25 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 
 create_exception!(
-    _isocube,
+    isocube,
     Error,
     PyException,
     "Base class of isocube's errors."
 );
 create_exception!(
-    _isocube,
+    isocube,
     InputError,
     Error,
     "The input cannot be meshed as given (a bad option, a value out of range)."
 );
 create_exception!(
-    _isocube,
+    isocube,
     FormatError,
     Error,
     "A file could not be read or written: its message names the file, the position and why."
 );
 create_exception!(
-    _isocube,
+    isocube,
     MemoryLimitError,
     Error,
     "The work would need more memory than allowed."
