@@ -143,6 +143,50 @@ class Mesh:
             ascii,
         )
 
+    def to_trimesh(self) -> Any:
+        """The mesh as a ``trimesh.Trimesh`` (needs the `trimesh` package), normals and
+        values (``vertex_attributes['values']``) included, nothing merged or reordered.
+
+        >>> import numpy as np
+        >>> import isocube
+        >>> x, y, z = np.mgrid[-1:1:24j, -1:1:24j, -1:1:24j]
+        >>> isocube.extract(x**2 + y**2 + z**2, 0.5).to_trimesh().is_watertight
+        True
+        """
+        import trimesh
+
+        attributes: dict[str, Any] = {} if self.values is None else {"values": self.values}
+        return trimesh.Trimesh(
+            vertices=self.vertices,
+            faces=self.triangles,
+            vertex_normals=self.normals,
+            vertex_attributes=attributes,
+            process=False,
+        )
+
+    def to_pyvista(self) -> Any:
+        """The mesh as a ``pyvista.PolyData`` (needs the `pyvista` package), with the normals
+        as ``point_data['Normals']`` and values as ``point_data['values']``.
+
+        >>> import numpy as np
+        >>> import isocube
+        >>> x, y, z = np.mgrid[-1:1:24j, -1:1:24j, -1:1:24j]
+        >>> surface = isocube.extract(x**2 + y**2 + z**2, 0.5).to_pyvista()
+        >>> surface.n_cells > 0 and surface.is_all_triangles
+        True
+        """
+        import pyvista
+
+        faces = np.empty((len(self.triangles), 4), dtype=np.int64)
+        faces[:, 0] = 3
+        faces[:, 1:] = self.triangles
+        surface = pyvista.PolyData(self.vertices, faces.ravel())
+        if self.normals is not None:
+            surface.point_data["Normals"] = self.normals
+        if self.values is not None:
+            surface.point_data["values"] = self.values
+        return surface
+
     def napari(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The ``(vertices, faces, values)`` tuple napari's Surface layer takes.
 

@@ -267,3 +267,22 @@ def test_a_memory_mapped_volume_is_meshed_in_place(tmp_path: Path) -> None:
     # The measurement can fail: a copy of the volume shows.
     grown, _ = probe("F", copy=True)
     assert grown > 400, grown
+
+
+def test_trimesh_and_pyvista_take_the_mesh_as_it_is() -> None:
+    trimesh = pytest.importorskip("trimesh")
+    pyvista = pytest.importorskip("pyvista")
+    mesh = isocube.extract(sphere(40), 0.0, values=True)
+    assert mesh.values is not None and mesh.normals is not None
+    t = mesh.to_trimesh()
+    assert isinstance(t, trimesh.Trimesh) and t.is_watertight and t.is_winding_consistent
+    assert np.array_equal(t.faces, mesh.triangles) and np.allclose(t.vertices, mesh.vertices)
+    # Triangles face the side above the level: the volume trimesh finds is the inside's.
+    assert t.volume > 0
+    p = mesh.to_pyvista()
+    assert isinstance(p, pyvista.PolyData)
+    assert p.n_points == len(mesh.vertices) and p.n_cells == len(mesh.triangles)
+    assert np.array_equal(p.regular_faces, mesh.triangles)
+    assert np.array_equal(p.point_data["values"], mesh.values)
+    v, f, values = mesh.napari()
+    assert v is mesh.vertices and f is mesh.triangles and values is mesh.values
