@@ -383,14 +383,16 @@ fn marching_cubes<'py>(
     descent: bool,
 ) -> PyResult<McOutput<'py>> {
     let (grid, order) = view_of(&volume, [1.0; 3], [0.0; 3])?;
-    let (lo, hi) = py.detach(|| value_range(&grid));
+    let out_of_range = || PyValueError::new_err("Surface level must be within volume data range.");
+    // A level outside the value range meets no cell, so its mesh is empty: the range (a pass
+    // over the whole volume) is needed first only to find the default level, and otherwise only
+    // when nothing was found, to say why.
+    let requested = level;
     let level = match level {
         // In single precision, as scikit-image computes it from NumPy's float32 scalars.
-        None => 0.5 * (lo + hi),
-        Some(l) if l < f64::from(lo) || l > f64::from(hi) => {
-            return Err(PyValueError::new_err(
-                "Surface level must be within volume data range.",
-            ))
+        None => {
+            let (lo, hi) = py.detach(|| value_range(&grid));
+            0.5 * (lo + hi)
         }
         Some(l) => l as f32,
     };
@@ -402,6 +404,12 @@ fn marching_cubes<'py>(
         .with_topology(parse(topology)?);
     let Run { mesh, values, .. } = run(py, grid, order, &options, true)?;
     if mesh.triangles.is_empty() {
+        let (lo, hi) = py.detach(|| value_range(&grid));
+        // The level as given (in double precision, as scikit-image compares it).
+        let asked = requested.unwrap_or(f64::from(level));
+        if asked < f64::from(lo) || asked > f64::from(hi) {
+            return Err(out_of_range());
+        }
         return Err(PyRuntimeError::new_err(
             "No surface found at the given iso value.",
         ));

@@ -136,3 +136,32 @@ def test_degenerate_triangles_can_be_dropped() -> None:
 def test_the_library_error_is_also_caught_as_isocubes() -> None:
     with pytest.raises(isocube.Error):
         isocube.extract(np.zeros((3, 3, 3)), 0.0, method="dual")
+
+
+def test_where_scikit_images_surface_is_closed_the_volumes_agree() -> None:
+    # Lewiner's double torus (scikit-image's own test field) and ellipsoids of its tests.
+    n = 48
+    s = np.arange(n) * (2.5 / n) - 1.25
+    z, y, x = np.meshgrid(s, s, s, indexing="ij")
+    a = (8 * x) ** 2 + (8 * y - 2) ** 2 + (8 * z) ** 2 + 16 - 1.85**2
+    b = (8 * x) ** 2 + (8 * y + 2) ** 2 + (8 * z) ** 2 + 16 - 1.85**2
+    donut = (a * a - 64 * ((8 * x) ** 2 + (8 * y - 2) ** 2)) * (
+        b * b - 64 * ((8 * y + 2) ** 2 + (8 * z) ** 2)
+    ) + 1025
+    fields = [
+        donut.astype(np.float32),
+        skimage_draw.ellipsoid(6, 10, 16, levelset=True),
+        skimage_draw.ellipsoid(1, 1, 1, levelset=True),
+    ]
+    compared = 0
+    for field in fields:
+        for method in ("lewiner", "lorensen"):
+            verts, faces = marching_cubes(field, 0.0, method=method)[:2]
+            assert edge_counts(faces) == (0, 0)
+            sv, sf = skimage_measure.marching_cubes(field, 0.0, method=method)[:2]
+            # scikit-image's classic table splits ambiguous cells its own way (on the double
+            # torus 48 triangles more, 0.19 % more volume): only MC33 is held to 0.1 %.
+            if method == "lewiner" and edge_counts(sf) == (0, 0):
+                compared += 1
+                assert signed_volume(verts, faces) == pytest.approx(signed_volume(sv, sf), rel=1e-3)
+    assert compared == 3
