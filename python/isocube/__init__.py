@@ -24,6 +24,7 @@ import numpy as np
 
 from ._isocube import Error, FormatError, InputError, MemoryLimitError, __version__
 from ._isocube import extract as _extract
+from ._isocube import label_surfaces as _label_surfaces
 from ._isocube import marching_cubes as _marching_cubes
 from ._isocube import read_volume as _read_volume
 from ._isocube import save_mesh as _save_mesh
@@ -37,6 +38,7 @@ __all__ = [
     "Volume",
     "__version__",
     "extract",
+    "label_surfaces",
     "marching_cubes",
     "read_volume",
 ]
@@ -522,3 +524,67 @@ def _compact(
     used[faces.ravel()] = True
     number = (np.cumsum(used) - 1).astype(np.int32)
     return verts[used], number[faces], normals[used], values[used]
+
+
+def label_surfaces(
+    labels: ArrayLike,
+    *,
+    spacing: ArrayLike = (1.0, 1.0, 1.0),
+    origin: ArrayLike = (0.0, 0.0, 0.0),
+    background: int = 0,
+    only: Sequence[int] | None = None,
+    smoothing: int = 60,
+) -> dict[int, Mesh]:
+    """The closed surface of every label of a segmentation, as ``isocube extract --labels``.
+
+    Neighbouring labels share their interface: the same vertices and triangles, facing
+    opposite ways, so the surfaces fit together with no gap or overlap.
+
+    Parameters
+    ----------
+    labels : (M, N, P) array_like of integers
+        The segmentation (integer values up to 2**24 in magnitude; floats must be integers).
+    spacing, origin : three floats
+    background : int
+        The label that is not meshed (the surroundings).
+    only : sequence of int, optional
+        Mesh these labels only (the others still bound them).
+    smoothing : int
+        Smoothing sweeps (0 keeps the voxels' staircase); a vertex never moves more than a
+        cell along any axis.
+
+    Returns
+    -------
+    dict of int to Mesh
+        Each label's surface, triangles facing out of the label, in increasing label order.
+
+    Raises
+    ------
+    InputError
+        A value that is not an integer, or one too large to be held exactly.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import isocube
+    >>> seg = np.zeros((8, 6, 6), np.uint8)
+    >>> seg[1:4, 1:5, 1:5] = 1
+    >>> seg[4:7, 1:5, 1:5] = 2
+    >>> surfaces = isocube.label_surfaces(seg, smoothing=0)
+    >>> sorted(surfaces), all(m.is_watertight() for m in surfaces.values())
+    ([1, 2], True)
+    """
+    a = np.asarray(labels)
+    if a.ndim != 3:
+        raise InputError(f"the labels must have three dimensions, not {a.ndim}")
+    if a.dtype.kind in "iub" and a.size and (np.abs(a.astype(np.int64)).max() > 2**24):
+        raise InputError("labels beyond 2**24 in magnitude cannot be held exactly as float32")
+    surfaces = _label_surfaces(
+        _volume(a),
+        spacing=_triple("spacing", spacing),
+        origin=_triple("origin", origin),
+        background=int(background),
+        only=None if only is None else [int(x) for x in only],
+        smoothing=int(smoothing),
+    )
+    return {label: Mesh(v, t, n) for label, v, t, n in surfaces}

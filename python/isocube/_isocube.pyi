@@ -68,3 +68,19 @@ def read_volume(
     list[float],
     list[list[float]],
 ]: ...
+def label_surfaces(
+    labels: npt.NDArray[np.float32],
+    *,
+    spacing: tuple[float, float, float],
+    origin: tuple[float, float, float],
+    background: int,
+    only: list[int] | None,
+    smoothing: int,
+) -> list[
+    tuple[
+        int,
+        npt.NDArray[np.float32],
+        npt.NDArray[np.uint32],
+        npt.NDArray[np.float32] | None,
+    ]
+]: ...

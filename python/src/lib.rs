@@ -10,7 +10,8 @@ use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 
 use isocube::extract::{
-    extract_into, ExtractError, ExtractOptions, ExtractStats, Method, SnapPosition, Snapping,
+    extract_into, extract_labels, ExtractError, ExtractOptions, ExtractStats, LabelOptions,
+    LabelSelection, Method, SnapPosition, Snapping,
 };
 use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
@@ -546,6 +547,75 @@ fn read_volume<'py>(
     Ok((values, spacing, origin, orientation.direction()))
 }
 
+/// One label's surface as `label_surfaces` hands it back: label, vertices, triangles, normals.
+type LabelArrays<'py> = (
+    i64,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<u32>>,
+    Option<Bound<'py, PyArray2<f32>>>,
+);
+
+/// The closed surface of every label of a labelled volume (integers stored as `float32`),
+/// neighbours sharing their interfaces, as `isocube extract --labels` makes them: the volume
+/// read in its index order (the command line's frame for a file), any strides.
+#[pyfunction]
+#[pyo3(signature = (labels, *, spacing, origin, background, only, smoothing))]
+fn label_surfaces<'py>(
+    py: Python<'py>,
+    labels: PyReadonlyArray3<'py, f32>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    background: i64,
+    only: Option<Vec<i64>>,
+    smoothing: usize,
+) -> PyResult<Vec<LabelArrays<'py>>> {
+    let (memory_order, order) = view_of(&labels, spacing, origin)?;
+    // Back to the index order: label meshes cut cells into tetrahedra along the grid's axes,
+    // so the frame decides their triangles, and the command line meshes a file's labels in
+    // index order.
+    let mut strides = [0usize; 3];
+    for (a, &w) in order.iter().enumerate() {
+        strides[w] = memory_order.strides()[a];
+    }
+    let shape = labels.shape();
+    let grid = GridView::strided(
+        memory_order.values(),
+        [shape[0], shape[1], shape[2]],
+        strides,
+    )
+    .and_then(|g| g.with_spacing(spacing))
+    .and_then(|g| g.with_origin(origin))
+    .map_err(|e| InputError::new_err(e.to_string()))?;
+    let mut options = LabelOptions::default()
+        .with_background(background)
+        .with_smoothing(smoothing);
+    if let Some(list) = only {
+        options = options.with_labels(LabelSelection::Only(list));
+    }
+    let surfaces = py
+        .detach(|| extract_labels(grid, &options))
+        .map_err(extract_error)?;
+    surfaces
+        .into_iter()
+        .map(|s| {
+            let Mesh {
+                positions,
+                normals,
+                triangles,
+            } = s.mesh;
+            let normals = (normals.len() == positions.len())
+                .then(|| rows_array(py, normals))
+                .transpose()?;
+            Ok((
+                s.label,
+                rows_array(py, positions)?,
+                rows_array(py, triangles)?,
+                normals,
+            ))
+        })
+        .collect()
+}
+
 /// The extension module.
 #[pymodule]
 fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -553,6 +623,7 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(marching_cubes, m)?)?;
     m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(read_volume, m)?)?;
+    m.add_function(wrap_pyfunction!(label_surfaces, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;
