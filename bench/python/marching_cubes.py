@@ -8,11 +8,20 @@ library call), ``skimage.measure.marching_cubes``, ``mcubes.marching_cubes`` (Py
 PyVista's ``contour(method='flying_edges')`` on an ``ImageData`` wrapping the array. Best of
 three calls each. The engine's own time (``Mesh.stats['seconds']``, measured in Rust around the
 extraction) shows what the Python layer adds. Prints a Markdown table.
+
+Then end to end from a file, as a user runs it (best of three): the field saved as ``.npy``,
+read with ``np.load``, meshed and written as binary PLY — ``isocube.extract(...).save(...)``
+beside scikit-image's ``marching_cubes`` written by ``trimesh`` (if installed), and the
+``isocube extract`` command (``$ISOCUBE_BIN``, or ``isocube`` on the PATH) on the same file.
 """
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
 from functools import partial
 from typing import Any, Callable
@@ -110,5 +119,50 @@ def main() -> None:
         )
 
 
+def end_to_end(n: int) -> None:
+    tools: list[tuple[str, Callable[[str, float, str], Any]]] = [
+        (
+            "np.load + isocube.extract + Mesh.save",
+            lambda npy, level, ply: isocube.extract(np.load(npy), level).save(ply),
+        )
+    ]
+    binary = os.environ.get("ISOCUBE_BIN") or shutil.which("isocube")
+    if binary:
+        tools.append(
+            (
+                "isocube extract (command)",
+                lambda npy, level, ply: subprocess.run(
+                    [binary, "extract", npy, "-o", ply, "--level", str(level), "--quiet"],
+                    check=True,
+                ),
+            )
+        )
+    try:
+        import trimesh
+        from skimage.measure import marching_cubes as sk
+
+        def skimage_to_ply(npy: str, level: float, ply: str) -> None:
+            verts, faces, normals, _ = sk(np.load(npy), level)
+            trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False).export(ply)
+
+        tools.append(("np.load + skimage + trimesh export", skimage_to_ply))
+    except ImportError:
+        pass
+    print()
+    print(f"| field ({n}³ .npy → binary PLY) | tool | seconds | × isocube.extract + save |")
+    print("|---|---|---:|---:|")
+    with tempfile.TemporaryDirectory() as work:
+        for name, (a, level) in fields(n).items():
+            npy = os.path.join(work, f"{name}.npy")
+            np.save(npy, a)
+            first = None
+            for tool, f in tools:
+                ply = os.path.join(work, f"{name}.ply")
+                seconds, _ = best(partial(f, npy, level, ply))
+                first = first or seconds
+                print(f"| {name} | {tool} | {seconds:.3f} | {seconds / first:.1f} |")
+
+
 if __name__ == "__main__":
     main()
+    end_to_end(int(sys.argv[1]) if len(sys.argv) > 1 else 256)
