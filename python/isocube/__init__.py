@@ -61,7 +61,8 @@ class Mesh:
     normals : (V, 3) float32 ndarray or None
         Unit normals from the field's gradient, towards the side the triangles face.
     values : (V,) float32 ndarray or None
-        The largest value among the grid points around each vertex.
+        The larger of the values at the two ends of the grid edge each vertex lies on (inside
+        a cell: the largest of its eight corners): the largest value near the vertex.
     stats : dict
         Counts from the extraction (``cells``, ``active_cells``, ``tunnels``,
         ``snapped_points``, ...) and ``seconds``, the engine's time.

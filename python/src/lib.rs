@@ -59,6 +59,16 @@ fn flatten<T: Copy>(rows: Vec<[T; 3]>) -> Vec<T> {
     unsafe { Vec::from_raw_parts(ptr.cast::<T>(), 3 * len, 3 * cap) }
 }
 
+/// Vertex indices as `int32`, scikit-image's dtype, in the same buffer (every index below
+/// `i32::MAX`, which the caller checks).
+fn as_i32(rows: Vec<[u32; 3]>) -> Vec<[i32; 3]> {
+    let mut rows = std::mem::ManuallyDrop::new(rows);
+    let (ptr, len, cap) = (rows.as_mut_ptr(), rows.len(), rows.capacity());
+    // SAFETY: `[u32; 3]` and `[i32; 3]` have the same size and alignment, and every `u32`
+    // below 2^31 is the same bits as the `i32` of that value.
+    unsafe { Vec::from_raw_parts(ptr.cast::<[i32; 3]>(), len, cap) }
+}
+
 /// A `(n, 3)` array owning `rows`' buffer.
 fn rows_array<'py, T: numpy::Element + Copy>(
     py: Python<'py>,
@@ -114,40 +124,44 @@ type Extracted<'py> = (
     Bound<'py, PyDict>,
 );
 
-/// The largest value among the grid points of the cells around each vertex (the four cells
-/// around its edge; for a vertex inside a cell, that cell's corners): as scikit-image's
-/// `values`, the largest corner value of the cubes that make the vertex (a colour scale's
-/// input, not an interpolation).
+/// The larger of the values at the two ends of the grid edge each vertex lies on (a vertex on
+/// a grid point: that point's value; inside a cell: the largest of its eight corners). As
+/// scikit-image's `values`, the largest value near the vertex, a colour scale's input, not an
+/// interpolation; two reads per vertex, in the order the vertices were made.
 fn vertex_values(grid: &GridView, order: [usize; 3], positions: &[[f32; 3]]) -> Vec<f32> {
     let (origin, spacing, dims) = (grid.origin(), grid.spacing(), grid.dims());
+    let inverse = spacing.map(|h| 1.0 / h);
+    let strides = grid.strides();
+    let values = grid.values();
     positions
         .par_iter()
+        .with_min_len(1 << 12)
         .map(|p| {
-            let mut range = [[0usize; 2]; 3];
+            // The lower corner of the cell, edge or point holding the vertex, and the steps to
+            // the other corners (none along an axis whose plane holds it): eight reads, the
+            // same address repeated where a step is none, so no branches.
+            let (mut base, mut step) = (grid.index(0, 0, 0), [0usize; 3]);
             for a in 0..3 {
                 // Grid axis `a` is the array's axis `order[a]`.
                 let w = order[a];
-                let q = (f64::from(p[w]) - origin[w]) / spacing[a];
+                let q = (f64::from(p[w]) - origin[w]) * inverse[a];
                 let near = q.round();
-                // A coordinate within rounding of a grid plane lies on it: the cells on both
-                // sides of the plane hold the vertex.
+                // Within rounding of a grid plane: on it.
                 let (lo, hi) = if (q - near).abs() < 1e-4 {
-                    (near - 1.0, near + 1.0)
+                    (near, near)
                 } else {
                     (q.floor(), q.ceil())
                 };
                 let clamp = |x: f64| (x.max(0.0) as usize).min(dims[a] - 1);
-                range[a] = [clamp(lo), clamp(hi)];
+                let (lo, hi) = (clamp(lo), clamp(hi));
+                base += lo * strides[a];
+                step[a] = (hi - lo) * strides[a];
             }
-            let mut best = f32::NEG_INFINITY;
-            for k in range[2][0]..=range[2][1] {
-                for j in range[1][0]..=range[1][1] {
-                    for i in range[0][0]..=range[0][1] {
-                        best = best.max(grid.value(i, j, k));
-                    }
-                }
-            }
-            best
+            let at = |d: usize| values[base + d];
+            let [x, y, z] = step;
+            let low = at(0).max(at(x)).max(at(y)).max(at(x + y));
+            let high = at(z).max(at(x + z)).max(at(y + z)).max(at(x + y + z));
+            low.max(high)
         })
         .collect()
 }
@@ -398,12 +412,16 @@ fn marching_cubes<'py>(
         Some(l) => l as f32,
     };
     // isocube's normals follow its faces; scikit-image's point down the gradient whatever the
-    // direction: faces towards the side below the level (`flip`), turned back for `descent`.
+    // direction. `descent` turns the faces towards the side above the level, as isocube's own
+    // (`flip` off), and its normals are then turned round; `ascent` is isocube's `flip`, normals
+    // and all.
     let options = ExtractOptions::default()
         .with_level(level)
-        .with_flip(true)
+        .with_flip(!descent)
         .with_topology(parse(topology)?);
-    let Run { mesh, values, .. } = run(py, grid, order, &options, true)?;
+    let Run {
+        mut mesh, values, ..
+    } = run(py, grid, order, &options, true)?;
     if mesh.triangles.is_empty() {
         let (lo, hi) = py.detach(|| value_range(&grid));
         // The level as given (in double precision, as scikit-image compares it).
@@ -415,24 +433,26 @@ fn marching_cubes<'py>(
             "No surface found at the given iso value.",
         ));
     }
-    let faces: Vec<[i32; 3]> = mesh
-        .triangles
-        .into_iter()
-        .map(|[a, b, c]| {
-            let t = [a as i32, b as i32, c as i32];
-            if descent {
-                [t[2], t[1], t[0]]
-            } else {
-                t
-            }
-        })
-        .collect();
     let n = mesh.positions.len();
-    let normals = if mesh.normals.len() == n {
-        mesh.normals
-    } else {
-        vec![[0.0; 3]; n]
-    };
+    if mesh.normals.len() != n {
+        mesh.normals = vec![[0.0; 3]; n];
+    } else if descent {
+        py.detach(|| {
+            mesh.normals
+                .par_iter_mut()
+                .with_min_len(1 << 14)
+                .for_each(|g| *g = g.map(|c| -c));
+        });
+    }
+    // Indices below `u32::MAX` (the engine refuses more vertices), well within `i32` for any
+    // mesh NumPy can index: reinterpreted in place.
+    if n > i32::MAX as usize {
+        return Err(MemoryLimitError::new_err(
+            "more than 2^31 vertices: scikit-image's int32 faces cannot index them",
+        ));
+    }
+    let faces = as_i32(mesh.triangles);
+    let normals = mesh.normals;
     Ok((
         rows_array(py, mesh.positions)?,
         rows_array(py, faces)?,

@@ -3,6 +3,8 @@ and watertight where scikit-image's surface is not."""
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 import pytest
 
@@ -165,3 +167,24 @@ def test_where_scikit_images_surface_is_closed_the_volumes_agree() -> None:
                 compared += 1
                 assert signed_volume(verts, faces) == pytest.approx(signed_volume(sv, sf), rel=1e-3)
     assert compared == 3
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_values_are_the_larger_end_of_each_vertexs_grid_edge(order: Literal["C", "F"]) -> None:
+    rng = np.random.default_rng(11)
+    volume = np.asarray(rng.normal(size=(14, 11, 9)).astype(np.float32), order=order)
+    level = 0.1
+    verts, _, _, values = marching_cubes(volume, level)
+    # Each vertex lies on a grid edge (two coordinates on grid planes) or inside a cell: the
+    # grid points around it, found in NumPy from the coordinates alone.
+    near = np.round(verts)
+    on_plane = np.abs(verts - near) < 1e-4
+    lo = np.where(on_plane, near, np.floor(verts)).astype(np.int64)
+    hi = np.where(on_plane, near, np.ceil(verts)).astype(np.int64)
+    expected = np.full(len(verts), -np.inf, dtype=np.float32)
+    for corner in np.ndindex(2, 2, 2):
+        p = np.where(np.array(corner, dtype=bool), hi, lo)
+        expected = np.maximum(expected, volume[p[:, 0], p[:, 1], p[:, 2]])
+    assert values.dtype == np.float32 and np.array_equal(values, expected)
+    # A crossing's edge has one end at or above the level.
+    assert (values >= level).all()

@@ -53,6 +53,18 @@ impl<'a> Window<'a> {
         self.view.edge_length(p, axis)
     }
 
+    /// Whether the planes are evenly spaced along every axis (no [`GridView::with_heights`]).
+    #[inline]
+    pub(super) fn is_uniform(&self) -> bool {
+        self.view.heights().is_none()
+    }
+
+    /// The spacing between planes along each axis (`z`'s ignored where there are heights).
+    #[inline]
+    pub(super) fn spacing(&self) -> [f64; 3] {
+        self.view.spacing()
+    }
+
     /// Elements between neighbouring points along each axis.
     #[inline]
     pub(super) fn strides(&self) -> [usize; 3] {
