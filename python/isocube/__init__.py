@@ -18,16 +18,18 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
+from ._arrays import ArrayLike, _labels, _matrix, _triple, _volume
 from ._isocube import Error, FormatError, InputError, MemoryLimitError, __version__
 from ._isocube import extract as _extract
 from ._isocube import label_surfaces as _label_surfaces
 from ._isocube import marching_cubes as _marching_cubes
 from ._isocube import read_volume as _read_volume
 from ._isocube import save_mesh as _save_mesh
+from ._tets import TetMesh, tetmesh
 
 __all__ = [
     "Error",
@@ -35,15 +37,15 @@ __all__ = [
     "InputError",
     "MemoryLimitError",
     "Mesh",
+    "TetMesh",
     "Volume",
     "__version__",
     "extract",
     "label_surfaces",
     "marching_cubes",
     "read_volume",
+    "tetmesh",
 ]
-
-ArrayLike = Union[np.ndarray, Sequence[Any]]
 
 
 @dataclass
@@ -205,25 +207,6 @@ class Mesh:
         return self.vertices, self.triangles, values
 
 
-def _volume(volume: ArrayLike) -> np.ndarray:
-    """The volume as a 3-D float32 array, the given one where it already is one (any strides)."""
-    a = np.asarray(volume)
-    if a.ndim != 3:
-        raise InputError(f"the volume must have three dimensions, not {a.ndim}")
-    if a.dtype != np.float32 or any(s < 0 or s % 4 for s in a.strides):
-        a = np.asarray(a, dtype=np.float32)
-        if any(s < 0 or s % 4 for s in a.strides):
-            a = np.ascontiguousarray(a)
-    return a
-
-
-def _triple(name: str, value: ArrayLike) -> tuple[float, float, float]:
-    t = tuple(float(x) for x in np.asarray(value, dtype=np.float64).ravel())
-    if len(t) != 3:
-        raise InputError(f"`{name}` must consist of three numbers, not {len(t)}")
-    return (t[0], t[1], t[2])
-
-
 def extract(
     volume: ArrayLike,
     level: float = 0.0,
@@ -317,13 +300,6 @@ def extract(
         direction=None if direction is None else _matrix(direction),
     )
     return Mesh(v, t, n, vals, stats)
-
-
-def _matrix(value: ArrayLike) -> list[list[float]]:
-    m = np.asarray(value, dtype=np.float64)
-    if m.shape != (3, 3):
-        raise InputError(f"`direction` must be a 3 × 3 matrix, not of shape {m.shape}")
-    return [[float(x) for x in row] for row in m]
 
 
 @dataclass
@@ -575,13 +551,8 @@ def label_surfaces(
     >>> sorted(surfaces), all(m.is_watertight() for m in surfaces.values())
     ([1, 2], True)
     """
-    a = np.asarray(labels)
-    if a.ndim != 3:
-        raise InputError(f"the labels must have three dimensions, not {a.ndim}")
-    if a.dtype.kind in "iub" and a.size and (np.abs(a.astype(np.int64)).max() > 2**24):
-        raise InputError("labels beyond 2**24 in magnitude cannot be held exactly as float32")
     surfaces = _label_surfaces(
-        _volume(a),
+        _labels(labels),
         spacing=_triple("spacing", spacing),
         origin=_triple("origin", origin),
         background=int(background),

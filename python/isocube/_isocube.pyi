@@ -84,3 +84,55 @@ def label_surfaces(
         npt.NDArray[np.float32] | None,
     ]
 ]: ...
+
+class TetMesh:
+    @property
+    def vertices(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def tets(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def surface(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def walls(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def beyond(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def surface_vertices(self) -> int: ...
+    @property
+    def labels(
+        self,
+    ) -> (
+        tuple[
+            list[int],
+            npt.NDArray[np.uint32],
+            npt.NDArray[np.uint32],
+            npt.NDArray[np.uint32],
+            npt.NDArray[np.uint32],
+        ]
+        | None
+    ): ...
+    @property
+    def stats(self) -> dict[str, float]: ...
+    def quality(self) -> dict[str, float | int | list[int]]: ...
+    def check(self) -> dict[str, float | int | bool]: ...
+    def save(self, path: str, *, binary: bool = False) -> None: ...
+
+def tetmesh(
+    volume: npt.NDArray[np.float32],
+    level: float,
+    *,
+    spacing: tuple[float, float, float],
+    origin: tuple[float, float, float],
+    direction: list[list[float]] | None,
+    method: str,
+    topology: str,
+    triangulate: str,
+    snap: float,
+    zero_threshold: float,
+    snap_position: str,
+    flip: bool,
+    labels: bool,
+    only: list[int] | None,
+    background: int,
+    max_memory: int | None,
+) -> TetMesh: ...

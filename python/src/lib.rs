@@ -22,6 +22,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
+mod tets;
+
 create_exception!(
     isocube,
     Error,
@@ -211,6 +213,30 @@ fn view_of<'a>(
         .map_err(|e| InputError::new_err(e.to_string()))?
         .with_orientation(Orientation::axes(order).expect("a permutation of the axes"));
     Ok((grid, order))
+}
+
+/// A `float32` volume indexed `volume[x, y, z]` as a grid view in that index order (the
+/// array's axes as the grid's, whatever its strides): where meshes depend on the frame (label
+/// meshes cut cells into tetrahedra along the grid's axes), the command line's frame for a file.
+fn index_order_view<'a>(
+    volume: &'a PyReadonlyArray3<'_, f32>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+) -> PyResult<GridView<'a>> {
+    let (memory_order, order) = view_of(volume, spacing, origin)?;
+    let mut strides = [0usize; 3];
+    for (a, &w) in order.iter().enumerate() {
+        strides[w] = memory_order.strides()[a];
+    }
+    let shape = volume.shape();
+    GridView::strided(
+        memory_order.values(),
+        [shape[0], shape[1], shape[2]],
+        strides,
+    )
+    .and_then(|g| g.with_spacing(spacing))
+    .and_then(|g| g.with_origin(origin))
+    .map_err(|e| InputError::new_err(e.to_string()))
 }
 
 /// What one extraction made: the mesh, its counts, vertex values if asked, the engine's seconds.
@@ -589,23 +615,7 @@ fn label_surfaces<'py>(
     only: Option<Vec<i64>>,
     smoothing: usize,
 ) -> PyResult<Vec<LabelArrays<'py>>> {
-    let (memory_order, order) = view_of(&labels, spacing, origin)?;
-    // Back to the index order: label meshes cut cells into tetrahedra along the grid's axes,
-    // so the frame decides their triangles, and the command line meshes a file's labels in
-    // index order.
-    let mut strides = [0usize; 3];
-    for (a, &w) in order.iter().enumerate() {
-        strides[w] = memory_order.strides()[a];
-    }
-    let shape = labels.shape();
-    let grid = GridView::strided(
-        memory_order.values(),
-        [shape[0], shape[1], shape[2]],
-        strides,
-    )
-    .and_then(|g| g.with_spacing(spacing))
-    .and_then(|g| g.with_origin(origin))
-    .map_err(|e| InputError::new_err(e.to_string()))?;
+    let grid = index_order_view(&labels, spacing, origin)?;
     let mut options = LabelOptions::default()
         .with_background(background)
         .with_smoothing(smoothing);
@@ -644,6 +654,8 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(read_volume, m)?)?;
     m.add_function(wrap_pyfunction!(label_surfaces, m)?)?;
+    m.add_function(wrap_pyfunction!(tets::tetmesh, m)?)?;
+    m.add_class::<tets::PyTetMesh>()?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;

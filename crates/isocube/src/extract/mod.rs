@@ -526,7 +526,7 @@ pub struct Extractor<'a> {
     options: ExtractOptions,
     ternary: Option<ternary::Ternary<'a>>,
     /// Ternary: (snapped, refused) points.
-    snapping: (usize, usize),
+    pub(crate) snapping: (usize, usize),
 }
 
 impl<'a> Extractor<'a> {

@@ -209,7 +209,7 @@ pub fn tetmesh<'a>(
     let chunks = extractor.mesh_boxes(&slabs(dims))?;
     let mut surface = Mesh::new();
     let mut keys = Vec::new();
-    let extract_stats = join_tagged(
+    let mut extract_stats = join_tagged(
         dims,
         chunks,
         &mut surface,
@@ -217,6 +217,7 @@ pub fn tetmesh<'a>(
         Some(&mut keys),
         &mut |_| {},
     )?;
+    (extract_stats.snapped_points, extract_stats.refused_points) = extractor.snapping;
 
     // Each grid point's vertex: a zero point (ternary) is the surface's vertex there; inside
     // points are numbered after the surface's vertices in grid order.

@@ -108,8 +108,9 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
             let what = format!("{sample:?} {n} {options:?}");
             let tets = tetmesh(&grid, &options).unwrap_or_else(|e| panic!("{what}: {e}"));
             let c = assert_valid(&tets, &what);
-            let (surface, _) = crate::extract::extract(&grid, &options).unwrap();
+            let (surface, stats) = crate::extract::extract(&grid, &options).unwrap();
             assert_eq!(surface.triangles, tets.surface, "{what}");
+            assert_eq!(stats, tets.stats.extract, "{what}");
             assert_eq!(
                 surface.positions[..],
                 tets.positions[..tets.surface_vertices],

@@ -1,0 +1,193 @@
+"""isocube.tetmesh: conforming, positive tetrahedra bounded by extract's surface; files
+byte for byte those of `isocube tetmesh`."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pytest
+
+import isocube
+
+from .test_save import cli
+
+
+def ellipsoid(order: Literal["C", "F"] = "C") -> np.ndarray:
+    x, y, z = np.mgrid[-1:1:21j, -1:1:22j, -1:1:23j]
+    field = (np.sqrt((1.3 * x) ** 2 + y**2 + (0.8 * z) ** 2) - 0.7).astype(np.float32)
+    return np.asarray(field, order=order)
+
+
+def signed_volumes(vertices: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    p = vertices[tets].astype(np.float64)
+    a, b, c = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]
+    volumes: np.ndarray = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6
+    return volumes
+
+
+def faces_once(tets: np.ndarray) -> set[tuple[int, ...]]:
+    """The faces of the tetrahedra that belong to one of them only, as sorted vertex triples."""
+    t = tets.astype(np.int64)
+    faces = np.concatenate([t[:, [1, 2, 3]], t[:, [0, 3, 2]], t[:, [0, 1, 3]], t[:, [0, 2, 1]]])
+    keys, counts = np.unique(np.sort(faces, axis=1), axis=0, return_counts=True)
+    assert counts.max() <= 2, "a face shared by more than two tetrahedra"
+    return {tuple(k) for k in keys[counts == 1]}
+
+
+def triples(triangles: np.ndarray) -> set[tuple[int, ...]]:
+    return {tuple(t) for t in np.sort(triangles.astype(np.int64), axis=1)}
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"method": "ternary"}, {"method": "ternary", "snap": 0.5, "flip": True}],
+)
+def test_the_tetrahedra_fill_the_region_the_surface_bounds(options: dict[str, Any]) -> None:
+    a = ellipsoid()
+    mesh = isocube.tetmesh(a, **options)
+    assert len(mesh.tets) > 1000
+    # Every element positive; no face shared by three; the faces on one element only are
+    # exactly the surface and the walls.
+    assert (signed_volumes(mesh.vertices, mesh.tets) > 0).all()
+    assert faces_once(mesh.tets) == triples(mesh.surface) | triples(mesh.walls)
+    # The surface is extract's with the same options (its vertices first).
+    surface_options = {k: v for k, v in options.items()}
+    if surface_options.get("method") == "ternary":
+        surface_options["snap_position"] = "grid"
+    surface = isocube.extract(a, normals=False, **surface_options)
+    assert mesh.surface_vertices == len(surface.vertices)
+    assert np.array_equal(mesh.vertices[: mesh.surface_vertices], surface.vertices)
+    assert np.array_equal(mesh.surface, surface.triangles)
+    for count in ("active_cells", "snapped_points", "refused_points"):
+        assert mesh.stats[count] == surface.stats[count], count
+    check = mesh.check()
+    assert check["conforming"] and check["inverted"] == 0 and check["flat"] == 0
+    assert check["volume"] == pytest.approx(check["enclosed"], rel=1e-9)
+    # Inside the ellipsoid the region is closed: no walls; flipped, it is the box around it.
+    assert (len(mesh.walls) > 0) == bool(options.get("flip"))
+    total = float(signed_volumes(mesh.vertices, mesh.tets).sum())
+    assert total == pytest.approx(check["volume"], rel=1e-6)
+    quality = mesh.quality()
+    assert quality["tets"] == len(mesh.tets)
+    assert 0 < quality["min_dihedral"] <= quality["max_dihedral"] < 180
+    assert sum(quality["min_dihedral_histogram"]) == len(mesh.tets)
+
+
+def test_ternary_elements_are_better_than_marching_cubes() -> None:
+    a = ellipsoid()
+    mc = isocube.tetmesh(a).quality()
+    ternary = isocube.tetmesh(a, method="ternary").quality()
+    assert ternary["min_dihedral"] > 10 > mc["min_dihedral"]
+
+
+def test_arrays_are_read_only_views_that_keep_the_mesh() -> None:
+    mesh = isocube.tetmesh(ellipsoid())
+    tets = mesh.tets
+    assert not tets.flags.writeable and tets.dtype == np.uint32 and tets.shape[1] == 4
+    with pytest.raises(ValueError):
+        tets[0, 0] = 1
+    expected = tets.copy()
+    del mesh
+    assert np.array_equal(tets, expected)
+
+
+def test_labels_conform_across_their_interfaces() -> None:
+    seg = np.zeros((12, 10, 9), np.uint16)
+    seg[2:6, 2:8, 2:7] = 3
+    seg[6:10, 2:8, 2:7] = 7
+    mesh = isocube.tetmesh(seg, labels=True)
+    assert mesh.tet_labels is not None and mesh.interfaces is not None
+    assert mesh.interface_labels is not None and mesh.surface_labels is not None
+    assert set(np.unique(mesh.tet_labels)) == {3, 7}
+    assert (signed_volumes(mesh.vertices, mesh.tets) > 0).all()
+    # Each label's tetrahedra are closed by its surface triangles and the interfaces.
+    for label in (3, 7):
+        own = faces_once(mesh.tets[mesh.tet_labels == label])
+        bounding = triples(mesh.surface[mesh.surface_labels == label]) | triples(mesh.interfaces)
+        assert own == bounding
+    assert {tuple(p) for p in mesh.interface_labels} == {(3, 7)}
+    # Volumes: the voxels' (each label 4 × 6 × 5 cells' worth of dual cells).
+    volumes = signed_volumes(mesh.vertices, mesh.tets)
+    for label in (3, 7):
+        assert volumes[mesh.tet_labels == label].sum() == pytest.approx(4 * 6 * 5)
+    only = isocube.tetmesh(seg, labels=[7])
+    assert only.tet_labels is not None and set(np.unique(only.tet_labels)) == {7}
+
+
+def test_bad_input_names_the_reason() -> None:
+    with pytest.raises(isocube.InputError, match="no region"):
+        isocube.tetmesh(np.ones((4, 4, 4), np.float32), 0.0)
+    with pytest.raises(isocube.MemoryLimitError):
+        isocube.tetmesh(ellipsoid(), max_memory=1000)
+    with pytest.raises(isocube.InputError, match="does not occur"):
+        isocube.tetmesh(np.arange(27).reshape(3, 3, 3) % 2, labels=[5])
+    a = ellipsoid()
+    a[3, 4, 5] = np.nan
+    with pytest.raises(isocube.InputError, match="finite"):
+        isocube.tetmesh(a)
+    with pytest.raises(isocube.InputError, match="extension"):
+        isocube.tetmesh(ellipsoid()).save("mesh.xyz")
+
+
+def test_peers_read_the_mesh() -> None:
+    mesh = isocube.tetmesh(ellipsoid(), method="ternary")
+    enclosed = mesh.check()["enclosed"]
+    pytest.importorskip("pyvista")
+    grid = mesh.to_pyvista()
+    assert grid.n_cells == len(mesh.tets)
+    assert grid.volume == pytest.approx(enclosed, rel=1e-5)
+    pytest.importorskip("meshio")
+    m = mesh.to_meshio()
+    assert len(m.cells[0].data) == len(mesh.tets)
+    assert len(m.cells[1].data) == len(mesh.surface) + len(mesh.walls)
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+@pytest.mark.parametrize(
+    "options,flags",
+    [
+        ({}, []),
+        ({"method": "ternary", "snap": 0.4}, ["--method", "ternary", "--snap", "0.4"]),
+        ({"flip": True, "level": 0.1}, ["--flip", "--level", "0.1"]),
+    ],
+)
+def test_files_are_the_command_lines_bytes(
+    tmp_path: Path, order: Literal["C", "F"], options: dict[str, Any], flags: list[str]
+) -> None:
+    npy = tmp_path / "volume.npy"
+    np.save(npy, ellipsoid(order))
+    mesh = isocube.tetmesh(np.load(npy), **options)
+    for name, binary, extra in [
+        ("a.msh", False, []),
+        ("b.msh", True, ["--binary"]),
+        ("c.vtu", False, []),
+        ("d.mesh", False, []),
+        ("e.inp", False, []),
+    ]:
+        ours, theirs = tmp_path / f"python-{name}", tmp_path / f"cli-{name}"
+        mesh.save(ours, binary=binary)
+        subprocess.run(
+            [cli(), "tetmesh", str(npy), "-o", str(theirs), *flags, *extra, "--quiet"],
+            check=True,
+            capture_output=True,
+        )
+        assert ours.read_bytes() == theirs.read_bytes(), name
+
+
+def test_label_files_are_the_command_lines_bytes(tmp_path: Path) -> None:
+    seg = np.zeros((12, 10, 9), np.int32)
+    seg[2:6, 2:8, 2:7] = 1
+    seg[6:10, 3:8, 2:6] = 2
+    npy = tmp_path / "labels.npy"
+    np.save(npy, seg)
+    ours, theirs = tmp_path / "python.msh", tmp_path / "cli.msh"
+    isocube.tetmesh(seg, labels=True).save(ours)
+    subprocess.run(
+        [cli(), "tetmesh", str(npy), "-o", str(theirs), "--labels", "--quiet"],
+        check=True,
+        capture_output=True,
+    )
+    assert ours.read_bytes() == theirs.read_bytes()
