@@ -136,3 +136,37 @@ def tetmesh(
     background: int,
     max_memory: int | None,
 ) -> TetMesh: ...
+def contours_read(path: str) -> list[tuple[float, list[npt.NDArray[np.float64]]]]: ...
+def contours_reconstruct(
+    path: str | None,
+    sections: list[tuple[float, list[npt.NDArray[np.float64]]]] | None,
+    *,
+    cell: float | None,
+    grid: tuple[int, int] | None,
+    cap: str,
+    extend: float | None,
+    plain: bool,
+    triangulate: str,
+    max_memory: int | None,
+) -> tuple[
+    npt.NDArray[np.float32],
+    npt.NDArray[np.uint32],
+    npt.NDArray[np.float32],
+    dict[str, float],
+]: ...
+def contours_tetmesh(
+    path: str | None,
+    sections: list[tuple[float, list[npt.NDArray[np.float64]]]] | None,
+    *,
+    cell: float | None,
+    grid: tuple[int, int] | None,
+    cap: str,
+    extend: float | None,
+    layer_spacing: str | None,
+    method: str,
+    snap: float,
+    zero_threshold: float,
+    snap_position: str,
+    triangulate: str,
+    max_memory: int | None,
+) -> TetMesh: ...

@@ -22,6 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
+mod contours;
 mod tets;
 
 create_exception!(
@@ -656,6 +657,9 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(label_surfaces, m)?)?;
     m.add_function(wrap_pyfunction!(tets::tetmesh, m)?)?;
     m.add_class::<tets::PyTetMesh>()?;
+    m.add_function(wrap_pyfunction!(contours::reconstruct, m)?)?;
+    m.add_function(wrap_pyfunction!(contours::tetmesh, m)?)?;
+    m.add_function(wrap_pyfunction!(contours::read, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;

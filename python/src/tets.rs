@@ -54,6 +54,12 @@ fn borrowed_1d<'py>(
     Ok(array)
 }
 
+impl PyTetMesh {
+    pub(crate) fn new(mesh: TetMesh, seconds: f64) -> PyTetMesh {
+        PyTetMesh { mesh, seconds }
+    }
+}
+
 #[pymethods]
 impl PyTetMesh {
     /// Vertex positions, `(V, 3)` `float32`: the surface's vertices first, then grid points
@@ -195,7 +201,7 @@ impl PyTetMesh {
     }
 }
 
-fn tet_error(e: TetError) -> PyErr {
+pub(crate) fn tet_error(e: TetError) -> PyErr {
     match e {
         TetError::Extract(e) => extract_error(e),
         e @ (TetError::Memory { .. } | TetError::TooManyVertices) => {

@@ -105,17 +105,10 @@ impl StackArgs {
                     "--cell {c}: expected a size > 0"
                 )))
             }
-            (Some([nx, ny]), None) => {
-                let (lo, hi, _) = stack.bounds();
-                let cell = ((hi[0] - lo[0]) / nx as f64).max((hi[1] - lo[1]) / ny as f64);
-                PlaneGrid::with_cell(stack, cell)
-            }
+            (Some(counts), None) => PlaneGrid::with_counts(stack, counts),
             (None, None) => PlaneGrid::across(stack, 100),
         };
-        // Only the cells the surface crosses are stored, but every grid row of every section
-        // has an entry, and indices along a row are 32-bit.
-        let rows = plane.dims[1].saturating_mul(stack.sections().len() + 2);
-        if plane.dims[0] > 1 << 30 || rows > 1 << 28 {
+        if !plane.indexable(stack.sections().len()) {
             return Err(Failure::input(anyhow::anyhow!(
                 "the plane grid would be {}×{} points over {} sections; use a coarser --grid or \
                  a larger --cell",
@@ -138,16 +131,7 @@ impl StackArgs {
             .as_slice()
         {
             ["none"] => Ok(Cap::Open),
-            ["extend"] => {
-                let z: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
-                let spacing = if z.len() > 1 {
-                    (z[z.len() - 1] - z[0]) / (z.len() - 1) as f64
-                } else {
-                    let (lo, hi, _) = stack.bounds();
-                    (hi[0] - lo[0]).max(hi[1] - lo[1]) / 4.0
-                };
-                Ok(Cap::Extend(spacing / 2.0))
-            }
+            ["extend"] => Ok(Cap::extended(stack)),
             ["extend", d] => match d.parse::<f64>() {
                 Ok(v) if v.is_finite() && v > 0.0 => Ok(Cap::Extend(v)),
                 _ => Err(bad(format!("--cap extend: '{d}' is not a distance > 0"))),

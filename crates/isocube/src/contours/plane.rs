@@ -35,6 +35,30 @@ impl PlaneGrid {
         }
     }
 
+    /// A grid of square cells, at most `counts[0]` × `counts[1]` of them over the contours'
+    /// bounding box (the cell fits the tighter axis).
+    ///
+    /// ```
+    /// use isocube::contours::{PlaneGrid, SectionStack};
+    /// let stack = SectionStack::sample_orebody();
+    /// let plane = PlaneGrid::with_counts(&stack, [60, 60]);
+    /// assert_eq!(plane.spacing, PlaneGrid::across(&stack, 60).spacing);
+    /// ```
+    pub fn with_counts(stack: &SectionStack, counts: [usize; 2]) -> PlaneGrid {
+        let (lo, hi, _) = stack.bounds();
+        let [nx, ny] = counts.map(|n| n.max(1) as f64);
+        let cell = ((hi[0] - lo[0]) / nx).max((hi[1] - lo[1]) / ny);
+        PlaneGrid::with_cell(stack, cell)
+    }
+
+    /// Whether a stack of `sections` can be sampled on this grid: only the cells the surface
+    /// crosses are stored, but every grid row of every section (and the caps) has an entry,
+    /// and indices along a row are 32-bit.
+    pub fn indexable(&self, sections: usize) -> bool {
+        let rows = self.dims[1].saturating_mul(sections + 2);
+        self.dims[0] <= 1 << 30 && rows <= 1 << 28
+    }
+
     /// A grid with about `cells` cells across the longer side of the contours' bounding box.
     pub fn across(stack: &SectionStack, cells: usize) -> PlaneGrid {
         let (lo, hi, _) = stack.bounds();

@@ -21,6 +21,28 @@ pub enum Cap {
 }
 
 impl Cap {
+    /// The default caps: the body extended beyond each end section by half the mean section
+    /// spacing (a quarter of the contours' larger extent for a single section), as geologists
+    /// extrapolate ore bodies.
+    ///
+    /// ```
+    /// use isocube::contours::{Cap, SectionStack};
+    /// let square = |s: f64| vec![[-s, -s], [s, -s], [s, s], [-s, s]];
+    /// let stack = SectionStack::from_points(vec![(0.0, vec![square(1.0)]), (4.0, vec![square(1.0)])])
+    ///     .unwrap();
+    /// assert_eq!(Cap::extended(&stack), Cap::Extend(2.0));
+    /// ```
+    pub fn extended(stack: &SectionStack) -> Cap {
+        let z: Vec<f64> = stack.sections().iter().map(|s| s.z()).collect();
+        let spacing = if z.len() > 1 {
+            (z[z.len() - 1] - z[0]) / (z.len() - 1) as f64
+        } else {
+            let (lo, hi, _) = stack.bounds();
+            (hi[0] - lo[0]).max(hi[1] - lo[1]) / 4.0
+        };
+        Cap::Extend(spacing / 2.0)
+    }
+
     /// The distance the body is extended beyond the end sections, if any (checked).
     pub(crate) fn extension(self) -> Result<Option<f64>, ExtractError> {
         match self {
