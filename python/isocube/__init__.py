@@ -30,6 +30,7 @@ from ._isocube import label_surfaces as _label_surfaces
 from ._isocube import marching_cubes as _marching_cubes
 from ._isocube import read_volume as _read_volume
 from ._mesh import Mesh
+from ._subdiv import PolyMesh, subdivide
 from ._tets import TetMesh, tetmesh
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "InputError",
     "MemoryLimitError",
     "Mesh",
+    "PolyMesh",
     "TetMesh",
     "Volume",
     "__version__",
@@ -46,6 +48,7 @@ __all__ = [
     "label_surfaces",
     "marching_cubes",
     "read_volume",
+    "subdivide",
     "tetmesh",
 ]
 

@@ -23,6 +23,7 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 
 mod contours;
+mod subdiv;
 mod tets;
 
 create_exception!(
@@ -660,6 +661,9 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(contours::reconstruct, m)?)?;
     m.add_function(wrap_pyfunction!(contours::tetmesh, m)?)?;
     m.add_function(wrap_pyfunction!(contours::read, m)?)?;
+    m.add_class::<subdiv::PyPolyMesh>()?;
+    m.add_function(wrap_pyfunction!(subdiv::poly_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(subdiv::read, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;
