@@ -31,6 +31,7 @@ from ._isocube import marching_cubes as _marching_cubes
 from ._isocube import read_volume as _read_volume
 from ._mesh import Mesh
 from ._subdiv import PolyMesh, subdivide
+from ._tables import tables
 from ._tets import TetMesh, tetmesh
 
 __all__ = [
@@ -49,6 +50,7 @@ __all__ = [
     "marching_cubes",
     "read_volume",
     "subdivide",
+    "tables",
     "tetmesh",
 ]
 

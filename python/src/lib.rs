@@ -664,10 +664,84 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<subdiv::PyPolyMesh>()?;
     m.add_function(wrap_pyfunction!(subdiv::poly_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(subdiv::read, m)?)?;
+    m.add_function(wrap_pyfunction!(tables, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;
     m.add("MemoryLimitError", m.py().get_type::<MemoryLimitError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
+}
+
+/// The classes of the cube's configurations under a symmetry group (`isocube tables`): one
+/// row per configuration, as columns, or (with `polygons`) the derived table's polygons per
+/// configuration as the command's TSV text.
+#[pyfunction]
+#[pyo3(signature = (kind, group, polygons))]
+fn tables<'py>(
+    py: Python<'py>,
+    kind: &str,
+    group: &str,
+    polygons: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    use isocube::cube::{ClassTable, ConfigKind, Group, TernaryTable};
+    let kind = match kind {
+        "binary" => ConfigKind::Binary,
+        "ternary" => ConfigKind::Ternary,
+        other => {
+            return Err(InputError::new_err(format!(
+                "kind '{other}': expected 'binary' or 'ternary'"
+            )))
+        }
+    };
+    if polygons {
+        let mut text = Vec::new();
+        let table = TernaryTable::get();
+        match kind {
+            ConfigKind::Ternary => table.write_tsv(&mut text),
+            ConfigKind::Binary => table.write_binary_tsv(&mut text),
+        }
+        .map_err(|e| Error::new_err(e.to_string()))?;
+        let text = String::from_utf8(text).map_err(|e| Error::new_err(e.to_string()))?;
+        return Ok(text.into_pyobject(py)?.into_any());
+    }
+    let table = ClassTable::get(kind, parse::<Group>(group)?);
+    let entries = table.entries();
+    let column = |f: &dyn Fn(&isocube::cube::ConfigEntry) -> i64| {
+        PyArray1::from_vec(py, entries.iter().map(f).collect::<Vec<i64>>())
+    };
+    let d = PyDict::new(py);
+    d.set_item(
+        "config",
+        PyArray1::from_vec(py, (0..entries.len() as i64).collect::<Vec<i64>>()),
+    )?;
+    d.set_item("representative", column(&|e| i64::from(e.representative)))?;
+    d.set_item("class", column(&|e| i64::from(e.class)))?;
+    d.set_item("orbit_size", column(&|e| i64::from(e.orbit_size)))?;
+    d.set_item("flip_class", column(&|e| i64::from(e.flip_class)))?;
+    let perms: Vec<[u8; 8]> = entries.iter().map(|e| e.perm()).collect();
+    let n = perms.len();
+    let flat: Vec<u8> = perms.into_iter().flatten().collect();
+    d.set_item("perm", PyArray1::from_vec(py, flat).reshape([n, 8])?)?;
+    d.set_item(
+        "flipped",
+        PyArray1::from_vec(
+            py,
+            entries
+                .iter()
+                .map(|e| e.transform.flip)
+                .collect::<Vec<bool>>(),
+        ),
+    )?;
+    d.set_item(
+        "reversed",
+        PyArray1::from_vec(
+            py,
+            entries
+                .iter()
+                .map(|e| e.transform.reverses_winding())
+                .collect::<Vec<bool>>(),
+        ),
+    )?;
+    Ok(d.into_any())
 }
