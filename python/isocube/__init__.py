@@ -16,7 +16,7 @@ the meshes come back as arrays that own the engine's buffers.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,6 +30,7 @@ from ._isocube import label_surfaces as _label_surfaces
 from ._isocube import marching_cubes as _marching_cubes
 from ._isocube import read_volume as _read_volume
 from ._mesh import Mesh
+from ._progress import _progress_bar
 from ._subdiv import PolyMesh, subdivide
 from ._tables import tables
 from ._tets import TetMesh, tetmesh
@@ -72,6 +73,7 @@ def extract(
     values: bool = False,
     max_memory: int | None = None,
     direction: ArrayLike | None = None,
+    progress: bool | Callable[[int, int], object] = False,
 ) -> Mesh:
     """Extracts the isosurface of `volume` at `level`.
 
@@ -107,6 +109,11 @@ def extract(
         How the array's axes lie in the world (column ``a``: the unit vector of axis ``a``, as
         :func:`read_volume` gives it): vertices are turned about `origin`, normals with them,
         and a reflection keeps the triangles facing the side above the level.
+    progress : bool or callable
+        ``True`` shows a progress bar (tqdm's if installed, else a line on stderr); a callable
+        is called as ``progress(cells_done, cells_total)`` a few times a second while the work
+        runs (an exception it raises stops the work and is raised here). Ctrl-C stops the work
+        within a fraction of a second either way (``KeyboardInterrupt``).
 
     Returns
     -------
@@ -130,23 +137,25 @@ def extract(
     True
     """
     a = _volume(volume)
-    v, t, n, vals, stats = _extract(
-        a,
-        float(level),
-        spacing=_triple("spacing", spacing),
-        origin=_triple("origin", origin),
-        method=method,
-        topology=topology,
-        triangulate=triangulate,
-        snap=float(snap),
-        zero_threshold=float(zero_threshold),
-        snap_position=snap_position,
-        flip=bool(flip),
-        normals=bool(normals),
-        values=bool(values),
-        max_memory=max_memory,
-        direction=None if direction is None else _matrix(direction),
-    )
+    with _progress_bar(progress, "isocube.extract") as report:
+        v, t, n, vals, stats = _extract(
+            a,
+            float(level),
+            spacing=_triple("spacing", spacing),
+            origin=_triple("origin", origin),
+            method=method,
+            topology=topology,
+            triangulate=triangulate,
+            snap=float(snap),
+            zero_threshold=float(zero_threshold),
+            snap_position=snap_position,
+            flip=bool(flip),
+            normals=bool(normals),
+            values=bool(values),
+            max_memory=max_memory,
+            direction=None if direction is None else _matrix(direction),
+            progress=report,
+        )
     return Mesh(v, t, n, vals, stats)
 
 

@@ -1,5 +1,7 @@
 """Type stubs of the extension module (see isocube/__init__.py for the documented API)."""
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 
@@ -27,6 +29,7 @@ def extract(
     values: bool,
     max_memory: int | None,
     direction: list[list[float]] | None = None,
+    progress: Callable[[int, int], object] | None = None,
 ) -> tuple[
     npt.NDArray[np.float32],
     npt.NDArray[np.uint32],

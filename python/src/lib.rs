@@ -257,17 +257,28 @@ fn run(
     order: [usize; 3],
     options: &ExtractOptions,
     values: bool,
+    report: Option<Py<PyAny>>,
 ) -> PyResult<Run> {
     let mut mesh = Mesh::new();
     let mut interrupted: Option<PyErr> = None;
     let result = py.detach(|| {
-        let mut last = Instant::now();
-        let mut progress = |_: usize, _: usize| {
-            if last.elapsed() < SIGNAL_CHECK {
+        // The first report at once (a bar appears as the work starts), then a few a second.
+        let mut last: Option<Instant> = None;
+        let mut progress = |done: usize, total: usize| {
+            if last.is_some_and(|t| t.elapsed() < SIGNAL_CHECK) {
                 return ControlFlow::Continue(());
             }
-            last = Instant::now();
-            match Python::attach(|py| py.check_signals()) {
+            last = Some(Instant::now());
+            // Ctrl-C first; then the caller's progress report (an exception it raises stops
+            // the work too).
+            let asked = Python::attach(|py| {
+                py.check_signals()?;
+                if let Some(report) = &report {
+                    report.call1(py, (done, total))?;
+                }
+                Ok(())
+            });
+            match asked {
                 Ok(()) => ControlFlow::Continue(()),
                 Err(e) => {
                     interrupted = Some(e);
@@ -300,7 +311,7 @@ fn run(
 #[pyfunction]
 #[pyo3(signature = (
     volume, level, *, spacing, origin, method, topology, triangulate, snap, zero_threshold,
-    snap_position, flip, normals, values, max_memory, direction=None
+    snap_position, flip, normals, values, max_memory, direction=None, progress=None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn extract<'py>(
@@ -320,6 +331,7 @@ fn extract<'py>(
     values: bool,
     max_memory: Option<u64>,
     direction: Option<[[f64; 3]; 3]>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Extracted<'py>> {
     let (grid, order) = view_of(&volume, spacing, origin)?;
     let turn = direction
@@ -356,7 +368,7 @@ fn extract<'py>(
         stats,
         values,
         seconds,
-    } = run(py, grid, order, &options, values)?;
+    } = run(py, grid, order, &options, values, progress)?;
     // Turned into the world after the values are found in the array's frame.
     if let Some(turn) = turn {
         turn.orient_mesh(&mut mesh, origin);
@@ -449,7 +461,7 @@ fn marching_cubes<'py>(
         .with_topology(parse(topology)?);
     let Run {
         mut mesh, values, ..
-    } = run(py, grid, order, &options, true)?;
+    } = run(py, grid, order, &options, true, None)?;
     if mesh.triangles.is_empty() {
         let (lo, hi) = py.detach(|| value_range(&grid));
         // The level as given (in double precision, as scikit-image compares it).

@@ -176,29 +176,69 @@ def test_two_threads_extract_at_once() -> None:
         assert np.array_equal(mesh.triangles, reference.triangles)
 
 
-def test_ctrl_c_stops_the_work_soon() -> None:
-    if threading.current_thread() is not threading.main_thread():
-        pytest.skip("signals reach the main thread only")
-    # Large enough to take well over the interrupt's delay on any machine. (Marching Cubes: the
-    # ternary pre-pass over the whole volume does not stop yet.)
-    n = 320
+def wavy(n: int) -> np.ndarray:
     x = np.linspace(-1, 1, n, dtype=np.float32)
-    volume = (
+    volume: np.ndarray = (
         np.sin(9 * x)[:, None, None] * np.cos(7 * x)[None, :, None] + np.sin(8 * x)[None, None, :]
     )
+    return volume
+
+
+@pytest.mark.parametrize("method,share", [("mc", 0.25), ("ternary", 0.25), ("ternary", 0.05)])
+def test_ctrl_c_stops_the_work_soon(method: str, share: float) -> None:
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals reach the main thread only")
+    # Large enough to take well over the interrupt's delay on any machine. Ternary at 5 %:
+    # while snapped points are chosen, before any cell is meshed.
+    volume = wavy(320)
     start = time.perf_counter()
-    isocube.extract(volume, 0.1)
+    isocube.extract(volume, 0.1, method=method)
     whole = time.perf_counter() - start
-    delay = whole / 4
+    delay = whole * share
     timer = threading.Timer(delay, lambda: os.kill(os.getpid(), signal.SIGINT))
     start = time.perf_counter()
     timer.start()
     with pytest.raises(KeyboardInterrupt):
-        isocube.extract(volume, 0.1)
+        isocube.extract(volume, 0.1, method=method)
     stopped = time.perf_counter() - start
     timer.join()
     # Stopped within 0.2 s of the signal, and before the work would have finished.
     assert stopped < delay + 0.2 and stopped < whole, (delay, stopped, whole)
+
+
+@pytest.mark.parametrize("method", ["mc", "ternary"])
+def test_progress_is_told_and_can_stop_the_work(method: str) -> None:
+    volume = wavy(256)
+    calls: list[tuple[int, int]] = []
+    mesh = isocube.extract(volume, 0.1, method=method, progress=lambda d, t: calls.append((d, t)))
+    cells = mesh.stats["cells"]
+    assert calls and all(t == cells and 0 <= d <= t for d, t in calls)
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls)
+
+    class Enough(Exception):
+        pass
+
+    def stop(done: int, total: int) -> None:
+        raise Enough
+
+    with pytest.raises(Enough):
+        isocube.extract(volume, 0.1, method=method, progress=stop)
+
+
+def test_progress_bars_with_and_without_tqdm(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    volume = wavy(256)
+    expected = isocube.extract(volume, 0.1)
+    pytest.importorskip("tqdm")
+    with_bar = isocube.extract(volume, 0.1, progress=True)
+    assert np.array_equal(with_bar.triangles, expected.triangles)
+    # Without tqdm: a percentage on stderr.
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    capsys.readouterr()
+    plain = isocube.extract(volume, 0.1, progress=True)
+    assert np.array_equal(plain.triangles, expected.triangles)
+    assert "isocube.extract:" in capsys.readouterr().err
 
 
 # Run in a fresh interpreter per array, so no memory an earlier run freed is counted as free.

@@ -451,7 +451,7 @@ pub fn extract_boxes_into<'a>(
     progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExtractStats, ExtractError> {
     let grid = grid.into();
-    let extractor = Extractor::new(grid, options)?;
+    let extractor = Extractor::with_progress(grid, options, progress)?;
     let total: usize = boxes.iter().map(|b| b.cell_count()).sum();
     // Boxes are meshed a batch at a time so that progress is told, and a stop honoured, while
     // the work runs: some 32 batches, each enough to keep every thread busy.
@@ -535,6 +535,33 @@ impl<'a> Extractor<'a> {
         grid: impl Into<GridView<'a>>,
         options: &ExtractOptions,
     ) -> Result<Extractor<'a>, ExtractError> {
+        Extractor::with_progress(grid, options, &mut crate::no_progress)
+    }
+
+    /// [`Extractor::new`], telling `progress` (no cells done yet, of the total) between
+    /// stretches of the work over the whole grid — ternary snapping's choice of points, a
+    /// fraction of a second on a 384³ grid, seconds on larger ones — and stopping with
+    /// [`ExtractError::Cancelled`] when it says so.
+    ///
+    /// ```
+    /// use std::ops::ControlFlow;
+    /// use isocube::extract::{ExtractError, ExtractOptions, Extractor, Method, Snapping};
+    /// use isocube::field::Sample;
+    /// let grid = Sample::Gyroid.grid(48);
+    /// let options = ExtractOptions::default().with_method(Method::Ternary(Snapping::default()));
+    /// let mut asked = 0;
+    /// let stopped = Extractor::with_progress(&grid, &options, &mut |done, _| {
+    ///     assert_eq!(done, 0);
+    ///     asked += 1;
+    ///     if asked > 3 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+    /// });
+    /// assert!(matches!(stopped, Err(ExtractError::Cancelled)));
+    /// ```
+    pub fn with_progress(
+        grid: impl Into<GridView<'a>>,
+        options: &ExtractOptions,
+        progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
+    ) -> Result<Extractor<'a>, ExtractError> {
         let grid = grid.into();
         if !options.level.is_finite() {
             return Err(ExtractError::Level(options.level));
@@ -548,8 +575,12 @@ impl<'a> Extractor<'a> {
         };
         if let Method::Ternary(snapping) = options.method {
             snapping.validate()?;
+            let total = grid.cell_count();
+            if progress(0, total).is_break() {
+                return Err(ExtractError::Cancelled);
+            }
             let mut ternary = ternary::Ternary::new(grid, options, snapping);
-            extractor.snapping = ternary.choose_zeros();
+            extractor.snapping = ternary.choose_zeros(&mut || progress(0, total))?;
             extractor.ternary = Some(ternary);
         }
         Ok(extractor)

@@ -47,6 +47,7 @@
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::ops::ControlFlow;
 
 use crate::cube::triangulate::{may_join_on, safe_triangulation, star, ALL_FACES};
 use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
@@ -272,13 +273,27 @@ impl<'a> Ternary<'a> {
     }
 
     /// Decides the zero points. Returns (snapped, refused) counts.
-    pub(super) fn choose_zeros(&mut self) -> (usize, usize) {
-        self.choose_zeros_in_groups(true)
+    pub(super) fn choose_zeros(
+        &mut self,
+        check: &mut dyn FnMut() -> ControlFlow<()>,
+    ) -> Result<(usize, usize), ExtractError> {
+        self.choose_zeros_in_groups(true, check)
     }
 
     /// [`Ternary::choose_zeros`], checking independent points together (`grouped`) or strictly
     /// one after the other (the reference the grouping must reproduce).
-    pub(super) fn choose_zeros_in_groups(&mut self, grouped: bool) -> (usize, usize) {
+    /// `check` is asked between stretches of the work (a plane batch, a sort, a pass of the
+    /// groups), so that a stop is honoured within a fraction of the whole:
+    /// [`ExtractError::Cancelled`].
+    pub(super) fn choose_zeros_in_groups(
+        &mut self,
+        grouped: bool,
+        check: &mut dyn FnMut() -> ControlFlow<()>,
+    ) -> Result<(usize, usize), ExtractError> {
+        let mut stop = || match check() {
+            ControlFlow::Continue(()) => Ok(()),
+            ControlFlow::Break(()) => Err(ExtractError::Cancelled),
+        };
         let snapping = self.snapping;
         let values: &[f32] = &self.values;
         let level = f64::from(self.level);
@@ -294,9 +309,12 @@ impl<'a> Ternary<'a> {
         let strides = self.strides;
         let masks = &self.masks;
         let round = |t: f64| (t * 20.0).floor().min(10.0) as u64;
-        let planes: Vec<Vec<u64>> = (0..nz)
-            .into_par_iter()
-            .map(|k| {
+        // Planes in some 32 batches, each in parallel, the check between them.
+        let batch = nz.div_ceil(32).max(2 * rayon::current_num_threads());
+        let mut planes: Vec<Vec<u64>> = Vec::with_capacity(nz);
+        for first in (0..nz).step_by(batch) {
+            stop()?;
+            planes.par_extend((first..(first + batch).min(nz)).into_par_iter().map(|k| {
                 let mut near = Vec::new();
                 for j in 0..ny {
                     let row = nx * (j + ny * k);
@@ -350,10 +368,13 @@ impl<'a> Ternary<'a> {
                     }
                 }
                 near
-            })
-            .collect();
+            }));
+        }
+        stop()?;
         let mut near: Vec<u64> = planes.concat();
+        drop(planes);
         near.par_sort_unstable();
+        stop()?;
         near.dedup_by_key(|e| *e >> 4);
         // Then by round, by parity class, and by point: `round << 59 | class << 56 | point`
         // (points number fewer than 2^56: no grid that large fits in memory).
@@ -368,6 +389,7 @@ impl<'a> Ternary<'a> {
             })
             .collect();
         order.par_sort_unstable();
+        stop()?;
         // A point's check reads only the cells around it (points at most one step away), and
         // two points of one parity class are two steps apart along some axis: within a
         // (round, class) group the checks are independent, so each group is checked in
@@ -380,7 +402,7 @@ impl<'a> Ternary<'a> {
                 snapped += s;
                 refused += r;
             }
-            return (snapped, refused);
+            return Ok((snapped, refused));
         }
         let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
         for (i, e) in order.iter().enumerate() {
@@ -401,6 +423,7 @@ impl<'a> Ternary<'a> {
         let plane_of = move |p: usize| p / plane;
         let (mut snapped, mut refused) = (0, 0);
         for pass in 1.. {
+            stop()?;
             let mut left = false;
             for (g, range) in groups.iter_mut().enumerate() {
                 let Some(limit) = (pass * SLAB).checked_sub(g) else {
@@ -421,7 +444,7 @@ impl<'a> Ternary<'a> {
                 break;
             }
         }
-        (snapped, refused)
+        Ok((snapped, refused))
     }
 
     /// Checks independent candidates `members` (see [`Ternary::choose_zeros_in_groups`]) in

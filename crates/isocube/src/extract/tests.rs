@@ -772,7 +772,8 @@ mod ternary {
                 let zeros = |grouped: bool| {
                     let mut t =
                         super::super::ternary::Ternary::new(grid.view(), &options, snapping);
-                    t.choose_zeros_in_groups(grouped);
+                    t.choose_zeros_in_groups(grouped, &mut || std::ops::ControlFlow::Continue(()))
+                        .unwrap();
                     let placer = super::super::place::Placer::new(t.window(), &options);
                     let chunk = t
                         .mesh_box(&placer, options.flip, CellBox::whole(grid.dims()))
