@@ -65,12 +65,14 @@ def extract(
     method: str = "mc",
     topology: str = "mc33",
     triangulate: str = "fan",
+    relax: int = 0,
     snap: float = 0.3,
     zero_threshold: float = 0.0,
     snap_position: str = "crossing",
     flip: bool = False,
     normals: bool = True,
     values: bool = False,
+    chunk: tuple[int, int, int] | None = None,
     max_memory: int | None = None,
     direction: ArrayLike | None = None,
     progress: bool | Callable[[int, int], object] = False,
@@ -95,6 +97,9 @@ def extract(
         table's.
     triangulate : {'fan', 'local', 'optimal'}
         How each cell's polygons become triangles.
+    relax : int
+        Relaxation sweeps after extraction: vertices slide along the level set towards
+        better-shaped triangles (flips and splits keep the mesh close to it; none turns over).
     snap, zero_threshold, snap_position
         Ternary: snap a grid point when a crossing lies within this fraction of an edge; count
         values this close to the level as on it; put a snapped point's vertex on the grid point
@@ -103,6 +108,10 @@ def extract(
         Face the triangles towards the side below the level.
     normals, values : bool
         Compute vertex normals (from the gradient) and values (see :class:`Mesh`).
+    chunk : (int, int, int), optional
+        Mesh boxes of this many cells along each array axis, in parallel, joined by their
+        vertices' grid keys: the same mesh, array for array, as without (the unit of work for
+        volumes cut into chunks).
     max_memory : int, optional
         Refuse work whose mesh would need more bytes than this.
     direction : (3, 3) array_like, optional
@@ -155,8 +164,17 @@ def extract(
             max_memory=max_memory,
             direction=None if direction is None else _matrix(direction),
             progress=report,
+            relax=int(relax),
+            chunk=None if chunk is None else _chunk(chunk),
         )
     return Mesh(v, t, n, vals, stats)
+
+
+def _chunk(chunk: tuple[int, int, int]) -> tuple[int, int, int]:
+    c = tuple(int(x) for x in chunk)
+    if len(c) != 3 or min(c) < 1:
+        raise InputError(f"`chunk` must be three cell counts of at least 1, not {chunk}")
+    return (c[0], c[1], c[2])
 
 
 @dataclass
@@ -272,7 +290,8 @@ def marching_cubes(
         As scikit-image: with ``'descent'`` the triangles face the side above the level,
         with ``'ascent'`` the side below; the normals point down the gradient either way.
     step_size : int
-        Only 1 is supported so far (others raise ``NotImplementedError``).
+        Mesh every `step_size`-th point along each axis (a coarser, faster surface, still
+        watertight); the vertices stay in the full volume's index space, as scikit-image's.
     allow_degenerate : bool
         With ``False``, triangles of no area are removed.
     method : {'lewiner', 'lorensen'}
@@ -314,14 +333,21 @@ def marching_cubes(
     step_size = int(step_size)
     if step_size < 1:
         raise ValueError("step_size must be at least one.")
-    if step_size != 1:
-        raise NotImplementedError("isocube.marching_cubes meshes every cube: step_size=1 only")
     if gradient_direction not in ("descent", "ascent"):
         raise ValueError(
             f"Incorrect input {gradient_direction} in `gradient_direction`, see docstring."
         )
     if mask is not None and mask.shape != volume.shape:
         raise ValueError("volume and mask must have the same shape.")
+    if step_size > 1:
+        # Every step_size-th point: a strided view, read in place. The default level is the
+        # whole volume's, as scikit-image takes it.
+        if level is None:
+            a = _volume(volume)
+            level = float(np.float32(0.5) * (np.nanmin(a) + np.nanmax(a)))
+        volume = volume[::step_size, ::step_size, ::step_size]
+        if mask is not None:
+            mask = mask[::step_size, ::step_size, ::step_size]
     # The level's range check, the mesh, the faces' turn and dtype, in one pass of the engine.
     verts, faces, normals, values = _marching_cubes(
         _volume(volume), level, topology=topology, descent=gradient_direction == "descent"
@@ -335,6 +361,8 @@ def marching_cubes(
         keep = area2 > 0 if keep is None else keep & (area2 > 0)
     if keep is not None and not keep.all():
         verts, faces, normals, values = _compact(verts, faces[keep], normals, values)
+    if step_size > 1:
+        verts *= np.float32(step_size)
     if not np.array_equal(spacing, (1, 1, 1)):
         # As scikit-image: scaled after meshing (float64 results for float64 spacings).
         verts = verts * np.r_[spacing]

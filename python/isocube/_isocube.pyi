@@ -30,6 +30,8 @@ def extract(
     max_memory: int | None,
     direction: list[list[float]] | None = None,
     progress: Callable[[int, int], object] | None = None,
+    relax: int = 0,
+    chunk: tuple[int, int, int] | None = None,
 ) -> tuple[
     npt.NDArray[np.float32],
     npt.NDArray[np.uint32],

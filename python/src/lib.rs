@@ -10,8 +10,8 @@ use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 
 use isocube::extract::{
-    extract_into, extract_labels, ExtractError, ExtractOptions, ExtractStats, LabelOptions,
-    LabelSelection, Method, SnapPosition, Snapping,
+    extract_boxes_into, extract_into, extract_labels, CellBox, ExtractError, ExtractOptions,
+    ExtractStats, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
 };
 use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
@@ -258,6 +258,7 @@ fn run(
     options: &ExtractOptions,
     values: bool,
     report: Option<Py<PyAny>>,
+    chunk: Option<[usize; 3]>,
 ) -> PyResult<Run> {
     let mut mesh = Mesh::new();
     let mut interrupted: Option<PyErr> = None;
@@ -287,7 +288,14 @@ fn run(
             }
         };
         let started = Instant::now();
-        let stats = extract_into(grid, options, &mut mesh, &mut progress)?;
+        let stats = match chunk {
+            // Boxes of the array's axes, in the grid's (memory) order.
+            Some(size) => {
+                let boxes = CellBox::tile(grid.dims(), order.map(|w| size[w]))?;
+                extract_boxes_into(grid, options, &boxes, &mut mesh, &mut progress)?
+            }
+            None => extract_into(grid, options, &mut mesh, &mut progress)?,
+        };
         let values = values.then(|| vertex_values(&grid, order, &mesh.positions));
         Ok((stats, values, started.elapsed().as_secs_f64()))
     });
@@ -311,7 +319,8 @@ fn run(
 #[pyfunction]
 #[pyo3(signature = (
     volume, level, *, spacing, origin, method, topology, triangulate, snap, zero_threshold,
-    snap_position, flip, normals, values, max_memory, direction=None, progress=None
+    snap_position, flip, normals, values, max_memory, direction=None, progress=None, relax=0,
+    chunk=None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn extract<'py>(
@@ -332,6 +341,8 @@ fn extract<'py>(
     max_memory: Option<u64>,
     direction: Option<[[f64; 3]; 3]>,
     progress: Option<Py<PyAny>>,
+    relax: usize,
+    chunk: Option<[usize; 3]>,
 ) -> PyResult<Extracted<'py>> {
     let (grid, order) = view_of(&volume, spacing, origin)?;
     let turn = direction
@@ -362,13 +373,14 @@ fn extract<'py>(
         .with_topology(parse(topology)?)
         .with_triangulation(parse(triangulate)?)
         .with_method(method)
+        .with_relax(relax)
         .with_max_memory(max_memory);
     let Run {
         mut mesh,
         stats,
         values,
         seconds,
-    } = run(py, grid, order, &options, values, progress)?;
+    } = run(py, grid, order, &options, values, progress, chunk)?;
     // Turned into the world after the values are found in the array's frame.
     if let Some(turn) = turn {
         turn.orient_mesh(&mut mesh, origin);
@@ -461,7 +473,7 @@ fn marching_cubes<'py>(
         .with_topology(parse(topology)?);
     let Run {
         mut mesh, values, ..
-    } = run(py, grid, order, &options, true, None)?;
+    } = run(py, grid, order, &options, true, None, None)?;
     if mesh.triangles.is_empty() {
         let (lo, hi) = py.detach(|| value_range(&grid));
         // The level as given (in double precision, as scikit-image compares it).

@@ -326,3 +326,34 @@ def test_trimesh_and_pyvista_take_the_mesh_as_it_is() -> None:
     assert np.array_equal(p.point_data["values"], mesh.values)
     v, f, values = mesh.napari()
     assert v is mesh.vertices and f is mesh.triangles and values is mesh.values
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+@pytest.mark.parametrize("method", ["mc", "ternary"])
+def test_chunks_give_the_same_mesh(order: str, method: str) -> None:
+    a = np.asarray(wavy(37)[:, 3:34, 5:], order=order)  # type: ignore[call-overload]
+    whole = isocube.extract(a, 0.1, method=method)
+    for chunk in [(1, 1, 1), (5, 7, 3), (36, 2, 9), (100, 100, 100)]:
+        part = isocube.extract(a, 0.1, method=method, chunk=chunk)
+        for name in ("vertices", "triangles", "normals"):
+            assert np.array_equal(getattr(part, name), getattr(whole, name)), (chunk, name)
+    with pytest.raises(isocube.InputError, match="chunk"):
+        isocube.extract(a, 0.1, chunk=(0, 4, 4))
+
+
+def test_relaxed_meshes_are_the_command_lines(tmp_path: Path) -> None:
+    from .test_save import cli
+
+    npy = tmp_path / "volume.npy"
+    np.save(npy, sphere(40))
+    mesh = isocube.extract(np.load(npy), 0.0, method="ternary", relax=3)
+    plain = isocube.extract(np.load(npy), 0.0, method="ternary")
+    assert not np.array_equal(mesh.vertices, plain.vertices) and mesh.is_watertight()
+    ours, theirs = tmp_path / "python.ply", tmp_path / "cli.ply"
+    mesh.save(ours)
+    subprocess.run(
+        [cli(), "extract", str(npy), "-o", str(theirs), "--method", "ternary", "--relax", "3"],
+        check=True,
+        capture_output=True,
+    )
+    assert ours.read_bytes() == theirs.read_bytes()

@@ -188,3 +188,29 @@ def test_values_are_the_larger_end_of_each_vertexs_grid_edge(order: Literal["C",
     assert values.dtype == np.float32 and np.array_equal(values, expected)
     # A crossing's edge has one end at or above the level.
     assert (values >= level).all()
+
+
+@pytest.mark.parametrize("step", [2, 3])
+def test_step_size_meshes_every_nth_point_as_scikit_image(step: int) -> None:
+    x, y, z = np.mgrid[-1:1:40j, -1:1:41j, -1:1:43j]
+    volume = (x**2 + (1.2 * y) ** 2 + z**2).astype(np.float32)
+    spacing = (1.0, 0.5, 2.0)
+    verts, faces, normals, values = marching_cubes(volume, 0.5, spacing=spacing, step_size=step)
+    theirs = skimage_measure.marching_cubes(volume, 0.5, spacing=spacing, step_size=step)
+    assert verts.dtype == theirs[0].dtype and faces.dtype == theirs[1].dtype
+    # The same vertices (within rounding of the scaling) and a closed surface of the same area.
+    ours_sorted = np.unique(verts, axis=0)
+    theirs_sorted = np.unique(theirs[0], axis=0)
+    assert ours_sorted.shape == theirs_sorted.shape
+    assert np.abs(ours_sorted - theirs_sorted).max() < 1e-5
+    assert edge_counts(faces) == (0, 0)
+    area = skimage_measure.mesh_surface_area(verts, faces)
+    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-5)
+    # The coarse mesh is the fine one of the subsampled volume, scaled.
+    coarse = marching_cubes(volume[::step, ::step, ::step], 0.5)[0] * step * np.asarray(spacing)
+    assert np.allclose(np.unique(coarse, axis=0), ours_sorted, atol=1e-5)
+    # A mask applies to the cubes of the coarse grid.
+    mask = np.zeros(volume.shape, dtype=bool)
+    mask[20:] = True
+    masked = marching_cubes(volume, 0.5, step_size=step, mask=mask)[0]
+    assert 0 < len(masked) < len(verts) and masked[:, 0].min() >= 20 - step - 1e-6
