@@ -436,13 +436,17 @@ impl<'a> BinaryCells<'a> {
         let fan = options.triangulation == Strategy::Fan;
         let sheet = |p: &[Corner]| face_square_start(p, at.v, level);
         // Crossings on points of a face can join across it: the table's chord may be the
-        // diagonal the cell across does not draw.
+        // diagonal the cell across does not draw. Only crossings on grid points (a corner's
+        // value the level) can: where no corner is at the level, as in most cells, there is
+        // nothing to look for.
+        let on_level = at.v.contains(&level);
         let across = |p: &[Corner]| {
-            p.iter().enumerate().any(|(i, &a)| {
-                p[i + 1..]
-                    .iter()
-                    .any(|&b| off_face_diagonal(a, b, at.v, level))
-            })
+            on_level
+                && p.iter().enumerate().any(|(i, &a)| {
+                    p[i + 1..]
+                        .iter()
+                        .any(|&b| off_face_diagonal(a, b, at.v, level))
+                })
         };
         if tunnel.is_none() && (!fan || table.polygons(config, decisions).any(across)) {
             let bounds = self.interior_bounds(at.cell);
