@@ -8,14 +8,14 @@ use isocube::contours::{
     reconstruct_with, tetmesh as mesh_body, Cap, Fidelity, PlaneGrid, ReconstructOptions,
     SectionStack,
 };
-use isocube::extract::{ExtractError, ExtractOptions, Method, SnapPosition, Snapping};
+use isocube::extract::{ExtractError, ExtractOptions};
 use isocube::mesh::Mesh;
 use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::tets::{tet_error, PyTetMesh};
-use crate::{extract_error, parse, rows_array, FormatError, InputError};
+use crate::{extract_error, method_of, parse, rows_array, FormatError, InputError};
 
 /// A stack given as sections `(z, [contour, ...])`, each contour an `(n, 2)` array of
 /// `float64` points (closed implicitly: the last point joins the first).
@@ -214,20 +214,7 @@ pub(crate) fn tetmesh(
             }
         },
     };
-    let method = match method {
-        "mc" => Method::MarchingCubes,
-        "ternary" => Method::Ternary(
-            Snapping::default()
-                .with_snap(snap)
-                .with_zero_threshold(zero_threshold)
-                .with_position(parse::<SnapPosition>(snap_position)?),
-        ),
-        other => {
-            return Err(InputError::new_err(format!(
-                "unknown method '{other}': expected mc or ternary"
-            )))
-        }
-    };
+    let method = method_of(method, snap, zero_threshold, snap_position)?;
     let options = ExtractOptions::default()
         .with_normals(false)
         .with_triangulation(parse(triangulate)?)

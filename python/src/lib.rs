@@ -91,6 +91,27 @@ where
         .map_err(|e: T::Err| InputError::new_err(e.to_string()))
 }
 
+/// The extraction method by name: `mc`, or `ternary` with its snapping options.
+fn method_of(
+    method: &str,
+    snap: f32,
+    zero_threshold: f32,
+    snap_position: &str,
+) -> PyResult<Method> {
+    match method {
+        "mc" => Ok(Method::MarchingCubes),
+        "ternary" => Ok(Method::Ternary(
+            Snapping::default()
+                .with_snap(snap)
+                .with_zero_threshold(zero_threshold)
+                .with_position(parse::<SnapPosition>(snap_position)?),
+        )),
+        other => Err(InputError::new_err(format!(
+            "unknown method '{other}': expected mc or ternary"
+        ))),
+    }
+}
+
 fn extract_error(e: ExtractError) -> PyErr {
     match e {
         ExtractError::MemoryLimit { .. } | ExtractError::MeshMemory { .. } => {
@@ -352,20 +373,7 @@ fn extract<'py>(
             })
         })
         .transpose()?;
-    let method = match method {
-        "mc" => Method::MarchingCubes,
-        "ternary" => Method::Ternary(
-            Snapping::default()
-                .with_snap(snap)
-                .with_zero_threshold(zero_threshold)
-                .with_position(parse::<SnapPosition>(snap_position)?),
-        ),
-        other => {
-            return Err(InputError::new_err(format!(
-                "unknown method '{other}': expected mc or ternary"
-            )))
-        }
-    };
+    let method = method_of(method, snap, zero_threshold, snap_position)?;
     let options = ExtractOptions::default()
         .with_level(level)
         .with_flip(flip)

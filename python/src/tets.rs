@@ -4,9 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use isocube::extract::{
-    ExtractOptions, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
-};
+use isocube::extract::{ExtractOptions, LabelOptions, LabelSelection};
 use isocube::field::Orientation;
 use isocube::volume::{tetmesh as mesh_region, tetmesh_labels, TetError, TetMesh};
 use isocube_io::TetFormat;
@@ -16,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::{
-    extract_error, index_order_view, parse, view_of, Error, FormatError, InputError,
+    extract_error, index_order_view, method_of, parse, view_of, Error, FormatError, InputError,
     MemoryLimitError,
 };
 
@@ -272,20 +270,7 @@ pub(crate) fn tetmesh(
                 grid.with_orientation(Orientation::new(turned).expect("a turn of the axes"))
             }
         };
-        let method = match method {
-            "mc" => Method::MarchingCubes,
-            "ternary" => Method::Ternary(
-                Snapping::default()
-                    .with_snap(snap)
-                    .with_zero_threshold(zero_threshold)
-                    .with_position(parse::<SnapPosition>(snap_position)?),
-            ),
-            other => {
-                return Err(InputError::new_err(format!(
-                    "unknown method '{other}': expected mc or ternary"
-                )))
-            }
-        };
+        let method = method_of(method, snap, zero_threshold, snap_position)?;
         let options = ExtractOptions::default()
             .with_level(level)
             .with_flip(flip)

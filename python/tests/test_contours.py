@@ -44,6 +44,18 @@ def write_csv(path: Path, stack: list[tuple[float, list[np.ndarray]]]) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
+def command_file(tmp_path: Path, command: str, flags: list[str], name: str) -> tuple[Path, Path]:
+    """The stack written as CSV, and the file `isocube COMMAND` makes from it with `flags`."""
+    csv, out = tmp_path / "stack.csv", tmp_path / name
+    write_csv(csv, sections())
+    subprocess.run(
+        [cli(), command, str(csv), "-o", str(out), *flags, "--quiet"],
+        check=True,
+        capture_output=True,
+    )
+    return csv, out
+
+
 def boundary_edges(triangles: np.ndarray) -> int:
     t = triangles.astype(np.int64)
     e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
@@ -133,14 +145,7 @@ def test_read_gives_the_files_sections(tmp_path: Path) -> None:
 def test_surfaces_are_the_command_lines_bytes(
     tmp_path: Path, options: dict[str, Any], flags: list[str]
 ) -> None:
-    csv = tmp_path / "stack.csv"
-    write_csv(csv, sections())
-    theirs = tmp_path / "cli.ply"
-    subprocess.run(
-        [cli(), "contours", str(csv), "-o", str(theirs), *flags, "--quiet"],
-        check=True,
-        capture_output=True,
-    )
+    csv, theirs = command_file(tmp_path, "contours", flags, "cli.ply")
     stacks: list[contours.Stack] = [csv, contours.read(csv)]
     for i, stack in enumerate(stacks):
         ours = tmp_path / f"python-{i}.ply"
@@ -161,14 +166,7 @@ def test_surfaces_are_the_command_lines_bytes(
 def test_volume_meshes_are_the_command_lines_bytes(
     tmp_path: Path, options: dict[str, Any], flags: list[str]
 ) -> None:
-    csv = tmp_path / "stack.csv"
-    write_csv(csv, sections())
-    theirs = tmp_path / "cli.msh"
-    subprocess.run(
-        [cli(), "tetmesh", str(csv), "-o", str(theirs), *flags, "--quiet"],
-        check=True,
-        capture_output=True,
-    )
+    csv, theirs = command_file(tmp_path, "tetmesh", flags, "cli.msh")
     body = contours.tetmesh(contours.read(csv), **options)
     check = body.check()
     assert check["conforming"] and check["inverted"] == 0
