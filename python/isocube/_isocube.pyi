@@ -140,6 +140,7 @@ def tetmesh(
     only: list[int] | None,
     background: int,
     max_memory: int | None,
+    progress: Callable[[int, int], object] | None = None,
 ) -> TetMesh: ...
 def contours_read(path: str) -> list[tuple[float, list[npt.NDArray[np.float64]]]]: ...
 def contours_reconstruct(

@@ -270,21 +270,19 @@ struct Run {
     seconds: f64,
 }
 
-/// Extracts with the GIL released, asking Python every [`SIGNAL_CHECK`] whether Ctrl-C was
-/// pressed (then the work stops and the `KeyboardInterrupt` is raised).
-fn run(
+/// Runs `work` with the GIL released, handing it a progress function that asks Python, at
+/// once and then every [`SIGNAL_CHECK`], whether Ctrl-C was pressed and tells `report` (a
+/// Python callable taking `(done, total)`) where the work is. When either stops the work
+/// (`work`'s error is then one `cancelled` recognises), the result is the `KeyboardInterrupt`
+/// or the exception `report` raised; other errors are `work`'s own.
+pub(crate) fn interruptible<T: Send, E: Send>(
     py: Python<'_>,
-    grid: GridView<'_>,
-    order: [usize; 3],
-    options: &ExtractOptions,
-    values: bool,
     report: Option<Py<PyAny>>,
-    chunk: Option<[usize; 3]>,
-) -> PyResult<Run> {
-    let mut mesh = Mesh::new();
+    cancelled: impl Fn(&E) -> bool,
+    work: impl FnOnce(&mut dyn FnMut(usize, usize) -> ControlFlow<()>) -> Result<T, E> + Send,
+) -> PyResult<Result<T, E>> {
     let mut interrupted: Option<PyErr> = None;
     let result = py.detach(|| {
-        // The first report at once (a bar appears as the work starts), then a few a second.
         let mut last: Option<Instant> = None;
         let mut progress = |done: usize, total: usize| {
             if last.is_some_and(|t| t.elapsed() < SIGNAL_CHECK) {
@@ -308,30 +306,51 @@ fn run(
                 }
             }
         };
-        let started = Instant::now();
-        let stats = match chunk {
-            // Boxes of the array's axes, in the grid's (memory) order.
-            Some(size) => {
-                let boxes = CellBox::tile(grid.dims(), order.map(|w| size[w]))?;
-                extract_boxes_into(grid, options, &boxes, &mut mesh, &mut progress)?
-            }
-            None => extract_into(grid, options, &mut mesh, &mut progress)?,
-        };
-        let values = values.then(|| vertex_values(&grid, order, &mesh.positions));
-        Ok((stats, values, started.elapsed().as_secs_f64()))
+        work(&mut progress)
     });
     match result {
-        Ok((stats, values, seconds)) => Ok(Run {
-            mesh,
-            stats,
-            values,
-            seconds,
-        }),
-        Err(ExtractError::Cancelled) => {
+        Err(e) if cancelled(&e) => {
             Err(interrupted.unwrap_or_else(|| PyKeyboardInterrupt::new_err(())))
         }
-        Err(e) => Err(extract_error(e)),
+        other => Ok(other),
     }
+}
+
+/// Extracts with the GIL released, stopping on Ctrl-C (see [`interruptible`]).
+fn run(
+    py: Python<'_>,
+    grid: GridView<'_>,
+    order: [usize; 3],
+    options: &ExtractOptions,
+    values: bool,
+    report: Option<Py<PyAny>>,
+    chunk: Option<[usize; 3]>,
+) -> PyResult<Run> {
+    let result = interruptible(
+        py,
+        report,
+        |e| matches!(e, ExtractError::Cancelled),
+        |progress| {
+            let mut mesh = Mesh::new();
+            let started = Instant::now();
+            let stats = match chunk {
+                // Boxes of the array's axes, in the grid's (memory) order.
+                Some(size) => {
+                    let boxes = CellBox::tile(grid.dims(), order.map(|w| size[w]))?;
+                    extract_boxes_into(grid, options, &boxes, &mut mesh, progress)?
+                }
+                None => extract_into(grid, options, &mut mesh, progress)?,
+            };
+            let values = values.then(|| vertex_values(&grid, order, &mesh.positions));
+            Ok(Run {
+                mesh,
+                stats,
+                values,
+                seconds: started.elapsed().as_secs_f64(),
+            })
+        },
+    )?;
+    result.map_err(extract_error)
 }
 
 /// Extracts the isosurface of a `float32` volume indexed `volume[x, y, z]` (any positive

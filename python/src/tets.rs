@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use isocube::extract::{ExtractOptions, LabelOptions, LabelSelection};
+use isocube::extract::{ExtractError, ExtractOptions, LabelOptions, LabelSelection};
 use isocube::field::Orientation;
-use isocube::volume::{tetmesh as mesh_region, tetmesh_labels, TetError, TetMesh};
+use isocube::volume::{tetmesh_labels, tetmesh_with_progress, TetError, TetMesh};
 use isocube_io::TetFormat;
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray3};
@@ -14,8 +14,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::{
-    extract_error, index_order_view, method_of, parse, view_of, Error, FormatError, InputError,
-    MemoryLimitError,
+    extract_error, index_order_view, interruptible, method_of, parse, view_of, Error, FormatError,
+    InputError, MemoryLimitError,
 };
 
 /// A tetrahedral mesh made by [`tetmesh`]; never changed after it is made (`frozen`), so the
@@ -216,7 +216,7 @@ pub(crate) fn tet_error(e: TetError) -> PyErr {
 #[pyfunction]
 #[pyo3(signature = (
     volume, level, *, spacing, origin, direction, method, topology, triangulate, snap,
-    zero_threshold, snap_position, flip, labels, only, background, max_memory
+    zero_threshold, snap_position, flip, labels, only, background, max_memory, progress=None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn tetmesh(
@@ -237,6 +237,7 @@ pub(crate) fn tetmesh(
     only: Option<Vec<i64>>,
     background: i64,
     max_memory: Option<u64>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<PyTetMesh> {
     let direction = direction
         .map(|d| {
@@ -279,7 +280,12 @@ pub(crate) fn tetmesh(
             .with_triangulation(parse(triangulate)?)
             .with_max_memory(max_memory)
             .with_method(method);
-        py.detach(|| mesh_region(grid, &options))
+        interruptible(
+            py,
+            progress,
+            |e| matches!(e, TetError::Extract(ExtractError::Cancelled)),
+            |report| tetmesh_with_progress(grid, &options, report),
+        )?
     };
     let mesh = meshed.map_err(tet_error)?;
     Ok(PyTetMesh {

@@ -3,7 +3,11 @@ byte for byte those of `isocube tetmesh`."""
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
+import threading
+import time
 from pathlib import Path
 from typing import Any, Literal
 
@@ -191,3 +195,31 @@ def test_label_files_are_the_command_lines_bytes(tmp_path: Path) -> None:
         capture_output=True,
     )
     assert ours.read_bytes() == theirs.read_bytes()
+
+
+def test_progress_is_told_and_ctrl_c_stops_the_work() -> None:
+    x = np.linspace(-1, 1, 120, dtype=np.float32)
+    volume = (
+        np.sin(9 * x)[:, None, None] * np.cos(7 * x)[None, :, None] + np.sin(8 * x)[None, None, :]
+    )
+    calls: list[tuple[int, int]] = []
+    start = time.perf_counter()
+    mesh = isocube.tetmesh(
+        volume, 0.1, method="ternary", progress=lambda d, t: calls.append((d, t))
+    )
+    whole = time.perf_counter() - start
+    cells = 119**3
+    assert calls and all(t == 2 * cells and 0 <= d <= t for d, t in calls)
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls) and len(mesh.tets) > 0
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals reach the main thread only")
+    for share in (0.1, 0.6):
+        delay = whole * share
+        timer = threading.Timer(delay, lambda: os.kill(os.getpid(), signal.SIGINT))
+        start = time.perf_counter()
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            isocube.tetmesh(volume, 0.1, method="ternary")
+        stopped = time.perf_counter() - start
+        timer.join()
+        assert stopped < delay + 0.2 and stopped < whole, (share, delay, stopped, whole)

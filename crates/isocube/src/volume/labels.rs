@@ -149,6 +149,7 @@ pub fn tetmesh_labels<'a>(
     super::in_batches(
         pz - 1,
         |k| ctx.layer(k),
+        |_| Ok(()),
         |(t, l)| {
             tets.extend(t);
             tet_labels.extend(l);

@@ -60,6 +60,8 @@
 //! assert!(report.min_dihedral > 10.0 && report.max_dihedral < 165.0);
 //! ```
 
+use std::ops::ControlFlow;
+
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
@@ -185,6 +187,37 @@ pub fn tetmesh<'a>(
     grid: impl Into<GridView<'a>>,
     options: &ExtractOptions,
 ) -> Result<TetMesh, TetError> {
+    tetmesh_with_progress(grid, options, &mut crate::no_progress)
+}
+
+/// [`tetmesh`], telling `progress(done, total)` as the work goes — the surface's cells, then
+/// the layers of cells filled, counted in cells of twice the grid's — and stopping with
+/// [`ExtractError::Cancelled`] (as [`TetError::Extract`]) when it says so.
+///
+/// ```
+/// use std::ops::ControlFlow;
+/// use isocube::extract::{ExtractError, ExtractOptions};
+/// use isocube::field::Sample;
+/// use isocube::volume::{tetmesh_with_progress, TetError};
+/// let grid = Sample::Sphere.grid(40);
+/// let mut seen = Vec::new();
+/// let mesh = tetmesh_with_progress(&grid, &ExtractOptions::default(), &mut |done, total| {
+///     seen.push((done, total));
+///     ControlFlow::Continue(())
+/// })
+/// .unwrap();
+/// assert!(!mesh.tets.is_empty());
+/// assert_eq!(seen.last(), Some(&(2 * 39 * 39 * 39, 2 * 39 * 39 * 39)));
+/// let stopped = tetmesh_with_progress(&grid, &ExtractOptions::default(), &mut |done, total| {
+///     if 2 * done > total { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+/// });
+/// assert!(matches!(stopped, Err(TetError::Extract(ExtractError::Cancelled))));
+/// ```
+pub fn tetmesh_with_progress<'a>(
+    grid: impl Into<GridView<'a>>,
+    options: &ExtractOptions,
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
+) -> Result<TetMesh, TetError> {
     let grid = grid.into();
     if options.relax > 0 {
         return Err(TetError::Unsupported(
@@ -205,8 +238,25 @@ pub fn tetmesh<'a>(
         relax: 0,
         ..*options
     };
-    let extractor = Extractor::new(grid, &surface_options)?;
-    let chunks = extractor.mesh_boxes(&slabs(dims))?;
+    let cells = grid.cell_count();
+    let total = 2 * cells;
+    let extractor =
+        Extractor::with_progress(grid, &surface_options, &mut |_, _| progress(0, total))?;
+    let mut asked = |done: usize| match progress(done, total) {
+        ControlFlow::Continue(()) => Ok(()),
+        ControlFlow::Break(()) => Err(TetError::Extract(ExtractError::Cancelled)),
+    };
+    // The surface's slabs a batch at a time, the progress told between (the same chunks as
+    // all at once).
+    let boxes = slabs(dims);
+    let batch = (boxes.len() / 32).max(4 * rayon::current_num_threads());
+    let mut chunks = Vec::with_capacity(boxes.len());
+    let mut done = 0;
+    for group in boxes.chunks(batch) {
+        chunks.extend(extractor.mesh_boxes(group)?);
+        done += group.iter().map(|b| b.cell_count()).sum::<usize>();
+        asked(done)?;
+    }
     let mut surface = Mesh::new();
     let mut keys = Vec::new();
     let mut extract_stats = join_tagged(
@@ -270,6 +320,7 @@ pub fn tetmesh<'a>(
             points
         })
         .collect();
+    asked(cells)?;
     let inside_points: Vec<u32> = slices.concat();
     drop(slices);
     for (r, &p) in inside_points.iter().enumerate() {
@@ -312,6 +363,7 @@ pub fn tetmesh<'a>(
         })
         .collect();
     by_cell.par_sort_unstable();
+    asked(cells)?;
     let beyond: Vec<u32> = by_cell
         .iter()
         .filter(|e| e.0 == BEYOND)
@@ -350,6 +402,7 @@ pub fn tetmesh<'a>(
         Some(face::face_id(q, n, dims))
     };
     let segments = face::surface_on_faces(&surface.triangles, &owner, &keys, dims, &inner_face);
+    asked(cells)?;
 
     let ctx = Context {
         grid,
@@ -386,9 +439,11 @@ pub fn tetmesh<'a>(
     // touched): the vector seldom moves.
     let mut tets = Vec::with_capacity(6 * inside_points.len() + 8 * surface.triangles.len());
     let mut walls = Vec::new();
+    let layer_cells = cell_dims[0] * cell_dims[1];
     in_batches(
         cell_dims[2],
         |k| ctx.layer(k),
+        |layers| asked(cells + layers * layer_cells),
         |layer| {
             if positions.len() + layer.steiner.len() >= STEINER as usize {
                 return Err(TetError::TooManyVertices);
@@ -435,16 +490,21 @@ pub fn tetmesh<'a>(
 
 /// Meshes layers `0..count` in parallel a batch at a time and hands them to `append` in
 /// order, a batch being appended while the next is meshed; each layer is freed once appended,
-/// so the mesh is not held twice (all the layers, then their concatenation).
+/// so the mesh is not held twice (all the layers, then their concatenation). `meshed` is told
+/// the layers meshed so far before each batch and at the end (an error stops the work).
 fn in_batches<L: Send>(
     count: usize,
     layer: impl Fn(usize) -> Result<L, TetError> + Sync,
+    mut meshed: impl FnMut(usize) -> Result<(), TetError>,
     mut append: impl FnMut(L) -> Result<(), TetError> + Send,
 ) -> Result<(), TetError> {
-    let batch = 4 * rayon::current_num_threads().max(1);
+    // Two layers a thread: enough to keep them busy, few enough that a stop is soon seen.
+    let batch = 2 * rayon::current_num_threads().max(1);
     let mut pending: Vec<L> = Vec::new();
     let mut append_all = |layers: Vec<L>| layers.into_iter().try_for_each(&mut append);
     for first in (0..count).step_by(batch) {
+        // Told (on this thread) how many layers are meshed before each batch starts.
+        meshed(first)?;
         let (appended, layers) = rayon::join(
             || append_all(std::mem::take(&mut pending)),
             || {
@@ -457,7 +517,8 @@ fn in_batches<L: Send>(
         appended?;
         pending = layers?;
     }
-    append_all(pending)
+    append_all(pending)?;
+    meshed(count)
 }
 
 /// A layer's vertex numbers in the mesh: its Steiner points (`STEINER | k`) numbered from
