@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
-use super::{coords, Context, Corner};
+use super::{coords, Context, Corner, TetError};
 use crate::extract::{KeyKind, VertexKey};
 
 /// A cell face: its lowest grid point (linear index) times 3 plus its normal axis.
@@ -77,7 +77,8 @@ pub(super) fn surface_on_faces(
     keys: &[VertexKey],
     dims: [usize; 3],
     inner_face: &(dyn Fn(u32) -> Option<u64> + Sync),
-) -> HashMap<u64, OnFace> {
+    check: &mut dyn FnMut() -> Result<(), TetError>,
+) -> Result<HashMap<u64, OnFace>, TetError> {
     // (face, edge, owner) for every triangle edge in a face; (face, [u32::MAX, t]) marks a
     // triangle lying in a face.
     let mut found: Vec<(u64, [u32; 2], u64)> = triangles
@@ -113,9 +114,17 @@ pub(super) fn surface_on_faces(
             a
         });
     found.par_sort_unstable();
+    check()?;
     let mut map: HashMap<u64, OnFace> = HashMap::default();
     let mut i = 0;
+    let mut next_check = 1 << 16;
     while i < found.len() {
+        // Half a second on a 256³ grid, one entry after another: asked now and then whether
+        // to stop.
+        if i >= next_check {
+            check()?;
+            next_check = i + (1 << 16);
+        }
         let (f, edge, cell) = found[i];
         let mut j = i + 1;
         while j < found.len() && (found[j].0, found[j].1) == (f, edge) {
@@ -137,7 +146,7 @@ pub(super) fn surface_on_faces(
         }
         i = j;
     }
-    map
+    Ok(map)
 }
 
 /// Buffers reused from face to face.

@@ -28,6 +28,7 @@ use rustc_hash::FxHashMap as HashMap;
 
 use super::check::positive;
 use super::quality::dihedral_extremes;
+use super::TetError;
 
 /// Tetrahedra scoring under this are worked on (a dihedral angle under 12° or over 162°): a score
 /// of 10 is the edge of the range the volume meshes aim at, dihedral angles in [10°, 165°], and
@@ -85,20 +86,42 @@ pub(super) fn improve(
     grid: Range<u32>,
     steiner: Range<u32>,
 ) -> ImproveStats {
+    improve_with(positions, tets, labels, grid, steiner, &mut || Ok(()))
+        .expect("no check to stop it")
+}
+
+/// [`improve`], asking `check` now and then (between stretches of the scan for poor elements,
+/// between sweeps and every few hundred elements worked on) whether to stop: its error is
+/// returned at once, the mesh then left half-improved for the caller to drop.
+pub(super) fn improve_with(
+    positions: &mut Vec<[f32; 3]>,
+    tets: &mut Vec<[u32; 4]>,
+    labels: Option<&mut Vec<u32>>,
+    grid: Range<u32>,
+    steiner: Range<u32>,
+    check: &mut dyn FnMut() -> Result<(), TetError>,
+) -> Result<ImproveStats, TetError> {
     let at = |p: &[[f32; 3]], t: &[u32; 4]| t.map(|v| p[v as usize].map(f64::from));
     let lattice = |t: &[u32; 4]| t.iter().all(|v| grid.contains(v));
-    let poor: Vec<u32> = tets
-        .par_iter()
-        .enumerate()
-        .filter(|(_, t)| !lattice(t) && score(at(positions, t)) < POOR)
-        .map(|(i, _)| i as u32)
-        .collect();
+    // A scan of every element (a third of a second for 57 M): in stretches, in order.
+    const STRETCH: usize = 1 << 22;
+    let mut poor: Vec<u32> = Vec::new();
+    for (s, stretch) in tets.chunks(STRETCH).enumerate() {
+        check()?;
+        poor.par_extend(
+            stretch
+                .par_iter()
+                .enumerate()
+                .filter(|(_, t)| !lattice(t) && score(at(positions, t)) < POOR)
+                .map(|(i, _)| (s * STRETCH + i) as u32),
+        );
+    }
     let mut stats = ImproveStats {
         poor: poor.len(),
         ..ImproveStats::default()
     };
     if poor.is_empty() {
-        return stats;
+        return Ok(stats);
     }
     // The vertices of poor tetrahedra and of their neighbours are "known": every tetrahedron
     // holding one is listed with it, so faces and edges there can be looked up.
@@ -146,6 +169,7 @@ pub(super) fn improve(
     work.alive = vec![true; work.tets.len()];
     let mut queue = poor;
     for sweep in 0..2 * SWEEPS {
+        check()?;
         work.extended = sweep >= SWEEPS;
         let mut scored: Vec<(f64, u32)> = queue
             .iter()
@@ -158,7 +182,10 @@ pub(super) fn improve(
         }
         scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let first_new = work.tets.len();
-        for &(_, t) in &scored {
+        for (k, &(_, t)) in scored.iter().enumerate() {
+            if k % 256 == 255 {
+                check()?;
+            }
             if work.alive[t as usize] {
                 work.improve_tet(t, &mut stats);
             }
@@ -186,7 +213,7 @@ pub(super) fn improve(
             alive[k - 1]
         });
     }
-    stats
+    Ok(stats)
 }
 
 /// Tetrahedra coned from a new Steiner point (numbered next), its position and their worst score.

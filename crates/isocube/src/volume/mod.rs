@@ -385,6 +385,7 @@ pub fn tetmesh_with_progress<'a>(
         .filter(|(_, k)| matches!(k.kind(), KeyKind::Crossing { .. }))
         .map(|(v, &k)| (k, v as u32))
         .collect();
+    asked(cells)?;
     let mut owner = vec![u64::MAX; surface.triangles.len()];
     for &(cell, t) in &by_cell {
         owner[t as usize] = cell;
@@ -401,8 +402,14 @@ pub fn tetmesh_with_progress<'a>(
         }
         Some(face::face_id(q, n, dims))
     };
-    let segments = face::surface_on_faces(&surface.triangles, &owner, &keys, dims, &inner_face);
-    asked(cells)?;
+    let segments = face::surface_on_faces(
+        &surface.triangles,
+        &owner,
+        &keys,
+        dims,
+        &inner_face,
+        &mut || asked(cells),
+    )?;
 
     let ctx = Context {
         grid,
@@ -440,7 +447,7 @@ pub fn tetmesh_with_progress<'a>(
     let mut tets = Vec::with_capacity(6 * inside_points.len() + 8 * surface.triangles.len());
     let mut walls = Vec::new();
     let layer_cells = cell_dims[0] * cell_dims[1];
-    in_batches(
+    let filled = in_batches(
         cell_dims[2],
         |k| ctx.layer(k),
         |layers| asked(cells + layers * layer_cells),
@@ -457,7 +464,14 @@ pub fn tetmesh_with_progress<'a>(
             stats.cut_cells += layer.cut_cells;
             Ok(())
         },
-    )?;
+    );
+    // The look-ups the cells were filled from are done with: a million small allocations, freed
+    // while the work goes on (or the stop returns at once).
+    release((segments, crossings, by_cell, keys, rank, inside_points));
+    if let Err(e) = filled {
+        release((tets, positions, walls, surface));
+        return Err(e);
+    }
     let total_steiner = stats.steiner_points;
     // Ternary meshes are held to the dihedral angle range: what the cells could not reach,
     // flips and moves across cells often can. With plain Marching Cubes the slivers come with
@@ -465,13 +479,21 @@ pub fn tetmesh_with_progress<'a>(
     // work would cost far more than the meshing.
     if ternary {
         let steiner_end = steiner_base as u32 + total_steiner as u32;
-        stats.improve = improve::improve(
+        let improved = improve::improve_with(
             &mut positions,
             &mut tets,
             None,
             base as u32..steiner_base as u32,
             steiner_base as u32..steiner_end,
+            &mut || asked(total),
         );
+        stats.improve = match improved {
+            Ok(s) => s,
+            Err(e) => {
+                release((tets, positions, walls, surface));
+                return Err(e);
+            }
+        };
         stats.steiner_points += stats.improve.inserted;
     }
     let mut mesh = TetMesh {
@@ -519,6 +541,16 @@ fn in_batches<L: Send>(
     }
     append_all(pending)?;
     meshed(count)
+}
+
+/// Frees buffers on a thread of their own: returning a million small allocations or a gigabyte
+/// of elements to the system takes a fifth of a second or more, which neither the rest of the
+/// work nor a stop asked for at the keyboard should wait for.
+fn release<T: Send + 'static>(buffers: T) {
+    // Where no thread can be had, the closure — buffers and all — is dropped here instead.
+    let _ = std::thread::Builder::new()
+        .name("isocube-release".into())
+        .spawn(move || drop(buffers));
 }
 
 /// A layer's vertex numbers in the mesh: its Steiner points (`STEINER | k`) numbered from
