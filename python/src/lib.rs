@@ -112,6 +112,35 @@ fn method_of(
     }
 }
 
+/// A direction matrix (columns: the world vectors of the array's axes) as an orientation.
+fn direction_of(direction: Option<[[f64; 3]; 3]>) -> PyResult<Option<Orientation>> {
+    direction
+        .map(|d| {
+            Orientation::new(d).ok_or_else(|| {
+                InputError::new_err("the direction must be a finite, non-singular 3 × 3 matrix")
+            })
+        })
+        .transpose()
+}
+
+/// The options `extract` and `tetmesh` share, by name where Python gives names.
+fn surface_options(
+    level: f32,
+    flip: bool,
+    topology: &str,
+    triangulate: &str,
+    method: Method,
+    max_memory: Option<u64>,
+) -> PyResult<ExtractOptions> {
+    Ok(ExtractOptions::default()
+        .with_level(level)
+        .with_flip(flip)
+        .with_topology(parse(topology)?)
+        .with_triangulation(parse(triangulate)?)
+        .with_method(method)
+        .with_max_memory(max_memory))
+}
+
 fn extract_error(e: ExtractError) -> PyErr {
     match e {
         ExtractError::MemoryLimit { .. } | ExtractError::MeshMemory { .. } => {
@@ -385,23 +414,17 @@ fn extract<'py>(
     chunk: Option<[usize; 3]>,
 ) -> PyResult<Extracted<'py>> {
     let (grid, order) = view_of(&volume, spacing, origin)?;
-    let turn = direction
-        .map(|d| {
-            Orientation::new(d).ok_or_else(|| {
-                InputError::new_err("the direction must be a finite, non-singular 3 × 3 matrix")
-            })
-        })
-        .transpose()?;
-    let method = method_of(method, snap, zero_threshold, snap_position)?;
-    let options = ExtractOptions::default()
-        .with_level(level)
-        .with_flip(flip)
-        .with_normals(normals)
-        .with_topology(parse(topology)?)
-        .with_triangulation(parse(triangulate)?)
-        .with_method(method)
-        .with_relax(relax)
-        .with_max_memory(max_memory);
+    let turn = direction_of(direction)?;
+    let options = surface_options(
+        level,
+        flip,
+        topology,
+        triangulate,
+        method_of(method, snap, zero_threshold, snap_position)?,
+        max_memory,
+    )?
+    .with_normals(normals)
+    .with_relax(relax);
     let Run {
         mut mesh,
         stats,

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use isocube::extract::{ExtractError, ExtractOptions, LabelOptions, LabelSelection};
+use isocube::extract::{ExtractError, LabelOptions, LabelSelection};
 use isocube::field::Orientation;
 use isocube::volume::{tetmesh_labels, tetmesh_with_progress, TetError, TetMesh};
 use isocube_io::TetFormat;
@@ -14,8 +14,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::{
-    extract_error, index_order_view, interruptible, method_of, parse, view_of, Error, FormatError,
-    InputError, MemoryLimitError,
+    direction_of, extract_error, index_order_view, interruptible, method_of, surface_options,
+    view_of, Error, FormatError, InputError, MemoryLimitError,
 };
 
 /// A tetrahedral mesh made by [`tetmesh`]; never changed after it is made (`frozen`), so the
@@ -239,13 +239,7 @@ pub(crate) fn tetmesh(
     max_memory: Option<u64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<PyTetMesh> {
-    let direction = direction
-        .map(|d| {
-            Orientation::new(d).ok_or_else(|| {
-                InputError::new_err("the direction must be a finite, non-singular 3 × 3 matrix")
-            })
-        })
-        .transpose()?;
+    let direction = direction_of(direction)?;
     let started = Instant::now();
     let meshed = if labels {
         // Labels are meshed in the array's index order, as the command line reads a file's.
@@ -271,15 +265,15 @@ pub(crate) fn tetmesh(
                 grid.with_orientation(Orientation::new(turned).expect("a turn of the axes"))
             }
         };
-        let method = method_of(method, snap, zero_threshold, snap_position)?;
-        let options = ExtractOptions::default()
-            .with_level(level)
-            .with_flip(flip)
-            .with_normals(false)
-            .with_topology(parse(topology)?)
-            .with_triangulation(parse(triangulate)?)
-            .with_max_memory(max_memory)
-            .with_method(method);
+        let options = surface_options(
+            level,
+            flip,
+            topology,
+            triangulate,
+            method_of(method, snap, zero_threshold, snap_position)?,
+            max_memory,
+        )?
+        .with_normals(false);
         interruptible(
             py,
             progress,
