@@ -526,7 +526,7 @@ pub struct Extractor<'a> {
     options: ExtractOptions,
     ternary: Option<ternary::Ternary<'a>>,
     /// Ternary: (snapped, refused) points.
-    pub(crate) snapping: (usize, usize),
+    snapping: (usize, usize),
 }
 
 impl<'a> Extractor<'a> {

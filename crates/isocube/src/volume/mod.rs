@@ -267,7 +267,7 @@ pub fn tetmesh_with_progress<'a>(
         Some(&mut keys),
         &mut |_| {},
     )?;
-    (extract_stats.snapped_points, extract_stats.refused_points) = extractor.snapping;
+    (extract_stats.snapped_points, extract_stats.refused_points) = extractor.snapping_counts();
 
     // Each grid point's vertex: a zero point (ternary) is the surface's vertex there; inside
     // points are numbered after the surface's vertices in grid order.
