@@ -6,7 +6,7 @@ use clap::Args;
 use isocube::field::{Grid, Orientation, SampleSpec};
 use isocube_io::{
     read_volume_oriented, Endian, InflatingVolume, IoError, MappedVolume, NpyAxes, RawOptions,
-    ScalarType, VolumeOptions,
+    ScalarType, VolumeOptions, ZarrVolume,
 };
 
 use crate::Failure;
@@ -15,7 +15,8 @@ use crate::Failure;
 #[derive(Clone, Debug, Args)]
 pub(crate) struct VolumeArgs {
     /// `sample:NAME:N` (a built-in sample on N points per axis; noise takes `:SEED` too), or a
-    /// file: .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, or raw (with --dims and --type).
+    /// file: .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .vti, .tif/.tiff, a DICOM series
+    /// folder, a Zarr array or OME-Zarr image folder (v2 or v3), or raw (with --dims and --type).
     pub volume: String,
     /// Raw files: points along x, y, z.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_dims)]
@@ -38,6 +39,15 @@ pub(crate) struct VolumeArgs {
     /// .npy files: array axes are x,y,z (`xyz`, default) or z,y,x (`zyx`).
     #[arg(long, default_value = "xyz")]
     pub axes: NpyAxes,
+    /// OME-Zarr images: the resolution level to read (0, the finest, by default).
+    #[arg(long, value_name = "N")]
+    pub scale: Option<usize>,
+    /// Volumes with several channels (an OME-Zarr `c` axis): the channel to mesh.
+    #[arg(long, value_name = "N")]
+    pub channel: Option<usize>,
+    /// Volumes over time (an OME-Zarr `t` axis): the time point to mesh.
+    #[arg(long, value_name = "N")]
+    pub frame: Option<usize>,
     /// The most memory reading the volume may take: `512M`, `8G`, `1.5T` (binary units), a
     /// number of bytes, or `none`. Files whose header asks for more are refused before anything
     /// is allocated; `extract` gives the mesh what the volume leaves. [default: the machine's
@@ -180,6 +190,9 @@ impl VolumeArgs {
         options.spacing = self.spacing;
         options.origin = self.origin;
         options.max_memory = MemoryLimit::or_default(self.max_memory);
+        options.scale = self.scale;
+        options.channel = self.channel;
+        options.frame = self.frame;
         Ok(options)
     }
 
@@ -193,6 +206,18 @@ impl VolumeArgs {
     /// by plane, else `None`.
     pub(crate) fn try_inflating(&self) -> Result<Option<InflatingVolume>, Failure> {
         self.try_open_with(InflatingVolume::try_open)
+    }
+
+    /// The volume as a [`ZarrVolume`] (read a layer of chunks at a time) when it is a Zarr
+    /// store, else `None`.
+    pub(crate) fn try_zarr(&self) -> Result<Option<ZarrVolume>, Failure> {
+        self.try_open_with(|path, options| {
+            if isocube_io::is_zarr_store(path) {
+                ZarrVolume::open(path, options).map(Some)
+            } else {
+                Ok(None)
+            }
+        })
     }
 
     /// The file opened by `open` (which answers `None` for what it does not take); `None` for

@@ -264,6 +264,74 @@ fn streamed_extraction_matches_in_memory() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("stored uncompressed"));
 }
 
+/// An OME-Zarr store (chunks not dividing the grid) gives the file the same values give from
+/// memory, byte for byte: in memory, streamed to a PLY, and ternary (read whole). An absent
+/// chunk is the fill value with a note (refused by --strict); a damaged one fails naming it.
+#[test]
+fn zarr_stores_mesh_as_the_same_values_in_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid: isocube::field::SampleSpec = "sample:tangle:45".parse().unwrap();
+    let grid = grid.grid();
+    isocube_io::write_zarr(&dir.path().join("t.zarr"), &grid, [16, 16, 16]).unwrap();
+    let same = |a: &str, b: &str| {
+        std::fs::read(dir.path().join(a)).unwrap() == std::fs::read(dir.path().join(b)).unwrap()
+    };
+    for extra in [
+        &[][..],
+        &["--method", "ternary"],
+        &["--triangulate", "local"],
+    ] {
+        let mut args = vec!["extract", "t.zarr", "-o", "z.ply"];
+        args.extend_from_slice(extra);
+        ok(dir.path(), &args);
+        let mut args = vec!["extract", "sample:tangle:45", "-o", "s.ply"];
+        args.extend_from_slice(extra);
+        ok(dir.path(), &args);
+        assert!(same("z.ply", "s.ply"), "{extra:?}");
+    }
+    ok(
+        dir.path(),
+        &["extract", "t.zarr", "-o", "streamed.ply", "--stream"],
+    );
+    ok(dir.path(), &["extract", "sample:tangle:45", "-o", "s.ply"]);
+    assert!(same("streamed.ply", "s.ply"));
+    let out = isocube(
+        dir.path(),
+        &["extract", "t.zarr", "-o", "x.ply", "--scale", "1"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the image has 1 levels"));
+
+    std::fs::remove_file(dir.path().join("t.zarr/0/c/1/1/1")).unwrap();
+    let out = isocube(dir.path(), &["extract", "t.zarr", "-o", "gap.ply"]);
+    assert!(out.status.success());
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        said.contains("1 chunk absent (the first '0/c/1/1/1')"),
+        "{said}"
+    );
+    let out = isocube(
+        dir.path(),
+        &["extract", "t.zarr", "-o", "strict.ply", "--strict"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.path().join("strict.ply").exists());
+
+    std::fs::write(dir.path().join("t.zarr/0/c/2/0/1"), b"damaged").unwrap();
+    for extra in [&[][..], &["--stream"], &["--method", "ternary"]] {
+        let mut args = vec!["extract", "t.zarr", "-o", "bad.ply"];
+        args.extend_from_slice(extra);
+        let out = isocube(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("t.zarr: chunk '0/c/2/0/1' (chunk grid indices 2, 0, 1)"),
+            "{err}"
+        );
+        assert!(!dir.path().join("bad.ply").exists());
+    }
+}
+
 #[test]
 fn a_large_gzipped_nifti_inflated_plane_by_plane_matches_the_whole_read() {
     use std::io::Write;

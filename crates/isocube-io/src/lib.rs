@@ -66,6 +66,8 @@ mod tet_vtu;
 #[cfg(feature = "tiff")]
 mod tiff_stack;
 mod vti;
+#[cfg(feature = "zarr")]
+mod zarr;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -100,6 +102,9 @@ pub use tet_read::{read_tet_mesh, read_tet_mesh_bytes};
 #[cfg_attr(docsrs, doc(cfg(feature = "tiff")))]
 pub use tiff_stack::read_tiff_stack;
 pub use vti::read_vti;
+#[cfg(feature = "zarr")]
+#[cfg_attr(docsrs, doc(cfg(feature = "zarr")))]
+pub use zarr::{write_zarr, ZarrVolume};
 
 /// Where in a file a problem was found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -112,6 +117,14 @@ pub enum Position {
     Byte(u64),
     /// A named header field.
     Field(String),
+    /// A chunk of a chunked store, by its key (`c/0/1/2`, `0.1.2`) and its indices in the
+    /// chunk grid.
+    Chunk {
+        /// The chunk's key in the store.
+        key: String,
+        /// Its indices in the chunk grid, in the array's axis order.
+        indices: Vec<u64>,
+    },
 }
 
 impl fmt::Display for Position {
@@ -121,6 +134,14 @@ impl fmt::Display for Position {
             Position::Line(n) => write!(f, "line {n}"),
             Position::Byte(n) => write!(f, "byte {n}"),
             Position::Field(name) => write!(f, "header field '{name}'"),
+            Position::Chunk { key, indices } => {
+                let indices: Vec<String> = indices.iter().map(u64::to_string).collect();
+                write!(
+                    f,
+                    "chunk '{key}' (chunk grid indices {})",
+                    indices.join(", ")
+                )
+            }
         }
     }
 }
@@ -234,6 +255,14 @@ pub struct VolumeOptions {
     pub spacing: Option<[f64; 3]>,
     /// Overrides the file's origin.
     pub origin: Option<[f64; 3]>,
+    /// OME-Zarr images: the level to read (0, the finest, by default).
+    pub scale: Option<usize>,
+    /// Volumes with channels (an OME-Zarr `c` axis): the channel to read; needed where there
+    /// are several.
+    pub channel: Option<usize>,
+    /// Volumes over time (an OME-Zarr `t` axis): the time point to read; needed where there
+    /// are several.
+    pub frame: Option<usize>,
     /// The most memory, in bytes, the reader may hold at its peak (file bytes, unpacked data and
     /// the `f32` values). Headers claiming more are refused with [`IoError::TooLarge`] before
     /// anything that size is allocated, and compressed data is never unpacked beyond it.
@@ -344,6 +373,7 @@ pub fn read_volume_oriented(
     let identity = |grid| (grid, Orientation::IDENTITY);
     let budget = Budget::new(options.max_memory);
     let read = match VolumeFormat::of(path, options)? {
+        VolumeFormat::Zarr => read_zarr_volume(path, options, budget)?,
         VolumeFormat::DicomSeries => read_dicom_volume(path, budget)?,
         VolumeFormat::Npy => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
         VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget)?,
@@ -385,6 +415,13 @@ pub fn read_volume_bytes(
     let identity = |grid| (grid, Orientation::IDENTITY);
     let budget = Budget::new(options.max_memory);
     let read = match VolumeFormat::of(name, options)? {
+        VolumeFormat::Zarr => {
+            return Err(IoError::unsupported(
+                name,
+                Position::File,
+                "a Zarr store is a folder of files: read it with read_volume_oriented",
+            ))
+        }
         VolumeFormat::DicomSeries => {
             return Err(IoError::unsupported(
                 name,
@@ -435,6 +472,7 @@ pub fn read_volume_from<R: std::io::Read + std::io::Seek>(
 
 /// Which reader a volume's name (or a folder) calls for.
 enum VolumeFormat<'a> {
+    Zarr,
     DicomSeries,
     Npy,
     Nrrd,
@@ -458,6 +496,7 @@ impl<'a> VolumeFormat<'a> {
             .map(str::to_ascii_lowercase)
             .unwrap_or_default();
         Ok(match ext.as_str() {
+            _ if is_zarr_store(path) => VolumeFormat::Zarr,
             _ if path.is_dir() => VolumeFormat::DicomSeries,
             "npy" => VolumeFormat::Npy,
             "nrrd" | "nhdr" => VolumeFormat::Nrrd,
@@ -494,6 +533,40 @@ fn with_overrides(
         None => grid,
     };
     Ok((grid, orientation))
+}
+
+/// Whether `path` is a Zarr array or group (a folder with `zarr.json`, `.zarray` or `.zgroup`).
+///
+/// ```
+/// assert!(!isocube_io::is_zarr_store(std::path::Path::new("/")));
+/// ```
+pub fn is_zarr_store(path: &Path) -> bool {
+    path.is_dir()
+        && ["zarr.json", ".zarray", ".zgroup"]
+            .iter()
+            .any(|f| path.join(f).is_file())
+}
+
+#[cfg(feature = "zarr")]
+fn read_zarr_volume(
+    path: &Path,
+    options: &VolumeOptions,
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    zarr::read_zarr_within(path, options, budget)
+}
+
+#[cfg(not(feature = "zarr"))]
+fn read_zarr_volume(
+    path: &Path,
+    _: &VolumeOptions,
+    _: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    Err(IoError::unsupported(
+        path,
+        Position::File,
+        "Zarr stores need isocube-io's `zarr` feature",
+    ))
 }
 
 #[cfg(feature = "dicom")]

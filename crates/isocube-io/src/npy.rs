@@ -309,7 +309,7 @@ fn parse_kind(k: &str) -> Option<ScalarType> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::io::Write;
 

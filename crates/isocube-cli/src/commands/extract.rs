@@ -16,6 +16,7 @@ use isocube::mesh::Mesh;
 use isocube::quality::{Field, Strategy, Trilinear};
 use isocube_io::{
     write_mesh_with_values, InflatingVolume, MappedVolume, MeshFormat, PlyWriter, VertexValues,
+    ZarrVolume,
 };
 
 use crate::progress::Progress;
@@ -143,9 +144,25 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         true => v.into_index_space(),
         false => v,
     });
+    // A Zarr store is decoded a layer of chunks at a time as the slabs need them.
+    if mapped.is_none() && isocube_io::is_zarr_store(std::path::Path::new(&args.volume.volume)) {
+        if let Some(volume) = args.volume.try_zarr()? {
+            let volume = match args.index_space {
+                true => volume.into_index_space(),
+                false => volume,
+            };
+            if let Some(volume) = streamable(args, Some(&volume))? {
+                return run_streamed(args, volume, quiet);
+            }
+            if slab_obstacle(args).is_none() {
+                return run_slabs_in_memory(args, volume, quiet);
+            }
+        }
+    }
     if let Some(volume) = streamable(args, mapped.as_ref())? {
         return run_streamed(args, volume, quiet);
     }
+
     if slab_obstacle(args).is_none() {
         match mapped {
             Some(volume) if volume.view().is_none() => {
@@ -293,13 +310,61 @@ trait SlabInput: PlaneSource {
     fn failure(&self) -> Option<isocube_io::IoError> {
         None
     }
+
+    fn path(&self) -> &std::path::Path;
+
+    /// What the summary should add about the input, and what `--strict` refuses.
+    fn caveat(&self) -> Option<String> {
+        None
+    }
 }
 
-impl SlabInput for MappedVolume {}
+impl SlabInput for MappedVolume {
+    fn path(&self) -> &std::path::Path {
+        MappedVolume::path(self)
+    }
+}
 
 impl SlabInput for InflatingVolume {
     fn failure(&self) -> Option<isocube_io::IoError> {
         self.take_error()
+    }
+
+    fn path(&self) -> &std::path::Path {
+        InflatingVolume::path(self)
+    }
+}
+
+impl SlabInput for ZarrVolume {
+    fn failure(&self) -> Option<isocube_io::IoError> {
+        self.take_error()
+    }
+
+    fn path(&self) -> &std::path::Path {
+        ZarrVolume::path(self)
+    }
+
+    fn caveat(&self) -> Option<String> {
+        let first = self.first_absent_chunk()?;
+        let n = self.absent_chunks();
+        Some(format!(
+            "{n} chunk{} absent (the first '{first}'), read as the array's fill value",
+            if n == 1 { "" } else { "s" }
+        ))
+    }
+}
+
+/// The input's failure, or `--strict` refusing what its caveat says; else the caveat to print.
+fn input_checked(args: &Args, volume: &impl SlabInput) -> Result<Option<String>, Failure> {
+    if let Some(e) = volume.failure() {
+        return Err(crate::io_failure(e, true));
+    }
+    match volume.caveat() {
+        Some(why) if args.strict => Err(Failure::input(anyhow::anyhow!(
+            "{}: {why}; nothing written (--strict)",
+            args.volume.volume
+        ))),
+        caveat => Ok(caveat),
     }
 }
 
@@ -318,11 +383,12 @@ fn run_slabs_in_memory(args: &Args, volume: impl SlabInput, quiet: bool) -> Resu
         StreamError::Sink(never) => match never {},
     })?;
     progress.finish();
-    if let Some(e) = volume.failure() {
-        return Err(crate::io_failure(e, true));
-    }
+    let caveat = input_checked(args, &volume)?;
     if args.strict && stats.skipped_cells > 0 {
         return Err(non_finite_failure(args, &stats, ""));
+    }
+    if let (Some(caveat), false) = (caveat, quiet) {
+        eprintln!("note: {caveat}");
     }
     // As in `run`: the input is unmapped before the mesh is written.
     drop(volume);
@@ -499,10 +565,10 @@ fn slab_obstacle(args: &Args) -> Option<&'static str> {
 /// The mapped volume, when extraction goes slab by slab straight into the file: asked for with
 /// --stream (an error if the options need the whole volume), or chosen for a large volume
 /// whose options allow it.
-fn streamable<'a>(
+fn streamable<'a, V: PlaneSource>(
     args: &Args,
-    mapped: Option<&'a MappedVolume>,
-) -> Result<Option<&'a MappedVolume>, Failure> {
+    mapped: Option<&'a V>,
+) -> Result<Option<&'a V>, Failure> {
     let obstacle = if mapped.is_none() {
         Some("the volume must be stored uncompressed (raw, .npy, .nii, .mha/.mhd, raw .nrrd, raw-appended .vti)")
     } else if MeshFormat::from_path(&args.output) != Some(MeshFormat::Ply) || args.ascii {
@@ -524,7 +590,7 @@ fn streamable<'a>(
     }
 }
 
-fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), Failure> {
+fn run_streamed(args: &Args, volume: &impl SlabInput, quiet: bool) -> Result<(), Failure> {
     let options = options(args);
     let started = Instant::now();
     let mut ply = PlyWriter::create(&args.output, !args.no_normals)
@@ -538,9 +604,13 @@ fn run_streamed(args: &Args, volume: &MappedVolume, quiet: bool) -> Result<(), F
         StreamError::Sink(e) => crate::io_failure(e, false),
     })?;
     progress.finish();
+    // Dropping the writer removes its temporary file.
+    let caveat = input_checked(args, volume)?;
     if args.strict && stats.skipped_cells > 0 {
-        // Dropping the writer removes its temporary file.
         return Err(non_finite_failure(args, &stats, ""));
+    }
+    if let (Some(caveat), false) = (caveat, quiet) {
+        eprintln!("note: {caveat}");
     }
     let (vertices, triangles) = (ply.vertex_count(), ply.triangle_count());
     ply.finish().map_err(|e| crate::io_failure(e, false))?;

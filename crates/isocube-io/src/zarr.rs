@@ -1,0 +1,1152 @@
+//! Zarr arrays (v2 and v3, through the `zarrs` crate) and OME-Zarr multiscale images, read a
+//! layer of chunks at a time.
+//!
+//! A volume is a 3-d selection of an N-d array: the three spatial axes, and one index on every
+//! other axis (a channel, a time point). OME-Zarr names its axes and places them in the world
+//! (`coordinateTransformations`: scale, then translation, per level and for the whole image);
+//! a plain array's axes are `x, y, z` in the order its `dimension_names` give, or as
+//! [`crate::NpyAxes`] says when it has none (the `.npy` convention: `a[x, y, z]` by default).
+//!
+//! Chunks are decoded a layer at a time along the grid's `z` — every chunk that meets the
+//! layer's planes, in parallel — and a layer is dropped once extraction has passed it, so the
+//! memory held is a few layers of chunks whatever the array's size.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use isocube::field::{Grid, Orientation, PlaneSource};
+use serde_json::Value;
+use zarrs::array::{data_type, Array};
+use zarrs::filesystem::FilesystemStore;
+use zarrs::group::Group;
+
+use super::{Budget, IoError, NpyAxes, Position, VolumeOptions};
+
+/// The ten element types isocube reads, as stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Element {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    U64,
+    I64,
+    F32,
+    F64,
+}
+
+impl Element {
+    fn of(array: &Array<FilesystemStore>) -> Option<Element> {
+        let t = array.data_type();
+        Some(if t.is::<data_type::UInt8DataType>() {
+            Element::U8
+        } else if t.is::<data_type::Int8DataType>() {
+            Element::I8
+        } else if t.is::<data_type::UInt16DataType>() {
+            Element::U16
+        } else if t.is::<data_type::Int16DataType>() {
+            Element::I16
+        } else if t.is::<data_type::UInt32DataType>() {
+            Element::U32
+        } else if t.is::<data_type::Int32DataType>() {
+            Element::I32
+        } else if t.is::<data_type::UInt64DataType>() {
+            Element::U64
+        } else if t.is::<data_type::Int64DataType>() {
+            Element::I64
+        } else if t.is::<data_type::Float32DataType>() {
+            Element::F32
+        } else if t.is::<data_type::Float64DataType>() {
+            Element::F64
+        } else {
+            return None;
+        })
+    }
+}
+
+/// A Zarr array (or an OME-Zarr image's level) as a [`PlaneSource`]: layers of chunks along
+/// the grid's `z` decoded as they are first asked for and dropped when
+/// [`PlaneSource::release_before`] says so.
+///
+/// A chunk that cannot be read (corrupt, the wrong size) cannot be reported by `read_planes`:
+/// its layer reads as NaN from there on, and [`ZarrVolume::take_error`] tells which chunk and
+/// why. Check it before using what was made from the planes. A chunk that is absent is the
+/// array's fill value, as the Zarr specification says ([`ZarrVolume::absent_chunks`] counts
+/// them).
+///
+/// ```
+/// use isocube::extract::{extract_streamed, ExtractOptions};
+/// use isocube::field::Sample;
+/// use isocube::mesh::Mesh;
+/// use isocube_io::{write_zarr, VolumeOptions, ZarrVolume};
+/// let dir = tempfile::tempdir()?;
+/// let path = dir.path().join("sphere.zarr");
+/// let grid = Sample::Sphere.grid(40);
+/// write_zarr(&path, &grid, [16, 16, 16])?;
+/// let volume = ZarrVolume::open(&path, &VolumeOptions::default())?;
+/// let mut mesh = Mesh::new();
+/// extract_streamed(&volume, &ExtractOptions::default(), &mut mesh, &mut isocube::no_progress)?;
+/// assert!(volume.take_error().is_none());
+/// let whole = isocube::extract::extract(&grid, &ExtractOptions::default())?.0;
+/// assert_eq!(mesh, whole);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct ZarrVolume {
+    path: PathBuf,
+    array: Array<FilesystemStore>,
+    element: Element,
+    /// The array axis of each grid axis. The grid walks the array in its memory order (C order:
+    /// its last spatial axis fastest), whatever the axes' names, and the orientation puts each
+    /// grid axis back on its world axis, as [`crate::MappedVolume`] does for a `.npy`: the
+    /// chunks are read in one sweep, and the mesh is the one of the same array in memory.
+    axes: [usize; 3],
+    orientation: Orientation,
+    /// The index taken on every array axis that is not spatial (ignored on spatial ones).
+    fixed: Vec<u64>,
+    dims: [usize; 3],
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    /// Chunks along the array's axis of z.
+    chunk_z: usize,
+    layers: Mutex<Layers>,
+}
+
+#[derive(Default)]
+struct Layers {
+    held: BTreeMap<usize, Arc<Vec<f32>>>,
+    /// Layers below this one were released.
+    released: usize,
+    error: Option<IoError>,
+    failed: bool,
+    absent: usize,
+    first_absent: Option<String>,
+}
+
+impl ZarrVolume {
+    /// Opens the array (or OME-Zarr image) at `path`: `options.scale` picks an OME-Zarr level,
+    /// `options.channel` and `options.frame` the index on a channel and a time axis;
+    /// `options.spacing` and `options.origin` override what the metadata say.
+    pub fn open(path: &Path, options: &VolumeOptions) -> Result<ZarrVolume, IoError> {
+        let store = Arc::new(FilesystemStore::new(path).map_err(|e| {
+            IoError::format(path, Position::File, format!("not a Zarr store: {e}"))
+        })?);
+        let (array_path, placement) = locate(path, &store, options)?;
+        let array = Array::open(store, &array_path).map_err(|e| {
+            let folder = path.join(array_path.trim_start_matches('/'));
+            let metadata = match folder.join(".zarray").is_file() {
+                true => folder.join(".zarray"),
+                false => folder.join("zarr.json"),
+            };
+            IoError::format(
+                &metadata,
+                Position::File,
+                format!("not a readable Zarr array: {e}"),
+            )
+        })?;
+        let element = Element::of(&array).ok_or_else(|| {
+            IoError::unsupported(
+                path,
+                Position::Field("data_type".into()),
+                format!(
+                    "element type {:?}: isocube reads u8, i8, u16, i16, u32, i32, u64, i64, f32 and f64",
+                    array.data_type()
+                ),
+            )
+        })?;
+        let shape: Vec<u64> = array.shape().to_vec();
+        let names: Option<Vec<String>> = placement
+            .as_ref()
+            .map(|p| p.names.clone())
+            .or_else(|| {
+                array.dimension_names().as_ref().and_then(|n| {
+                    n.iter()
+                        .map(|d| d.as_ref().map(|s| s.to_ascii_lowercase()))
+                        .collect()
+                })
+            })
+            .filter(|n| ["x", "y", "z"].iter().all(|a| n.iter().any(|m| m == a)));
+        let (world, fixed) = select_axes(path, &shape, names.as_deref(), options)?;
+        let (mut spacing, mut origin) = match &placement {
+            Some(p) => (world.map(|a| p.scale[a]), world.map(|a| p.translation[a])),
+            None => ([1.0; 3], [0.0; 3]),
+        };
+        spacing = options.spacing.unwrap_or(spacing);
+        origin = options.origin.unwrap_or(origin);
+        // Grid axis g walks world axis walk[g]: the spatial array axes from the last.
+        let mut walk = [0, 1, 2];
+        walk.sort_by_key(|&w| std::cmp::Reverse(world[w]));
+        let orientation = Orientation::axes(walk).expect("a permutation of the axes");
+        let axes = walk.map(|w| world[w]);
+        let spacing = walk.map(|w| spacing[w]);
+        let dims = axes.map(|a| shape[a] as usize);
+        Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
+        // The same checks as a grid's.
+        Grid::new([2, 2, 2], vec![0.0; 8])
+            .and_then(|g| g.with_spacing(spacing))
+            .and_then(|g| g.with_origin(origin))
+            .map_err(|e| IoError::grid(path, e))?;
+        let chunk_z = array.chunk_shape(&vec![0; shape.len()]).map_err(|e| {
+            IoError::format(path, Position::Field("chunk_grid".into()), e.to_string())
+        })?[axes[2]]
+            .get() as usize;
+        let volume = ZarrVolume {
+            path: path.to_path_buf(),
+            array,
+            element,
+            axes,
+            orientation,
+            fixed,
+            dims,
+            spacing,
+            origin,
+            chunk_z,
+            layers: Mutex::new(Layers::default()),
+        };
+        // Two layers of values, and the chunks of one as decoded, are held at once.
+        let layer = (dims[0] * dims[1]) as u64 * chunk_z as u64;
+        let budget = Budget::new(options.max_memory);
+        budget.check(path, Position::Field("chunk_grid".into()), layer * 4 * 3)?;
+        Ok(volume)
+    }
+
+    /// The same volume in index space: spacing 1, origin 0.
+    pub fn into_index_space(mut self) -> ZarrVolume {
+        self.spacing = [1.0; 3];
+        self.origin = [0.0; 3];
+        self
+    }
+
+    /// The store.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The first absent chunk met so far, by its key (`c/0/1/2`, `0.1.2`), if any.
+    pub fn first_absent_chunk(&self) -> Option<String> {
+        self.lock().first_absent.clone()
+    }
+
+    /// The error that made planes read as NaN, if any (taken: asked again, `None`).
+    pub fn take_error(&self) -> Option<IoError> {
+        self.lock().error.take()
+    }
+
+    /// Chunks found absent so far (read as the fill value).
+    pub fn absent_chunks(&self) -> usize {
+        self.lock().absent
+    }
+
+    /// Reads the whole selection into a grid.
+    pub(crate) fn read_all(&self, budget: Budget) -> Result<(Grid, Orientation), IoError> {
+        let [nx, ny, nz] = self.dims;
+        let count = nx * ny * nz;
+        budget.check_values(&self.path, Position::Field("shape".into()), 0, count)?;
+        let mut values = vec![0.0f32; count];
+        for (layer, out) in values.chunks_mut(nx * ny * self.chunk_z).enumerate() {
+            let decoded = self.decode_layer(layer, &mut self.lock())?;
+            out.copy_from_slice(&decoded);
+        }
+        let grid = Grid::new(self.dims, values)
+            .and_then(|g| g.with_spacing(self.spacing))
+            .and_then(|g| g.with_origin(self.origin))
+            .map_err(|e| IoError::grid(&self.path, e))?;
+        Ok((grid, self.orientation))
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Layers> {
+        self.layers.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Grid planes of layer `layer` (`chunk_z` planes, fewer in the last).
+    fn layer_planes(&self, layer: usize) -> std::ops::Range<usize> {
+        let start = layer * self.chunk_z;
+        start..(start + self.chunk_z).min(self.dims[2])
+    }
+
+    /// Decodes every chunk meeting layer `layer` into its planes' values, `x` fastest, and
+    /// notes the chunks found absent in `state`.
+    fn decode_layer(&self, layer: usize, state: &mut Layers) -> Result<Vec<f32>, IoError> {
+        let [nx, ny, _] = self.dims;
+        let planes = self.layer_planes(layer);
+        let grid_shape = self.array.chunk_grid_shape().to_vec();
+        let rank = grid_shape.len();
+        // Every chunk of the layer: chunk indices over the x and y axes, the layer on z's,
+        // the chunk holding the fixed index elsewhere.
+        let mut base = vec![0u64; rank];
+        let zero = vec![0u64; rank];
+        let first_shape = self
+            .array
+            .chunk_shape(&zero)
+            .map_err(|e| self.chunk_error(&zero, e))?;
+        for (a, b) in base.iter_mut().enumerate() {
+            *b = self.fixed[a] / first_shape[a].get();
+        }
+        base[self.axes[2]] = layer as u64;
+        let [ax, ay, _] = self.axes;
+        let mut chunks = Vec::new();
+        for cy in 0..grid_shape[ay] {
+            for cx in 0..grid_shape[ax] {
+                let mut c = base.clone();
+                c[ax] = cx;
+                c[ay] = cy;
+                chunks.push(c);
+            }
+        }
+        let decoded = self.decode_chunks(chunks)?;
+        let absent: Vec<&Vec<u64>> = decoded
+            .iter()
+            .filter(|(_, v)| v.is_none())
+            .map(|(c, _)| c)
+            .collect();
+        if let Some(first) = absent.first() {
+            state.absent += absent.len();
+            let key = self.array.chunk_key(first).to_string();
+            state.first_absent.get_or_insert(key);
+        }
+        let fill = self.fill_value();
+        let mut out = vec![0.0f32; nx * ny * planes.len()];
+        let shapes: Vec<Vec<u64>> = decoded
+            .iter()
+            .map(|(c, _)| {
+                self.array
+                    .chunk_shape(c)
+                    .map(|s| s.iter().map(|n| n.get()).collect())
+                    .map_err(|e| self.chunk_error(c, e))
+            })
+            .collect::<Result<_, _>>()?;
+        // Planes are filled on threads of their own, as the chunks were decoded.
+        let fill_plane = |(plane, z): (&mut [f32], usize)| {
+            for ((c, values), shape) in decoded.iter().zip(&shapes) {
+                // Element strides in the chunk (C order over the array's axes).
+                let mut strides = vec![1u64; rank];
+                for a in (0..rank.saturating_sub(1)).rev() {
+                    strides[a] = strides[a + 1] * shape[a + 1];
+                }
+                let origin: Vec<u64> = (0..rank).map(|a| c[a] * shape[a]).collect();
+                let mut offset = 0u64;
+                for a in 0..rank {
+                    let at = if a == self.axes[2] {
+                        z as u64
+                    } else if a == ax || a == ay {
+                        origin[a]
+                    } else {
+                        self.fixed[a]
+                    };
+                    offset += (at - origin[a]) * strides[a];
+                }
+                let x0 = origin[ax] as usize;
+                let y0 = origin[ay] as usize;
+                let x1 = (x0 + shape[ax] as usize).min(nx);
+                let y1 = (y0 + shape[ay] as usize).min(ny);
+                let (sx, sy) = (strides[ax] as usize, strides[ay] as usize);
+                let offset = offset as usize;
+                for y in y0..y1 {
+                    let row = &mut plane[nx * y + x0..nx * y + x1];
+                    match values {
+                        Some(v) => {
+                            let start = offset + (y - y0) * sy;
+                            if sx == 1 {
+                                row.copy_from_slice(&v[start..start + row.len()]);
+                            } else {
+                                for (i, r) in row.iter_mut().enumerate() {
+                                    *r = v[start + i * sx];
+                                }
+                            }
+                        }
+                        None => row.fill(fill),
+                    }
+                }
+            }
+        };
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let per = planes.len().div_ceil(threads).max(1);
+        std::thread::scope(|scope| {
+            for (part, zs) in out
+                .chunks_mut(per * nx * ny)
+                .zip(planes.clone().step_by(per))
+            {
+                let fill_plane = &fill_plane;
+                scope.spawn(move || {
+                    for (plane, z) in part.chunks_mut(nx * ny).zip(zs..) {
+                        fill_plane((plane, z));
+                    }
+                });
+            }
+        });
+        Ok(out)
+    }
+
+    /// Decodes `chunks` on threads of their own. Not on rayon's: the caller holds the layer
+    /// lock, and a rayon thread waiting for its jobs could take up a slab that asks for it.
+    fn decode_chunks(
+        &self,
+        chunks: Vec<Vec<u64>>,
+    ) -> Result<Vec<DecodedChunk>, IoError> {
+        use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+        let next = AtomicUsize::new(0);
+        let failed = AtomicBool::new(false);
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(chunks.len())
+            .max(1);
+        type Slot = Option<Result<Option<Vec<f32>>, IoError>>;
+        let mut slots: Vec<Slot> = Vec::new();
+        slots.resize_with(chunks.len(), || None);
+        let slots = Mutex::new(slots);
+        let work = || {
+            while !failed.load(Ordering::Relaxed) {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(c) = chunks.get(i) else {
+                    return;
+                };
+                let values = self.decode_chunk(c);
+                failed.fetch_or(values.is_err(), Ordering::Relaxed);
+                slots.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(values);
+            }
+        };
+        std::thread::scope(|scope| {
+            for _ in 1..threads {
+                scope.spawn(work);
+            }
+            work();
+        });
+        let slots = slots.into_inner().unwrap_or_else(|p| p.into_inner());
+        // The first failure in chunk order, whichever thread met it first.
+        if slots.iter().flatten().any(Result::is_err) {
+            let first = slots.into_iter().flatten().find_map(Result::err);
+            return Err(first.expect("an error"));
+        }
+        Ok(chunks
+            .into_iter()
+            .zip(slots)
+            .map(|(c, v)| (c, v.expect("decoded").expect("no error")))
+            .collect())
+    }
+
+    /// The array's fill value as `f32` (what an absent chunk holds).
+    fn fill_value(&self) -> f32 {
+        let bytes = self.array.fill_value().as_ne_bytes();
+        convert(self.element, bytes).first().copied().unwrap_or(0.0)
+    }
+
+    /// One chunk's values as `f32` (C order over its full shape), `None` when it is absent.
+    fn decode_chunk(&self, c: &[u64]) -> Result<Option<Vec<f32>>, IoError> {
+        macro_rules! chunk {
+            ($t:ty) => {
+                self.array
+                    .retrieve_chunk_if_exists::<Vec<$t>>(c)
+                    .map(|v| v.map(|v| v.into_iter().map(|x| x as f32).collect()))
+            };
+        }
+        let decoded = match self.element {
+            Element::U8 => chunk!(u8),
+            Element::I8 => chunk!(i8),
+            Element::U16 => chunk!(u16),
+            Element::I16 => chunk!(i16),
+            Element::U32 => chunk!(u32),
+            Element::I32 => chunk!(i32),
+            Element::U64 => chunk!(u64),
+            Element::I64 => chunk!(i64),
+            Element::F32 => chunk!(f32),
+            Element::F64 => chunk!(f64),
+        };
+        decoded.map_err(|e| self.chunk_error(c, e))
+    }
+
+    fn chunk_error(&self, c: &[u64], e: impl std::fmt::Display) -> IoError {
+        IoError::format(
+            &self.path,
+            Position::Chunk {
+                key: self.array.chunk_key(c).to_string(),
+                indices: c.to_vec(),
+            },
+            e.to_string(),
+        )
+    }
+
+    /// Layer `layer`, decoded now if not held.
+    fn layer(&self, layer: usize) -> Arc<Vec<f32>> {
+        let mut state = self.lock();
+        if let Some(held) = state.held.get(&layer) {
+            return held.clone();
+        }
+        // Decoded with the lock held: the slabs in flight want the same layer, and decoding
+        // is itself parallel over the layer's chunks.
+        let planes = self.layer_planes(layer).len();
+        let values = if state.failed {
+            vec![f32::NAN; self.dims[0] * self.dims[1] * planes]
+        } else {
+            let decoded = self.decode_layer(layer, &mut state);
+            match decoded {
+                Ok(v) => v,
+                Err(e) => {
+                    state.failed = true;
+                    state.error.get_or_insert(e);
+                    vec![f32::NAN; self.dims[0] * self.dims[1] * planes]
+                }
+            }
+        };
+        let values = Arc::new(values);
+        if layer >= state.released {
+            state.held.insert(layer, values.clone());
+        }
+        values
+    }
+}
+
+/// A chunk's indices and its values as `f32` (`None`: absent).
+type DecodedChunk = (Vec<u64>, Option<Vec<f32>>);
+
+/// `bytes` (native order) of `element`s as `f32`.
+fn convert(element: Element, bytes: &[u8]) -> Vec<f32> {
+    macro_rules! each {
+        ($t:ty) => {
+            bytes
+                .chunks_exact(std::mem::size_of::<$t>())
+                .map(|b| <$t>::from_ne_bytes(b.try_into().expect("sized")) as f32)
+                .collect()
+        };
+    }
+    match element {
+        Element::U8 => each!(u8),
+        Element::I8 => each!(i8),
+        Element::U16 => each!(u16),
+        Element::I16 => each!(i16),
+        Element::U32 => each!(u32),
+        Element::I32 => each!(i32),
+        Element::U64 => each!(u64),
+        Element::I64 => each!(i64),
+        Element::F32 => each!(f32),
+        Element::F64 => each!(f64),
+    }
+}
+
+impl PlaneSource for ZarrVolume {
+    fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    fn spacing(&self) -> [f64; 3] {
+        self.spacing
+    }
+
+    fn origin(&self) -> [f64; 3] {
+        self.origin
+    }
+
+    fn orientation(&self) -> Orientation {
+        self.orientation
+    }
+
+    fn read_planes(&self, first: usize, out: &mut [f32]) {
+        let plane = self.dims[0] * self.dims[1];
+        let mut z = first;
+        let mut written = 0;
+        while written < out.len() {
+            let layer = z / self.chunk_z;
+            let values = self.layer(layer);
+            let start = (z - layer * self.chunk_z) * plane;
+            let n = (values.len() - start).min(out.len() - written);
+            out[written..written + n].copy_from_slice(&values[start..start + n]);
+            written += n;
+            z += n / plane;
+        }
+    }
+
+    fn release_before(&self, plane: usize) {
+        let mut state = self.lock();
+        let layer = plane / self.chunk_z;
+        state.released = state.released.max(layer);
+        state.held.retain(|&l, _| l >= layer);
+    }
+}
+
+/// Where an OME-Zarr image places the level read: axis names (lower case) and, per array axis,
+/// scale and translation.
+struct Placement {
+    names: Vec<String>,
+    scale: Vec<f64>,
+    translation: Vec<f64>,
+}
+
+/// The array to read inside the store (`/` for an array at `path`) and, for an OME-Zarr image,
+/// how it is placed.
+fn locate(
+    path: &Path,
+    store: &Arc<FilesystemStore>,
+    options: &VolumeOptions,
+) -> Result<(String, Option<Placement>), IoError> {
+    if path.join(".zarray").is_file()
+        || std::fs::read_to_string(path.join("zarr.json"))
+            .ok()
+            .and_then(|s| serde_json::from_str::<Value>(&s).ok())
+            .is_some_and(|v| v["node_type"] == "array")
+    {
+        if options.scale.is_some_and(|s| s > 0) {
+            return Err(IoError::unsupported(
+                path,
+                Position::File,
+                "a single array has one scale: --scale needs an OME-Zarr image (a group with multiscales)",
+            ));
+        }
+        return Ok(("/".into(), None));
+    }
+    let group = Group::open(store.clone(), "/").map_err(|e| {
+        IoError::format(
+            path,
+            Position::File,
+            format!("not a readable Zarr group: {e}"),
+        )
+    })?;
+    let attributes = group.attributes();
+    // OME-Zarr 0.5 (Zarr v3) nests its metadata under "ome"; 0.4 and earlier (Zarr v2) do not.
+    let multiscales = attributes
+        .get("ome")
+        .and_then(|o| o.get("multiscales"))
+        .or_else(|| attributes.get("multiscales"))
+        .and_then(Value::as_array)
+        .and_then(|m| m.first())
+        .ok_or_else(|| {
+            IoError::unsupported(
+                path,
+                Position::Field("multiscales".into()),
+                "a Zarr group that is not an OME-Zarr image: give the path of the array inside it",
+            )
+        })?;
+    let field = |name: &str| Position::Field(format!("multiscales/{name}"));
+    let bad = |name: &str, why: &str| IoError::format(path, field(name), why.to_string());
+    let names: Vec<String> = multiscales
+        .get("axes")
+        .and_then(Value::as_array)
+        .ok_or_else(|| bad("axes", "missing (OME-Zarr 0.4 and later name their axes)"))?
+        .iter()
+        .map(|a| {
+            a.get("name")
+                .and_then(Value::as_str)
+                .or_else(|| a.as_str())
+                .map(str::to_ascii_lowercase)
+                .ok_or_else(|| bad("axes", "an axis without a name"))
+        })
+        .collect::<Result<_, _>>()?;
+    let datasets = multiscales
+        .get("datasets")
+        .and_then(Value::as_array)
+        .filter(|d| !d.is_empty())
+        .ok_or_else(|| bad("datasets", "missing or empty"))?;
+    let scale = options.scale.unwrap_or(0);
+    let dataset = datasets.get(scale).ok_or_else(|| {
+        IoError::format(
+            path,
+            field("datasets"),
+            format!(
+                "--scale {scale}: the image has {} levels (0 to {})",
+                datasets.len(),
+                datasets.len() - 1
+            ),
+        )
+    })?;
+    let array_path = dataset
+        .get("path")
+        .and_then(Value::as_str)
+        .ok_or_else(|| bad("datasets", "a level without a path"))?;
+    let rank = names.len();
+    let mut placement = Placement {
+        names,
+        scale: vec![1.0; rank],
+        translation: vec![0.0; rank],
+    };
+    // The level's transformations, then the image's: each a scale, then a translation.
+    for transforms in [
+        dataset.get("coordinateTransformations"),
+        multiscales.get("coordinateTransformations"),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        let list = transforms
+            .as_array()
+            .ok_or_else(|| bad("coordinateTransformations", "not a list"))?;
+        for t in list {
+            let numbers = |key: &str| -> Result<Vec<f64>, IoError> {
+                let v: Vec<f64> = t
+                    .get(key)
+                    .and_then(Value::as_array)
+                    .map(|a| a.iter().filter_map(Value::as_f64).collect())
+                    .unwrap_or_default();
+                if v.len() != rank {
+                    return Err(bad(
+                        "coordinateTransformations",
+                        &format!("a {key} of {} numbers for {rank} axes", v.len()),
+                    ));
+                }
+                Ok(v)
+            };
+            match t.get("type").and_then(Value::as_str) {
+                Some("scale") => {
+                    let s = numbers("scale")?;
+                    for (a, s) in s.into_iter().enumerate() {
+                        placement.scale[a] *= s;
+                        placement.translation[a] *= s;
+                    }
+                }
+                Some("translation") => {
+                    let t = numbers("translation")?;
+                    for (p, t) in placement.translation.iter_mut().zip(t) {
+                        *p += t;
+                    }
+                }
+                Some("identity") | None => {}
+                Some(other) => {
+                    return Err(IoError::unsupported(
+                        path,
+                        field("coordinateTransformations"),
+                        format!("transformation '{other}' (isocube reads scale and translation)"),
+                    ))
+                }
+            }
+        }
+    }
+    Ok((
+        format!("/{}", array_path.trim_matches('/')),
+        Some(placement),
+    ))
+}
+
+/// The array axes of world x, y and z, and the index taken on every other axis.
+fn select_axes(
+    path: &Path,
+    shape: &[u64],
+    names: Option<&[String]>,
+    options: &VolumeOptions,
+) -> Result<([usize; 3], Vec<u64>), IoError> {
+    let rank = shape.len();
+    let field = || Position::Field("shape".into());
+    if rank < 3 {
+        return Err(IoError::unsupported(
+            path,
+            field(),
+            format!("a {rank}-d array: isocube meshes 3-d volumes"),
+        ));
+    }
+    let mut fixed = vec![0u64; rank];
+    let (axes, others): ([usize; 3], Vec<(usize, &str)>) = match names {
+        Some(names) => {
+            if names.len() != rank {
+                return Err(IoError::format(
+                    path,
+                    Position::Field("axes".into()),
+                    format!("{} axis names for a {rank}-d array", names.len()),
+                ));
+            }
+            let find = |n: &str| names.iter().position(|m| m == n).expect("checked");
+            let axes = [find("x"), find("y"), find("z")];
+            let others = (0..rank)
+                .filter(|a| !axes.contains(a))
+                .map(|a| (a, names[a].as_str()))
+                .collect();
+            (axes, others)
+        }
+        None => {
+            let lead = rank - 3;
+            let spatial = match options.npy_axes {
+                NpyAxes::Xyz => [lead, lead + 1, lead + 2],
+                NpyAxes::Zyx => [lead + 2, lead + 1, lead],
+            };
+            // Unnamed leading axes: time first, then channel, as OME-Zarr orders them.
+            let others = match lead {
+                0 => vec![],
+                1 => vec![(0, "t")],
+                _ => (0..lead)
+                    .map(|a| (a, if a + 1 == lead { "c" } else { "t" }))
+                    .collect(),
+            };
+            (spatial, others)
+        }
+    };
+    for (a, name) in others {
+        let (chosen, flag, what) = match name {
+            "c" => (options.channel, "--channel", "channels"),
+            "t" => (options.frame, "--frame", "frames"),
+            _ => (options.frame.or(options.channel), "--frame", "entries"),
+        };
+        let n = shape[a];
+        let index = match chosen {
+            Some(i) if (i as u64) < n => i as u64,
+            Some(i) => {
+                return Err(IoError::format(
+                    path,
+                    field(),
+                    format!("{flag} {i}: axis '{name}' has {n} {what} (0 to {})", n - 1),
+                ))
+            }
+            None if n == 1 => 0,
+            None => {
+                return Err(IoError::unsupported(
+                    path,
+                    field(),
+                    format!(
+                        "axis '{name}' has {n} {what}: choose one with {flag} (0 to {})",
+                        n - 1
+                    ),
+                ))
+            }
+        };
+        fixed[a] = index;
+    }
+    Ok((axes, fixed))
+}
+
+/// Reads a Zarr array or OME-Zarr image whole (see [`ZarrVolume`] for the selection).
+pub(crate) fn read_zarr_within(
+    path: &Path,
+    options: &VolumeOptions,
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    ZarrVolume::open(path, options)?.read_all(budget)
+}
+
+/// Writes `grid` as an OME-Zarr 0.5 image (Zarr v3) at `path`, a new folder: one level, `0`,
+/// of `float32` values stored `z, y, x` (x fastest), placed by a scale (the spacing) and a
+/// translation (the origin), in chunks of `chunk` points along x, y and z compressed with zstd.
+/// Read back by [`ZarrVolume`] (and napari, zarr-python, Fiji's OME-Zarr readers) with the same
+/// values and geometry.
+///
+/// ```
+/// use isocube::field::Sample;
+/// use isocube_io::{read_volume, write_zarr, VolumeOptions};
+/// let dir = tempfile::tempdir()?;
+/// let path = dir.path().join("torus.zarr");
+/// let grid = Sample::Torus.grid(20);
+/// write_zarr(&path, &grid, [8, 8, 8])?;
+/// let read = read_volume(&path, &VolumeOptions::default())?;
+/// assert_eq!((read.values(), read.spacing()), (grid.values(), grid.spacing()));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn write_zarr(path: &Path, grid: &Grid, chunk: [usize; 3]) -> Result<(), IoError> {
+    use zarrs::array::{codec::ZstdCodec, ArrayBuilder};
+    use zarrs::group::GroupBuilder;
+    let failed =
+        |e: &dyn std::fmt::Display| IoError::os(path, std::io::Error::other(e.to_string()));
+    if chunk.contains(&0) {
+        return Err(IoError::format(path, Position::File, "chunks of 0 points"));
+    }
+    std::fs::create_dir_all(path).map_err(|e| IoError::os(path, e))?;
+    let store = Arc::new(FilesystemStore::new(path).map_err(|e| failed(&e))?);
+    let [nx, ny, nz] = grid.dims();
+    let [sx, sy, sz] = grid.spacing();
+    let [ox, oy, oz] = grid.origin();
+    let axis = |name: &str| serde_json::json!({"name": name, "type": "space"});
+    let ome = serde_json::json!({
+        "version": "0.5",
+        "multiscales": [{
+            "axes": [axis("z"), axis("y"), axis("x")],
+            "datasets": [{
+                "path": "0",
+                "coordinateTransformations": [
+                    {"type": "scale", "scale": [sz, sy, sx]},
+                    {"type": "translation", "translation": [oz, oy, ox]},
+                ],
+            }],
+        }],
+    });
+    let mut attributes = serde_json::Map::new();
+    attributes.insert("ome".into(), ome);
+    let group = GroupBuilder::new()
+        .attributes(attributes)
+        .build(store.clone(), "/")
+        .map_err(|e| failed(&e))?;
+    group.store_metadata().map_err(|e| failed(&e))?;
+    let array = ArrayBuilder::new(
+        vec![nz as u64, ny as u64, nx as u64],
+        vec![chunk[2] as u64, chunk[1] as u64, chunk[0] as u64],
+        data_type::float32(),
+        f32::NAN,
+    )
+    .bytes_to_bytes_codecs(vec![Arc::new(ZstdCodec::new(3, false))])
+    .dimension_names(Some(["z", "y", "x"]))
+    .build(store, "/0")
+    .map_err(|e| failed(&e))?;
+    array.store_metadata().map_err(|e| failed(&e))?;
+    array
+        .store_array_subset(&array.subset_all(), grid.values())
+        .map_err(|e| failed(&e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::read_volume_oriented;
+    use isocube::extract::{extract, extract_streamed, ExtractOptions};
+    use isocube::field::Sample;
+    use isocube::mesh::Mesh;
+    use std::io::Write;
+
+    fn streamed(volume: &ZarrVolume, options: &ExtractOptions, threads: usize) -> Mesh {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut mesh = Mesh::new();
+        pool.install(|| extract_streamed(volume, options, &mut mesh, &mut isocube::no_progress))
+            .unwrap();
+        assert!(volume.take_error().is_none());
+        mesh
+    }
+
+    /// Chunks that divide the grid evenly or not (the last ones short), 1 and 2 threads: the
+    /// streamed mesh is the one of the grid in memory, to the bit, and so is the whole read.
+    #[test]
+    fn streamed_and_whole_reads_equal_the_grid() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = Sample::Gyroid.grid(41);
+        let options = ExtractOptions::default();
+        let whole = extract(&grid, &options).unwrap().0;
+        assert!(!whole.triangles.is_empty());
+        for chunk in [[16, 16, 16], [7, 9, 11], [41, 41, 3]] {
+            let path = dir.path().join(format!("g{}.zarr", chunk[0]));
+            write_zarr(&path, &grid, chunk).unwrap();
+            let volume = ZarrVolume::open(&path, &VolumeOptions::default()).unwrap();
+            assert_eq!(volume.orientation(), Orientation::IDENTITY);
+            for threads in [1, 2] {
+                assert_eq!(streamed(&volume, &options, threads), whole, "{chunk:?}");
+            }
+            let (read, _) = read_volume_oriented(&path, &VolumeOptions::default()).unwrap();
+            assert_eq!(read.values(), grid.values());
+            assert_eq!(
+                (read.spacing(), read.origin()),
+                (grid.spacing(), grid.origin())
+            );
+        }
+    }
+
+    /// A Zarr v2 array written by hand as other tools write them: `<u2` values, gzip, no axis
+    /// names (so `a[x, y, z]` as a `.npy`), a missing chunk (the fill value), an uneven grid.
+    /// The values are the `.npy` reader's for the same array, walked in the same order.
+    #[test]
+    fn version_2_arrays_read_as_the_npy_of_the_same_array() {
+        let dir = tempfile::tempdir().unwrap();
+        let shape = [9usize, 7, 5];
+        let value = |x: usize, y: usize, z: usize| (x * 100 + y * 10 + z) as u16;
+        let path = dir.path().join("v2.zarr");
+        std::fs::create_dir_all(&path).unwrap();
+        std::fs::write(
+            path.join(".zarray"),
+            r#"{"zarr_format": 2, "shape": [9, 7, 5], "chunks": [4, 4, 4], "dtype": "<u2",
+                "compressor": {"id": "gzip", "level": 1}, "fill_value": 7, "order": "C",
+                "filters": null}"#,
+        )
+        .unwrap();
+        for cx in 0..3 {
+            for cy in 0..2 {
+                for cz in 0..2 {
+                    if [cx, cy, cz] == [2, 1, 1] {
+                        continue; // absent: the fill value
+                    }
+                    let mut bytes = Vec::new();
+                    for x in 0..4 {
+                        for y in 0..4 {
+                            for z in 0..4 {
+                                let (x, y, z) = (cx * 4 + x, cy * 4 + y, cz * 4 + z);
+                                let v = if x < 9 && y < 7 && z < 5 {
+                                    value(x, y, z)
+                                } else {
+                                    0
+                                };
+                                bytes.extend(v.to_le_bytes());
+                            }
+                        }
+                    }
+                    let mut gz = flate2::write::GzEncoder::new(Vec::new(), Default::default());
+                    gz.write_all(&bytes).unwrap();
+                    std::fs::write(path.join(format!("{cx}.{cy}.{cz}")), gz.finish().unwrap())
+                        .unwrap();
+                }
+            }
+        }
+        let mut data = Vec::new();
+        for x in 0..9 {
+            for y in 0..7 {
+                for z in 0..5 {
+                    let absent = x >= 8 && y >= 4 && z >= 4;
+                    data.extend((if absent { 7 } else { value(x, y, z) }).to_le_bytes());
+                }
+            }
+        }
+        let npy = dir.path().join("same.npy");
+        std::fs::write(
+            &npy,
+            crate::npy::tests::npy_bytes("<u2", false, &shape, &data),
+        )
+        .unwrap();
+        let options = VolumeOptions::default();
+        let (from_npy, o_npy) = read_volume_oriented(&npy, &options).unwrap();
+        let mapped = crate::MappedVolume::open(&npy, &options).unwrap();
+        let volume = ZarrVolume::open(&path, &options).unwrap();
+        assert_eq!(volume.dims(), PlaneSource::dims(&mapped));
+        assert_eq!(volume.orientation(), PlaneSource::orientation(&mapped));
+        let mut planes = vec![0.0; 9 * 7 * 5];
+        volume.read_planes(0, &mut planes);
+        let mut expected = vec![0.0; 9 * 7 * 5];
+        mapped.read_planes(0, &mut expected);
+        assert_eq!(planes, expected);
+        assert_eq!(
+            (volume.absent_chunks(), volume.first_absent_chunk()),
+            (1, Some("2.1.1".into()))
+        );
+        // Read whole: walked as the mapped file is, where the .npy reader turns it x fastest.
+        let (from_zarr, o_zarr) = read_volume_oriented(&path, &options).unwrap();
+        assert_eq!(o_zarr, PlaneSource::orientation(&mapped));
+        assert_eq!((from_zarr.dims(), from_npy.dims()), ([5, 7, 9], [9, 7, 5]));
+        assert_eq!(o_npy, Orientation::IDENTITY);
+        for (i, j, k) in [(0, 0, 0), (4, 6, 8), (3, 5, 8), (1, 2, 3)] {
+            assert_eq!(from_zarr.value(i, j, k), from_npy.value(k, j, i));
+        }
+    }
+
+    /// An OME-Zarr 0.4 image (Zarr v2): two channels and two levels, each placed by a scale and
+    /// a translation. `scale`, `channel` pick the array and index; spacing and origin follow the
+    /// transformations; the choices the image needs are asked for by name.
+    #[test]
+    fn ome_zarr_levels_channels_and_placement() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ome.zarr");
+        std::fs::create_dir_all(&path).unwrap();
+        std::fs::write(path.join(".zgroup"), r#"{"zarr_format": 2}"#).unwrap();
+        let axes = r#"[{"name": "c", "type": "channel"}, {"name": "z", "type": "space"},
+                       {"name": "y", "type": "space"}, {"name": "x", "type": "space"}]"#;
+        let level = |path: &str, s: [f64; 3], t: [f64; 3]| {
+            format!(
+                r#"{{"path": "{path}", "coordinateTransformations": [
+                    {{"type": "scale", "scale": [1, {}, {}, {}]}},
+                    {{"type": "translation", "translation": [0, {}, {}, {}]}}]}}"#,
+                s[0], s[1], s[2], t[0], t[1], t[2]
+            )
+        };
+        std::fs::write(
+            path.join(".zattrs"),
+            format!(
+                r#"{{"multiscales": [{{"version": "0.4", "axes": {axes}, "datasets": [{}, {}]}}]}}"#,
+                level("0", [0.5, 0.25, 0.125], [10.0, 20.0, 30.0]),
+                level("1", [1.0, 0.5, 0.25], [10.25, 20.125, 30.0625])
+            ),
+        )
+        .unwrap();
+        // Level n: 2 channels × (6 / (n + 1)) × 5 × 4 points, raw f4 chunks (no compressor).
+        for (n, [nz, ny, nx]) in [(0usize, [6usize, 5, 4]), (1, [3, 3, 2])] {
+            let folder = path.join(n.to_string());
+            std::fs::create_dir_all(&folder).unwrap();
+            std::fs::write(
+                folder.join(".zarray"),
+                format!(
+                    r#"{{"zarr_format": 2, "shape": [2, {nz}, {ny}, {nx}], "chunks": [1, 4, 4, 4],
+                        "dtype": "<f4", "compressor": null, "fill_value": "NaN", "order": "C",
+                        "filters": null}}"#
+                ),
+            )
+            .unwrap();
+            for c in 0..2u64 {
+                for cz in 0..nz.div_ceil(4) {
+                    for cy in 0..ny.div_ceil(4) {
+                        let mut bytes = Vec::new();
+                        for z in 0..4 {
+                            for y in 0..4 {
+                                for x in 0..4 {
+                                    let v = (c * 1000 + (cz * 4 + z) as u64 * 100) as f32
+                                        + ((cy * 4 + y) * 10 + x + n * 10000) as f32;
+                                    bytes.extend(v.to_le_bytes());
+                                }
+                            }
+                        }
+                        std::fs::write(folder.join(format!("{c}.{cz}.{cy}.0")), bytes).unwrap();
+                    }
+                }
+            }
+        }
+        let mut options = VolumeOptions::default();
+        let needs = ZarrVolume::open(&path, &options).err().unwrap().to_string();
+        assert!(
+            needs.contains("axis 'c' has 2 channels: choose one with --channel"),
+            "{needs}"
+        );
+        options.channel = Some(1);
+        let volume = ZarrVolume::open(&path, &options).unwrap();
+        assert_eq!(volume.dims(), [4, 5, 6]);
+        assert_eq!(volume.spacing(), [0.125, 0.25, 0.5]);
+        assert_eq!(volume.origin(), [30.0, 20.0, 10.0]);
+        let mut plane = vec![0.0; 20];
+        volume.read_planes(2, &mut plane);
+        assert_eq!(
+            plane[0..6],
+            [1200.0, 1201.0, 1202.0, 1203.0, 1210.0, 1211.0]
+        );
+        options.scale = Some(1);
+        options.channel = Some(0);
+        let coarse = ZarrVolume::open(&path, &options).unwrap();
+        assert_eq!(coarse.dims(), [2, 3, 3]);
+        assert_eq!(coarse.spacing(), [0.25, 0.5, 1.0]);
+        assert_eq!(coarse.origin(), [30.0625, 20.125, 10.25]);
+        let mut plane = vec![0.0; 6];
+        coarse.read_planes(1, &mut plane);
+        assert_eq!(
+            plane,
+            [10100.0, 10101.0, 10110.0, 10111.0, 10120.0, 10121.0]
+        );
+        options.scale = Some(2);
+        let err = ZarrVolume::open(&path, &options).err().unwrap().to_string();
+        assert!(
+            err.contains("--scale 2: the image has 2 levels (0 to 1)"),
+            "{err}"
+        );
+        options.scale = None;
+        options.channel = Some(2);
+        let err = ZarrVolume::open(&path, &options).err().unwrap().to_string();
+        assert!(
+            err.contains("--channel 2: axis 'c' has 2 channels (0 to 1)"),
+            "{err}"
+        );
+    }
+
+    /// A chunk that does not decode, and one of the wrong size: the planes read as NaN, and the
+    /// error names the store and the chunk; reading whole fails the same way.
+    #[test]
+    fn damaged_chunks_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = Sample::Sphere.grid(20);
+        let path = dir.path().join("s.zarr");
+        write_zarr(&path, &grid, [8, 8, 8]).unwrap();
+        std::fs::write(path.join("0/c/1/1/1"), b"not zstd").unwrap();
+        let volume = ZarrVolume::open(&path, &VolumeOptions::default()).unwrap();
+        let mut planes = vec![0.0; 20 * 20 * 20];
+        volume.read_planes(0, &mut planes);
+        assert!(planes[..20 * 20 * 8].iter().all(|v| v.is_finite()));
+        assert!(planes[20 * 20 * 8..].iter().all(|v| v.is_nan()));
+        let err = volume.take_error().unwrap().to_string();
+        assert!(
+            err.contains("s.zarr: chunk '0/c/1/1/1' (chunk grid indices 1, 1, 1)"),
+            "{err}"
+        );
+        let whole = read_volume_oriented(&path, &VolumeOptions::default());
+        assert!(whole
+            .err()
+            .unwrap()
+            .to_string()
+            .contains("chunk '0/c/1/1/1'"));
+        // An uncompressed chunk of the wrong size.
+        let metadata = path.join("0/zarr.json");
+        let mut json: Value = serde_json::from_slice(&std::fs::read(&metadata).unwrap()).unwrap();
+        json["codecs"]
+            .as_array_mut()
+            .unwrap()
+            .retain(|c| c["name"] != "zstd");
+        std::fs::write(&metadata, json.to_string()).unwrap();
+        std::fs::write(path.join("0/c/0/0/0"), [0u8; 12]).unwrap();
+        let err = read_volume_oriented(&path, &VolumeOptions::default())
+            .err()
+            .unwrap();
+        assert!(err.to_string().contains("chunk '0/c/0/0/0'"), "{err}");
+    }
+}
