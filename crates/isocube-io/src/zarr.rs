@@ -381,10 +381,7 @@ impl ZarrVolume {
 
     /// Decodes `chunks` on threads of their own. Not on rayon's: the caller holds the layer
     /// lock, and a rayon thread waiting for its jobs could take up a slab that asks for it.
-    fn decode_chunks(
-        &self,
-        chunks: Vec<Vec<u64>>,
-    ) -> Result<Vec<DecodedChunk>, IoError> {
+    fn decode_chunks(&self, chunks: Vec<Vec<u64>>) -> Result<Vec<DecodedChunk>, IoError> {
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         let next = AtomicUsize::new(0);
         let failed = AtomicBool::new(false);

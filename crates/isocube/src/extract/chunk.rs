@@ -347,7 +347,7 @@ impl ChunkMesh {
     }
 
     /// Whether the parts agree with one another.
-    fn well_formed(&self) -> bool {
+    pub(super) fn well_formed(&self) -> bool {
         let m = &self.mesh;
         let v = m.positions.len();
         let rows_ok = self.rows.len() == self.cells.rows()
@@ -675,6 +675,73 @@ pub(crate) fn join_tagged(
         progress(done + 1);
     }
     Ok(stats)
+}
+
+/// Joins chunks whose boxes tile `cells` into the chunk mesh of `cells`: [`join_tagged`]'s mesh
+/// and keys, and the row ends of the box's rows, so that it can be joined again.
+pub(super) fn join_rows(
+    dims: [usize; 3],
+    chunks: Vec<ChunkMesh>,
+    cells: CellBox,
+) -> Result<ChunkMesh, ExtractError> {
+    cells.check(dims)?;
+    let ny = cells.extent()[1];
+    let rows = cells.rows();
+    let mut triangles = vec![0u32; rows];
+    // Each vertex's first row in the merged box: where the joined numbering puts it.
+    let mut first_row: FxHashMap<VertexKey, usize> = FxHashMap::default();
+    for c in &chunks {
+        c.cells.check(dims)?;
+        let inside =
+            (0..3).all(|a| cells.min[a] <= c.cells.min[a] && c.cells.max[a] <= cells.max[a]);
+        if !inside || !c.well_formed() {
+            return Err(ExtractError::MalformedChunk { cells: c.cells });
+        }
+        let mut before = [0u32; 2];
+        for (r, &row) in c.rows.iter().enumerate() {
+            let (z, y, _) = c.rank(r);
+            let u = (z - cells.min[2]) * ny + (y - cells.min[1]);
+            triangles[u] += row[0] - before[0];
+            for &key in &c.keys[before[1] as usize..row[1] as usize] {
+                first_row
+                    .entry(key)
+                    .and_modify(|f| *f = (*f).min(u))
+                    .or_insert(u);
+            }
+            before = row;
+        }
+    }
+    let mut mesh = Mesh::new();
+    let mut tags = Vec::new();
+    let mut keys = Vec::new();
+    let stats = join_tagged(
+        dims,
+        chunks,
+        &mut mesh,
+        &mut tags,
+        Some(&mut keys),
+        &mut |_| {},
+    )?;
+    let mut vertices = vec![0u32; rows];
+    for key in &keys {
+        vertices[first_row[key]] += 1;
+    }
+    let mut ends = Vec::with_capacity(rows);
+    let mut sum = [0u32; 2];
+    for (t, v) in triangles.into_iter().zip(vertices) {
+        sum = [sum[0] + t, sum[1] + v];
+        ends.push(sum);
+    }
+    Ok(ChunkMesh {
+        cells,
+        mesh,
+        keys,
+        stats,
+        tags,
+        rows: ends,
+        on_faces: None,
+        faces: cells.shared_faces(dims),
+    })
 }
 
 /// `v` with `n` elements, all to be overwritten. Grown as a fresh zeroed allocation when it

@@ -74,6 +74,7 @@
 //! ```
 
 mod binary;
+mod block;
 mod chunk;
 mod classify;
 mod labels;
@@ -88,6 +89,7 @@ mod weld;
 mod window;
 
 pub(crate) use binary::slabs;
+pub use block::{block_halo, merge_chunks, mesh_block};
 pub(crate) use chunk::join_tagged;
 pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
 pub use labels::{
@@ -364,6 +366,20 @@ pub enum ExtractError {
     MalformedChunk {
         /// The chunk's box.
         cells: CellBox,
+    },
+    /// A block handed to [`mesh_block`] does not hold the points its cells need.
+    #[error(
+        "a block of {block:?} points at {at:?} does not hold the cells {cells:?} and {halo} points around them"
+    )]
+    Block {
+        /// The cells asked for.
+        cells: CellBox,
+        /// The grid index of the block's first point.
+        at: [usize; 3],
+        /// The block's points per axis.
+        block: [usize; 3],
+        /// Points needed beyond the cells ([`block_halo`]).
+        halo: usize,
     },
     /// The progress callback asked to stop.
     #[error("stopped before the end (cancelled)")]

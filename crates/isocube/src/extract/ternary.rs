@@ -258,6 +258,7 @@ impl<'a> Ternary<'a> {
             0,
             &self.values,
         )
+        .with_base(g.base())
     }
 
     /// Number of point `(i, j, k)`: its place in [`Ternary::values`].

@@ -35,6 +35,14 @@ impl<'a> Window<'a> {
         }
     }
 
+    /// The window of a block of a larger grid (see [`GridView::with_base`]).
+    pub(super) fn with_base(self, base: [usize; 3]) -> Window<'a> {
+        Window {
+            view: self.view.with_base(base),
+            ..self
+        }
+    }
+
     /// The whole grid's dimensions.
     #[inline]
     pub(super) fn dims(&self) -> [usize; 3] {

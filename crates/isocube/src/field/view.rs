@@ -45,6 +45,9 @@ pub struct GridView<'a> {
     exact: Option<Sample>,
     /// The planes' `z` (before the origin) when they are unevenly spaced.
     heights: Option<&'a [f64]>,
+    /// The whole grid's index of point `(0, 0, 0)` when the view is a block of a larger grid:
+    /// positions are the whole grid's, to the bit.
+    base: [usize; 3],
 }
 
 impl<'a> GridView<'a> {
@@ -99,6 +102,7 @@ impl<'a> GridView<'a> {
             orientation: Orientation::IDENTITY,
             exact: None,
             heights: None,
+            base: [0; 3],
         })
     }
 
@@ -122,7 +126,23 @@ impl<'a> GridView<'a> {
             orientation: Orientation::IDENTITY,
             exact: None,
             heights,
+            base: [0; 3],
         }
+    }
+
+    /// The larger grid's index of the view's point `(0, 0, 0)` (zero unless the view is a
+    /// block of a larger grid, [`GridView::with_base`]).
+    pub(crate) fn base(&self) -> [usize; 3] {
+        self.base
+    }
+
+    /// The view as the block of a larger grid whose point `base` is the view's `(0, 0, 0)`:
+    /// positions are computed from the larger grid's indices (its spacing and origin are the
+    /// view's), so they come out as the larger grid's to the bit. Not with heights.
+    pub(crate) fn with_base(mut self, base: [usize; 3]) -> GridView<'a> {
+        debug_assert!(self.heights.is_none());
+        self.base = base;
+        self
     }
 
     /// Sets the spacing (each finite and positive).
@@ -246,6 +266,7 @@ impl<'a> GridView<'a> {
     /// [`Grid::point`] is this.
     #[inline]
     pub fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
+        let [i, j, k] = [i + self.base[0], j + self.base[1], k + self.base[2]];
         let z = match self.heights {
             None => k as f64 * self.spacing[2],
             Some(h) => h[k],
