@@ -145,8 +145,19 @@ impl Mesh {
 
     /// The normals with every zero one (a flat spot of the field, or averaged normals that
     /// cancel) replaced by the area-weighted normal of its triangles, or +z where those cancel
-    /// too; `None` when no normal is zero (or there are none).
-    pub(crate) fn filled_normals(&self) -> Option<Vec<[f32; 3]>> {
+    /// too; `None` when no normal is zero (or there are none). Extraction does this last; a
+    /// mesh joined from chunks ([`crate::extract::join`], [`crate::extract::merge_chunks`]) needs
+    /// it to be [`crate::extract::extract`]'s.
+    ///
+    /// ```
+    /// use isocube::mesh::Mesh;
+    /// let mut mesh = Mesh::new();
+    /// mesh.positions = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    /// mesh.normals = vec![[0.0, 0.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0]];
+    /// mesh.triangles = vec![[0, 1, 2]];
+    /// assert_eq!(mesh.filled_normals().unwrap()[1], [0.0, 0.0, 1.0]);
+    /// ```
+    pub fn filled_normals(&self) -> Option<Vec<[f32; 3]>> {
         if self.normals.len() != self.positions.len() || !self.normals.contains(&[0.0; 3]) {
             return None;
         }
