@@ -212,3 +212,38 @@ def poly_mesh(
 ) -> PolyMesh: ...
 def poly_read(path: str) -> PolyMesh: ...
 def tables(kind: str, group: str, polygons: bool) -> str | dict[str, npt.NDArray[np.generic]]: ...
+def block_halo(method: str, normals: bool) -> int: ...
+def mesh_block(
+    block: npt.NDArray[np.float32],
+    at: tuple[int, int, int],
+    shape: tuple[int, int, int],
+    lo: tuple[int, int, int],
+    hi: tuple[int, int, int],
+    level: float,
+    *,
+    spacing: tuple[float, float, float],
+    origin: tuple[float, float, float],
+    method: str,
+    topology: str,
+    triangulate: str,
+    snap: float,
+    zero_threshold: float,
+    snap_position: str,
+    flip: bool,
+    normals: bool,
+) -> bytes: ...
+def merge_chunks(shape: tuple[int, int, int], chunks: list[bytes]) -> bytes: ...
+def finish_chunks(
+    chunk: bytes,
+    shape: tuple[int, int, int],
+    *,
+    origin: tuple[float, float, float],
+    normals: bool,
+    direction: list[list[float]] | None = None,
+) -> tuple[
+    npt.NDArray[np.float32],
+    npt.NDArray[np.uint32],
+    npt.NDArray[np.float32] | None,
+    None,
+    dict[str, float],
+]: ...

@@ -22,6 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
+mod blocks;
 mod contours;
 mod subdiv;
 mod tets;
@@ -74,7 +75,7 @@ fn as_i32(rows: Vec<[u32; 3]>) -> Vec<[i32; 3]> {
 }
 
 /// A `(n, 3)` array owning `rows`' buffer.
-fn rows_array<'py, T: numpy::Element + Copy>(
+pub(crate) fn rows_array<'py, T: numpy::Element + Copy>(
     py: Python<'py>,
     rows: Vec<[T; 3]>,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
@@ -92,7 +93,7 @@ where
 }
 
 /// The extraction method by name: `mc`, or `ternary` with its snapping options.
-fn method_of(
+pub(crate) fn method_of(
     method: &str,
     snap: f32,
     zero_threshold: f32,
@@ -113,7 +114,7 @@ fn method_of(
 }
 
 /// A direction matrix (columns: the world vectors of the array's axes) as an orientation.
-fn direction_of(direction: Option<[[f64; 3]; 3]>) -> PyResult<Option<Orientation>> {
+pub(crate) fn direction_of(direction: Option<[[f64; 3]; 3]>) -> PyResult<Option<Orientation>> {
     direction
         .map(|d| {
             Orientation::new(d).ok_or_else(|| {
@@ -124,7 +125,7 @@ fn direction_of(direction: Option<[[f64; 3]; 3]>) -> PyResult<Option<Orientation
 }
 
 /// The options `extract` and `tetmesh` share, by name where Python gives names.
-fn surface_options(
+pub(crate) fn surface_options(
     level: f32,
     flip: bool,
     topology: &str,
@@ -141,7 +142,7 @@ fn surface_options(
         .with_max_memory(max_memory))
 }
 
-fn extract_error(e: ExtractError) -> PyErr {
+pub(crate) fn extract_error(e: ExtractError) -> PyErr {
     match e {
         ExtractError::MemoryLimit { .. } | ExtractError::MeshMemory { .. } => {
             MemoryLimitError::new_err(e.to_string())
@@ -151,7 +152,7 @@ fn extract_error(e: ExtractError) -> PyErr {
 }
 
 /// The extraction's counts, and the seconds the engine took (the call less the Python layer).
-fn stats_dict<'py>(
+pub(crate) fn stats_dict<'py>(
     py: Python<'py>,
     stats: &ExtractStats,
     seconds: f64,
@@ -220,13 +221,11 @@ fn vertex_values(grid: &GridView, order: [usize; 3], positions: &[[f32; 3]]) -> 
         .collect()
 }
 
-/// A `float32` volume indexed `volume[x, y, z]` as a grid view in its memory order, and that
-/// order (grid axis `a` is the array's axis `order[a]`).
-fn view_of<'a>(
+/// The elements a `float32` array may read (from its first to its last) and its strides in
+/// elements; an error for negative strides or strides that are not whole elements.
+pub(crate) fn samples_of<'a>(
     volume: &'a PyReadonlyArray3<'_, f32>,
-    spacing: [f64; 3],
-    origin: [f64; 3],
-) -> PyResult<(GridView<'a>, [usize; 3])> {
+) -> PyResult<(&'a [f32], [usize; 3])> {
     let shape = volume.shape();
     let dims = [shape[0], shape[1], shape[2]];
     let item = std::mem::size_of::<f32>() as isize;
@@ -253,6 +252,19 @@ fn view_of<'a>(
         // readonly borrow keeps the buffer alive and unchanged by Rust while this runs.
         unsafe { std::slice::from_raw_parts(volume.data() as *const f32, span) }
     };
+    Ok((samples, strides))
+}
+
+/// A `float32` volume indexed `volume[x, y, z]` as a grid view in its memory order, and that
+/// order (grid axis `a` is the array's axis `order[a]`).
+fn view_of<'a>(
+    volume: &'a PyReadonlyArray3<'_, f32>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+) -> PyResult<(GridView<'a>, [usize; 3])> {
+    let shape = volume.shape();
+    let dims = [shape[0], shape[1], shape[2]];
+    let (samples, strides) = samples_of(volume)?;
     // Meshed in memory order (the fastest axis as the grid's x), as the command line meshes a
     // mapped file: a C-order array read along its last axis, not across it (several times
     // faster), and the same mesh as `isocube extract` on the array saved as `.npy`. The grid's
@@ -739,6 +751,10 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(subdiv::poly_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(subdiv::read, m)?)?;
     m.add_function(wrap_pyfunction!(tables, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::block_halo, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::mesh_block, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::merge_chunks, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::finish_chunks, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;

@@ -379,12 +379,16 @@ impl<'a> Ternary<'a> {
         near.dedup_by_key(|e| *e >> 4);
         // Then by round, by parity class, and by point: `round << 59 | class << 56 | point`
         // (points number fewer than 2^56: no grid that large fits in memory).
+        // The class by the whole grid's coordinates: a block of a larger grid (a chunk meshed
+        // on its own) decides in the larger grid's order.
+        let base = self.grid.base();
         let mut order: Vec<u64> = near
             .into_iter()
             .map(|e| {
                 let p = (e >> 4) as usize;
                 debug_assert!(p < 1 << 56);
                 let c = self.coords(p);
+                let c = [0, 1, 2].map(|a| c[a] + base[a]);
                 let class = (c[0] & 1 | (c[1] & 1) << 1 | (c[2] & 1) << 2) as u64;
                 (e & 15) << 59 | class << 56 | p as u64
             })

@@ -1,0 +1,185 @@
+//! The pieces `isocube.dask` puts on a cluster: a block of a C-ordered volume meshed where it
+//! was read (its chunk mesh as bytes), chunk meshes merged in a tree, and the last one turned
+//! into the arrays `isocube.extract` gives for the whole volume.
+//!
+//! Everything here is in the frame `isocube.extract` meshes a C-ordered array in: the grid's
+//! `x` is the array's last axis. Indices given by Python are in the array's order `[i, j, k]`
+//! and are reversed here.
+
+use isocube::extract::{self, CellBox, ChunkMesh, ExtractOptions};
+use isocube::field::{GridView, Orientation};
+use isocube::mesh::Mesh;
+use numpy::{PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+
+use crate::{
+    direction_of, extract_error, method_of, rows_array, samples_of, stats_dict, surface_options,
+    Extracted, InputError,
+};
+
+/// Array order `[i, j, k]` → the grid's `[x, y, z]` (and back).
+fn reversed<T: Copy>(a: [T; 3]) -> [T; 3] {
+    [a[2], a[1], a[0]]
+}
+
+#[allow(clippy::too_many_arguments)]
+fn options_of(
+    level: f32,
+    method: &str,
+    topology: &str,
+    triangulate: &str,
+    snap: f32,
+    zero_threshold: f32,
+    snap_position: &str,
+    flip: bool,
+    normals: bool,
+) -> PyResult<ExtractOptions> {
+    Ok(surface_options(
+        level,
+        flip,
+        topology,
+        triangulate,
+        method_of(method, snap, zero_threshold, snap_position)?,
+        None,
+    )?
+    .with_normals(normals))
+}
+
+/// Points a block must hold beyond its cells for `method` (and normals or not).
+#[pyfunction]
+#[pyo3(signature = (method, normals))]
+pub(crate) fn block_halo(method: &str, normals: bool) -> PyResult<usize> {
+    let options = ExtractOptions::default()
+        .with_method(method_of(method, 0.3, 0.0, "crossing")?)
+        .with_normals(normals);
+    Ok(extract::block_halo(&options))
+}
+
+/// Meshes cells `lo..hi` (array order) of a volume of `shape` points from `block`, its points
+/// `at .. at + block.shape`; returns the chunk mesh as bytes.
+#[pyfunction]
+#[pyo3(signature = (
+    block, at, shape, lo, hi, level, *, spacing, origin, method, topology, triangulate, snap,
+    zero_threshold, snap_position, flip, normals
+))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn mesh_block<'py>(
+    py: Python<'py>,
+    block: PyReadonlyArray3<'py, f32>,
+    at: [usize; 3],
+    shape: [usize; 3],
+    lo: [usize; 3],
+    hi: [usize; 3],
+    level: f32,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    method: &str,
+    topology: &str,
+    triangulate: &str,
+    snap: f32,
+    zero_threshold: f32,
+    snap_position: &str,
+    flip: bool,
+    normals: bool,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let options = options_of(
+        level,
+        method,
+        topology,
+        triangulate,
+        snap,
+        zero_threshold,
+        snap_position,
+        flip,
+        normals,
+    )?;
+    let b = block.shape();
+    let (samples, strides) = samples_of(&block)?;
+    let view = GridView::strided(samples, reversed([b[0], b[1], b[2]]), reversed(strides))
+        .and_then(|g| g.with_spacing(reversed(spacing)))
+        .and_then(|g| g.with_origin(origin))
+        .map_err(|e| InputError::new_err(e.to_string()))?;
+    let cells = CellBox::new(reversed(lo), reversed(hi));
+    let (at, dims) = (reversed(at), reversed(shape));
+    let bytes = py
+        .detach(|| {
+            extract::mesh_block(view, at, dims, cells, &options).map(|chunk| chunk.to_bytes())
+        })
+        .map_err(extract_error)?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+fn chunks_of(chunks: &[Vec<u8>]) -> PyResult<Vec<ChunkMesh>> {
+    chunks
+        .iter()
+        .map(|c| ChunkMesh::from_bytes(c).map_err(extract_error))
+        .collect()
+}
+
+/// Merges chunk meshes (bytes) whose boxes tile one box of a volume of `shape` points.
+#[pyfunction]
+pub(crate) fn merge_chunks<'py>(
+    py: Python<'py>,
+    shape: [usize; 3],
+    chunks: Vec<Vec<u8>>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let bytes = py.detach(|| {
+        let chunks = chunks_of(&chunks)?;
+        extract::merge_chunks(reversed(shape), chunks)
+            .map(|c| c.to_bytes())
+            .map_err(extract_error)
+    })?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// The merged chunk of a whole volume as `isocube.extract` returns it: normals filled where
+/// the field was flat, the grid's frame turned into the array's index order, then by
+/// `direction`.
+#[pyfunction]
+#[pyo3(signature = (chunk, shape, *, origin, normals, direction=None))]
+pub(crate) fn finish_chunks<'py>(
+    py: Python<'py>,
+    chunk: Vec<u8>,
+    shape: [usize; 3],
+    origin: [f64; 3],
+    normals: bool,
+    direction: Option<[[f64; 3]; 3]>,
+) -> PyResult<Extracted<'py>> {
+    let turn = direction_of(direction)?;
+    let (mesh, stats) = py.detach(|| -> PyResult<(Mesh, _)> {
+        let chunk = ChunkMesh::from_bytes(&chunk).map_err(extract_error)?;
+        if chunk.cells != CellBox::whole(reversed(shape)) {
+            return Err(InputError::new_err(format!(
+                "the chunk covers cells {:?}, not the whole volume of {shape:?} points",
+                chunk.cells
+            )));
+        }
+        let mut mesh = chunk.mesh;
+        if let Some(filled) = mesh.filled_normals() {
+            mesh.normals = filled;
+        }
+        Orientation::axes([2, 1, 0])
+            .expect("a permutation")
+            .orient_mesh(&mut mesh, origin);
+        if let Some(turn) = turn {
+            turn.orient_mesh(&mut mesh, origin);
+        }
+        Ok((mesh, chunk.stats))
+    })?;
+    let Mesh {
+        positions,
+        normals: vertex_normals,
+        triangles,
+    } = mesh;
+    let normals = (normals && vertex_normals.len() == positions.len())
+        .then(|| rows_array(py, vertex_normals))
+        .transpose()?;
+    Ok((
+        rows_array(py, positions)?,
+        rows_array(py, triangles)?,
+        normals,
+        None,
+        stats_dict(py, &stats, 0.0)?,
+    ))
+}
