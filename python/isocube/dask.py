@@ -90,6 +90,34 @@ def _mesh_task(block: Any, at: tuple[int, int, int], **kwargs: Any) -> bytes:
     return bytes(_mesh_block(np.asarray(block, dtype=np.float32), at, **kwargs))
 
 
+def _zarr_array(path: str, component: str | None) -> Any:
+    """The Zarr array at `path` as a dask array whose tasks read one chunk each on the workers
+    (naming the chunk when it cannot be read)."""
+    import dask.array as da
+    import zarr
+    from dask.delayed import delayed
+
+    z = zarr.open_array(path, mode="r", path=component or "")
+    if z.ndim != 3:
+        raise InputError(f"{path}: the array has {z.ndim} dimensions, not three")
+    read = delayed(_read_block, pure=True)
+    edges = [list(range(0, n, c)) + [n] for n, c in zip(z.shape, z.chunks)]
+    rows = []
+    for i in range(len(edges[0]) - 1):
+        plane = []
+        for j in range(len(edges[1]) - 1):
+            line = []
+            for k in range(len(edges[2]) - 1):
+                lo = (edges[0][i], edges[1][j], edges[2][k])
+                end = (edges[0][i + 1], edges[1][j + 1], edges[2][k + 1])
+                shape = tuple(end[a] - lo[a] for a in range(3))
+                hi = (end[0] - 1, end[1] - 1, end[2] - 1)
+                line.append(da.from_delayed(read(path, component, lo, hi), shape, dtype=np.float32))
+            plane.append(line)
+        rows.append(plane)
+    return da.block(rows)
+
+
 def _read_block(
     path: str, component: str | None, lo: tuple[int, int, int], hi: tuple[int, int, int]
 ) -> np.ndarray:
@@ -191,11 +219,8 @@ def extract(
     from dask.delayed import delayed
 
     started = time.perf_counter()
-    path = None
     if isinstance(array, (str, os.PathLike)):
-        # Opened here for its shape and chunks only; each task reads its own block.
-        path = os.fspath(array)
-        array = da.from_zarr(path, component=component)  # type: ignore[no-untyped-call]
+        array = _zarr_array(os.fspath(array), component)
     elif not isinstance(array, da.Array):
         raise InputError("`array` must be a dask array or the path of a Zarr store")
     if array.ndim != 3:
@@ -203,7 +228,21 @@ def extract(
     if int(split_every) < 2:
         raise InputError("`split_every` must be at least 2")
     shape = (int(array.shape[0]), int(array.shape[1]), int(array.shape[2]))
-    h = halo(method, normals)
+    if min(shape) < 2:
+        raise InputError("every axis of the volume needs at least two points")
+    # Each chunk is read once; its neighbours send it the `depth` points around it (dask's
+    # overlap: thin slices, not whole chunks). Its last cell needs the point after the chunk,
+    # and the halo is counted from there: one more than the halo. Chunks thinner than the
+    # depth are first joined.
+    # (No more than the axis holds: dask's overlap refuses that, and it reaches the ends.)
+    reach = halo(method, normals) + 1
+    depth = tuple(min(reach, n - 1) for n in shape)
+    if any(min(c) < d for c, d in zip(array.chunks, depth)):
+        from dask.array.overlap import ensure_minimum_chunksize
+
+        array = array.rechunk(
+            tuple(ensure_minimum_chunksize(d, c) for c, d in zip(array.chunks, depth))
+        )
     options: dict[str, Any] = dict(
         level=float(level),
         spacing=_triple("spacing", spacing),
@@ -219,32 +258,28 @@ def extract(
     )
     matrix = None if direction is None else _matrix(direction)
     mesh_task = delayed(_mesh_task, pure=True)
-    read_task = delayed(_read_block, pure=True)
     merge_task = delayed(_merge_task, pure=True)
-    # Per box of cells: the task meshing it from its block (its points and the halo).
+    overlapped = da.overlap.overlap(array, depth={a: depth[a] for a in range(3)}, boundary="none")
+    blocks = overlapped.to_delayed()
+    edges = [np.cumsum([0, *c]) for c in array.chunks]
+    # Per chunk: the task meshing the cells it owns (those whose first point it holds; none
+    # for a last chunk of one point) from its block.
     parts: dict[tuple[int, int, int], Any] = {}
-    owned = boxes(array.chunks)
-    firsts = [sorted({b[a][0] for b in owned}) for a in range(3)]
-    for box in owned:
-        lo = tuple(max(0, b[0] - h) for b in box)
-        hi = tuple(min(shape[a] - 1, box[a][1] + h) for a in range(3))
-        if path is None:
-            block = array[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1, lo[2] : hi[2] + 1]
-        else:
-            block = read_task(path, component, lo, hi)
-        place = (
-            firsts[0].index(box[0][0]),
-            firsts[1].index(box[1][0]),
-            firsts[2].index(box[2][0]),
+    for index in np.ndindex(*blocks.shape):
+        first = [int(edges[a][index[a]]) for a in range(3)]
+        lo = tuple(min(first[a], shape[a] - 1) for a in range(3))
+        hi = tuple(min(int(edges[a][index[a] + 1]), shape[a] - 1) for a in range(3))
+        if any(lo[a] == hi[a] for a in range(3)):
+            continue
+        at = tuple(max(0, first[a] - depth[a]) for a in range(3))
+        parts[(index[0], index[1], index[2])] = mesh_task(
+            blocks[index], at, shape=shape, lo=lo, hi=hi, **options
         )
-        parts[place] = mesh_task(
-            block,
-            lo,
-            shape=shape,
-            lo=tuple(b[0] for b in box),
-            hi=tuple(b[1] for b in box),
-            **options,
-        )
+    firsts = [sorted({p[a] for p in parts}) for a in range(3)]
+    parts = {
+        (firsts[0].index(p[0]), firsts[1].index(p[1]), firsts[2].index(p[2])): t
+        for p, t in parts.items()
+    }
     # A tree of merges: neighbours along the last axis first, then the middle, then the first,
     # `split_every` at a time; every merge's boxes tile a box.
     counts = [len(f) for f in firsts]

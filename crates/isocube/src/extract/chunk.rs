@@ -687,9 +687,12 @@ pub(super) fn join_rows(
     cells.check(dims)?;
     let ny = cells.extent()[1];
     let rows = cells.rows();
+    // Triangles and vertices each row of the merged box makes: every chunk's own per row,
+    // less the vertices on shared faces that a chunk with an earlier row makes first (the
+    // joiner's rule), found among the seam vertices only.
     let mut triangles = vec![0u32; rows];
-    // Each vertex's first row in the merged box: where the joined numbering puts it.
-    let mut first_row: FxHashMap<VertexKey, usize> = FxHashMap::default();
+    let mut vertices = vec![0u32; rows];
+    let row_of = |rank: Rank| (rank.0 - cells.min[2]) * ny + (rank.1 - cells.min[1]);
     for c in &chunks {
         c.cells.check(dims)?;
         let inside =
@@ -699,16 +702,33 @@ pub(super) fn join_rows(
         }
         let mut before = [0u32; 2];
         for (r, &row) in c.rows.iter().enumerate() {
-            let (z, y, _) = c.rank(r);
-            let u = (z - cells.min[2]) * ny + (y - cells.min[1]);
+            let u = row_of(c.rank(r));
             triangles[u] += row[0] - before[0];
-            for &key in &c.keys[before[1] as usize..row[1] as usize] {
-                first_row
-                    .entry(key)
-                    .and_modify(|f| *f = (*f).min(u))
-                    .or_insert(u);
-            }
+            vertices[u] += row[1] - before[1];
             before = row;
+        }
+    }
+    let shared: Vec<Shared> = chunks
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(c, chunk)| chunk.shared(dims, c as u32))
+        .collect();
+    let mut first: FxHashMap<VertexKey, Rank> =
+        FxHashMap::with_capacity_and_hasher(shared.len(), Default::default());
+    for &(key, rank, _, _) in &shared {
+        first
+            .entry(key)
+            .and_modify(|f| *f = (*f).min(rank))
+            .or_insert(rank);
+    }
+    // Each seam vertex counted once, in its first row: the later makers' counts come off.
+    let mut counted: FxHashMap<VertexKey, ()> =
+        FxHashMap::with_capacity_and_hasher(first.len(), Default::default());
+    for &(key, rank, _, _) in &shared {
+        if rank != first[&key] || counted.insert(key, ()).is_some() {
+            // Malformed chunks can make this wrap; the total is checked after the join.
+            let v = &mut vertices[row_of(rank)];
+            *v = v.wrapping_sub(1);
         }
     }
     let mut mesh = Mesh::new();
@@ -722,15 +742,14 @@ pub(super) fn join_rows(
         Some(&mut keys),
         &mut |_| {},
     )?;
-    let mut vertices = vec![0u32; rows];
-    for key in &keys {
-        vertices[first_row[key]] += 1;
-    }
     let mut ends = Vec::with_capacity(rows);
     let mut sum = [0u32; 2];
     for (t, v) in triangles.into_iter().zip(vertices) {
-        sum = [sum[0] + t, sum[1] + v];
+        sum = [sum[0].wrapping_add(t), sum[1].wrapping_add(v)];
         ends.push(sum);
+    }
+    if sum[1] as usize != keys.len() {
+        return Err(ExtractError::MalformedChunk { cells });
     }
     Ok(ChunkMesh {
         cells,
