@@ -95,6 +95,16 @@ impl Element {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub struct ZarrVolume {
+    chunks: Arc<Chunks>,
+    orientation: Orientation,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    layers: Mutex<Layers>,
+}
+
+/// The array and the selection: what decoding a layer needs, shared with the thread that
+/// decodes the next layer ahead.
+struct Chunks {
     path: PathBuf,
     array: Array<FilesystemStore>,
     element: Element,
@@ -103,20 +113,21 @@ pub struct ZarrVolume {
     /// grid axis back on its world axis, as [`crate::MappedVolume`] does for a `.npy`: the
     /// chunks are read in one sweep, and the mesh is the one of the same array in memory.
     axes: [usize; 3],
-    orientation: Orientation,
     /// The index taken on every array axis that is not spatial (ignored on spatial ones).
     fixed: Vec<u64>,
     dims: [usize; 3],
-    spacing: [f64; 3],
-    origin: [f64; 3],
     /// Chunks along the array's axis of z.
     chunk_z: usize,
-    layers: Mutex<Layers>,
 }
+
+/// A layer's values (`x` fastest) and the keys of its absent chunks.
+type Layer = Result<(Vec<f32>, Vec<String>), IoError>;
 
 #[derive(Default)]
 struct Layers {
     held: BTreeMap<usize, Arc<Vec<f32>>>,
+    /// The next layer, decoded on a thread of its own while the slabs mesh this one.
+    ahead: Option<(usize, std::thread::JoinHandle<Layer>)>,
     /// Layers below this one were released.
     released: usize,
     error: Option<IoError>,
@@ -193,19 +204,21 @@ impl ZarrVolume {
         })?[axes[2]]
             .get() as usize;
         let volume = ZarrVolume {
-            path: path.to_path_buf(),
-            array,
-            element,
-            axes,
+            chunks: Arc::new(Chunks {
+                path: path.to_path_buf(),
+                array,
+                element,
+                axes,
+                fixed,
+                dims,
+                chunk_z,
+            }),
             orientation,
-            fixed,
-            dims,
             spacing,
             origin,
-            chunk_z,
             layers: Mutex::new(Layers::default()),
         };
-        // Two layers of values, and the chunks of one as decoded, are held at once.
+        // The layer in work, the one before it until released, the next being decoded.
         let layer = (dims[0] * dims[1]) as u64 * chunk_z as u64;
         let budget = Budget::new(options.max_memory);
         budget.check(path, Position::Field("chunk_grid".into()), layer * 4 * 3)?;
@@ -221,7 +234,7 @@ impl ZarrVolume {
 
     /// The store.
     pub fn path(&self) -> &Path {
-        &self.path
+        &self.chunks.path
     }
 
     /// The first absent chunk met so far, by its key (`c/0/1/2`, `0.1.2`), if any.
@@ -241,23 +254,88 @@ impl ZarrVolume {
 
     /// Reads the whole selection into a grid.
     pub(crate) fn read_all(&self, budget: Budget) -> Result<(Grid, Orientation), IoError> {
-        let [nx, ny, nz] = self.dims;
+        let [nx, ny, nz] = self.chunks.dims;
         let count = nx * ny * nz;
-        budget.check_values(&self.path, Position::Field("shape".into()), 0, count)?;
+        budget.check_values(self.path(), Position::Field("shape".into()), 0, count)?;
         let mut values = vec![0.0f32; count];
-        for (layer, out) in values.chunks_mut(nx * ny * self.chunk_z).enumerate() {
-            let decoded = self.decode_layer(layer, &mut self.lock())?;
-            out.copy_from_slice(&decoded);
+        let layer_size = nx * ny * self.chunks.chunk_z;
+        for (layer, out) in values.chunks_mut(layer_size).enumerate() {
+            out.copy_from_slice(&self.layer(layer));
+            self.release_before((layer + 1) * self.chunks.chunk_z);
         }
-        let grid = Grid::new(self.dims, values)
+        if let Some(e) = self.take_error() {
+            return Err(e);
+        }
+        let grid = Grid::new(self.chunks.dims, values)
             .and_then(|g| g.with_spacing(self.spacing))
             .and_then(|g| g.with_origin(self.origin))
-            .map_err(|e| IoError::grid(&self.path, e))?;
+            .map_err(|e| IoError::grid(self.path(), e))?;
         Ok((grid, self.orientation))
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Layers> {
         self.layers.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Layer `layer`: held, decoded ahead, or decoded now; the next one is then started on a
+    /// thread of its own, so that decoding runs while the slabs of this one are meshed.
+    fn layer(&self, layer: usize) -> Arc<Vec<f32>> {
+        let mut state = self.lock();
+        if let Some(held) = state.held.get(&layer) {
+            return held.clone();
+        }
+        let size =
+            self.chunks.dims[0] * self.chunks.dims[1] * self.chunks.layer_planes(layer).len();
+        let decoded = match state.ahead.take() {
+            Some((l, thread)) if l == layer => thread
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p)),
+            // Decoded with the lock held: the slabs in flight want the same layer.
+            other => {
+                drop(other.map(|(_, t)| t.join()));
+                if state.failed {
+                    Ok((vec![f32::NAN; size], Vec::new()))
+                } else {
+                    self.chunks.decode_layer(layer)
+                }
+            }
+        };
+        let values = match decoded {
+            Ok((values, absent)) => {
+                state.absent += absent.len();
+                if let Some(first) = absent.into_iter().next() {
+                    state.first_absent.get_or_insert(first);
+                }
+                values
+            }
+            Err(e) => {
+                state.failed = true;
+                state.error.get_or_insert(e);
+                vec![f32::NAN; size]
+            }
+        };
+        let values = Arc::new(values);
+        if layer >= state.released {
+            state.held.insert(layer, values.clone());
+        }
+        let next = layer + 1;
+        if !state.failed && next < self.chunks.layers() && !state.held.contains_key(&next) {
+            let chunks = self.chunks.clone();
+            let thread = std::thread::Builder::new()
+                .name("zarr layer".into())
+                .spawn(move || chunks.decode_layer(next));
+            if let Ok(thread) = thread {
+                state.ahead = Some((next, thread));
+            }
+        }
+        values
+    }
+}
+
+impl Chunks {
+    /// Layers of chunks along the grid's `z`.
+    fn layers(&self) -> usize {
+        self.dims[2].div_ceil(self.chunk_z)
     }
 
     /// Grid planes of layer `layer` (`chunk_z` planes, fewer in the last).
@@ -266,24 +344,25 @@ impl ZarrVolume {
         start..(start + self.chunk_z).min(self.dims[2])
     }
 
-    /// Decodes every chunk meeting layer `layer` into its planes' values, `x` fastest, and
-    /// notes the chunks found absent in `state`.
-    fn decode_layer(&self, layer: usize, state: &mut Layers) -> Result<Vec<f32>, IoError> {
+    /// Decodes every chunk meeting layer `layer` into its planes' values, `x` fastest, each
+    /// chunk put in place as soon as it is decoded (so that a layer's chunks are never all
+    /// held beside it); absent chunks are the fill value, and their keys are returned.
+    fn decode_layer(&self, layer: usize) -> Layer {
+        use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         let [nx, ny, _] = self.dims;
         let planes = self.layer_planes(layer);
         let grid_shape = self.array.chunk_grid_shape().to_vec();
         let rank = grid_shape.len();
-        // Every chunk of the layer: chunk indices over the x and y axes, the layer on z's,
-        // the chunk holding the fixed index elsewhere.
-        let mut base = vec![0u64; rank];
         let zero = vec![0u64; rank];
         let first_shape = self
             .array
             .chunk_shape(&zero)
             .map_err(|e| self.chunk_error(&zero, e))?;
-        for (a, b) in base.iter_mut().enumerate() {
-            *b = self.fixed[a] / first_shape[a].get();
-        }
+        // Every chunk of the layer: chunk indices over the x and y axes, the layer on z's,
+        // the chunk holding the fixed index elsewhere.
+        let mut base: Vec<u64> = (0..rank)
+            .map(|a| self.fixed[a] / first_shape[a].get())
+            .collect();
         base[self.axes[2]] = layer as u64;
         let [ax, ay, _] = self.axes;
         let mut chunks = Vec::new();
@@ -295,113 +374,36 @@ impl ZarrVolume {
                 chunks.push(c);
             }
         }
-        let decoded = self.decode_chunks(chunks)?;
-        let absent: Vec<&Vec<u64>> = decoded
-            .iter()
-            .filter(|(_, v)| v.is_none())
-            .map(|(c, _)| c)
-            .collect();
-        if let Some(first) = absent.first() {
-            state.absent += absent.len();
-            let key = self.array.chunk_key(first).to_string();
-            state.first_absent.get_or_insert(key);
-        }
+        let out = Mutex::new(vec![0.0f32; nx * ny * planes.len()]);
         let fill = self.fill_value();
-        let mut out = vec![0.0f32; nx * ny * planes.len()];
-        let shapes: Vec<Vec<u64>> = decoded
-            .iter()
-            .map(|(c, _)| {
-                self.array
-                    .chunk_shape(c)
-                    .map(|s| s.iter().map(|n| n.get()).collect())
-                    .map_err(|e| self.chunk_error(c, e))
-            })
-            .collect::<Result<_, _>>()?;
-        // Planes are filled on threads of their own, as the chunks were decoded.
-        let fill_plane = |(plane, z): (&mut [f32], usize)| {
-            for ((c, values), shape) in decoded.iter().zip(&shapes) {
-                // Element strides in the chunk (C order over the array's axes).
-                let mut strides = vec![1u64; rank];
-                for a in (0..rank.saturating_sub(1)).rev() {
-                    strides[a] = strides[a + 1] * shape[a + 1];
-                }
-                let origin: Vec<u64> = (0..rank).map(|a| c[a] * shape[a]).collect();
-                let mut offset = 0u64;
-                for a in 0..rank {
-                    let at = if a == self.axes[2] {
-                        z as u64
-                    } else if a == ax || a == ay {
-                        origin[a]
-                    } else {
-                        self.fixed[a]
-                    };
-                    offset += (at - origin[a]) * strides[a];
-                }
-                let x0 = origin[ax] as usize;
-                let y0 = origin[ay] as usize;
-                let x1 = (x0 + shape[ax] as usize).min(nx);
-                let y1 = (y0 + shape[ay] as usize).min(ny);
-                let (sx, sy) = (strides[ax] as usize, strides[ay] as usize);
-                let offset = offset as usize;
-                for y in y0..y1 {
-                    let row = &mut plane[nx * y + x0..nx * y + x1];
-                    match values {
-                        Some(v) => {
-                            let start = offset + (y - y0) * sy;
-                            if sx == 1 {
-                                row.copy_from_slice(&v[start..start + row.len()]);
-                            } else {
-                                for (i, r) in row.iter_mut().enumerate() {
-                                    *r = v[start + i * sx];
-                                }
-                            }
-                        }
-                        None => row.fill(fill),
-                    }
-                }
-            }
-        };
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let per = planes.len().div_ceil(threads).max(1);
-        std::thread::scope(|scope| {
-            for (part, zs) in out
-                .chunks_mut(per * nx * ny)
-                .zip(planes.clone().step_by(per))
-            {
-                let fill_plane = &fill_plane;
-                scope.spawn(move || {
-                    for (plane, z) in part.chunks_mut(nx * ny).zip(zs..) {
-                        fill_plane((plane, z));
-                    }
-                });
-            }
-        });
-        Ok(out)
-    }
-
-    /// Decodes `chunks` on threads of their own. Not on rayon's: the caller holds the layer
-    /// lock, and a rayon thread waiting for its jobs could take up a slab that asks for it.
-    fn decode_chunks(&self, chunks: Vec<Vec<u64>>) -> Result<Vec<DecodedChunk>, IoError> {
-        use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
         let next = AtomicUsize::new(0);
         let failed = AtomicBool::new(false);
         let threads = std::thread::available_parallelism()
             .map_or(1, |n| n.get())
             .min(chunks.len())
             .max(1);
-        type Slot = Option<Result<Option<Vec<f32>>, IoError>>;
-        let mut slots: Vec<Slot> = Vec::new();
-        slots.resize_with(chunks.len(), || None);
-        let slots = Mutex::new(slots);
+        type Outcome = Option<Result<bool, IoError>>;
+        let mut outcomes: Vec<Outcome> = Vec::new();
+        outcomes.resize_with(chunks.len(), || None);
+        let outcomes = Mutex::new(outcomes);
         let work = || {
             while !failed.load(Ordering::Relaxed) {
                 let i = next.fetch_add(1, Ordering::Relaxed);
                 let Some(c) = chunks.get(i) else {
                     return;
                 };
-                let values = self.decode_chunk(c);
-                failed.fetch_or(values.is_err(), Ordering::Relaxed);
-                slots.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(values);
+                let outcome = self.decode_chunk(c).and_then(|values| {
+                    let shape = self
+                        .array
+                        .chunk_shape(c)
+                        .map_err(|e| self.chunk_error(c, e))?;
+                    let shape: Vec<u64> = shape.iter().map(|n| n.get()).collect();
+                    let mut out = out.lock().unwrap_or_else(|p| p.into_inner());
+                    self.place(c, &shape, values.as_deref(), fill, planes.clone(), &mut out);
+                    Ok(values.is_some())
+                });
+                failed.fetch_or(outcome.is_err(), Ordering::Relaxed);
+                outcomes.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(outcome);
             }
         };
         std::thread::scope(|scope| {
@@ -410,17 +412,80 @@ impl ZarrVolume {
             }
             work();
         });
-        let slots = slots.into_inner().unwrap_or_else(|p| p.into_inner());
         // The first failure in chunk order, whichever thread met it first.
-        if slots.iter().flatten().any(Result::is_err) {
-            let first = slots.into_iter().flatten().find_map(Result::err);
-            return Err(first.expect("an error"));
+        let mut absent = Vec::new();
+        for (c, outcome) in chunks
+            .iter()
+            .zip(outcomes.into_inner().unwrap_or_else(|p| p.into_inner()))
+        {
+            match outcome {
+                Some(Err(e)) => return Err(e),
+                Some(Ok(false)) => absent.push(self.array.chunk_key(c).to_string()),
+                _ => {}
+            }
         }
-        Ok(chunks
-            .into_iter()
-            .zip(slots)
-            .map(|(c, v)| (c, v.expect("decoded").expect("no error")))
-            .collect())
+        if failed.load(Ordering::Relaxed) {
+            return Err(self.chunk_error(&zero, "a chunk could not be read"));
+        }
+        Ok((out.into_inner().unwrap_or_else(|p| p.into_inner()), absent))
+    }
+
+    /// Copies chunk `c` (its `values` in C order over its full `shape`, or the fill value when
+    /// absent) into the planes `planes` of a layer, `x` fastest.
+    fn place(
+        &self,
+        c: &[u64],
+        shape: &[u64],
+        values: Option<&[f32]>,
+        fill: f32,
+        planes: std::ops::Range<usize>,
+        out: &mut [f32],
+    ) {
+        let [nx, ny, _] = self.dims;
+        let [ax, ay, az] = self.axes;
+        let rank = shape.len();
+        // Element strides in the chunk (C order over the array's axes).
+        let mut strides = vec![1u64; rank];
+        for a in (0..rank.saturating_sub(1)).rev() {
+            strides[a] = strides[a + 1] * shape[a + 1];
+        }
+        let origin: Vec<u64> = (0..rank).map(|a| c[a] * shape[a]).collect();
+        let x0 = origin[ax] as usize;
+        let y0 = origin[ay] as usize;
+        let x1 = (x0 + shape[ax] as usize).min(nx);
+        let y1 = (y0 + shape[ay] as usize).min(ny);
+        let (sx, sy) = (strides[ax] as usize, strides[ay] as usize);
+        for (p, z) in planes.clone().enumerate() {
+            let plane = &mut out[p * nx * ny..(p + 1) * nx * ny];
+            let mut offset = 0u64;
+            for a in 0..rank {
+                let at = if a == az {
+                    z as u64
+                } else if a == ax || a == ay {
+                    origin[a]
+                } else {
+                    self.fixed[a]
+                };
+                offset += (at - origin[a]) * strides[a];
+            }
+            let offset = offset as usize;
+            for y in y0..y1 {
+                let row = &mut plane[nx * y + x0..nx * y + x1];
+                match values {
+                    Some(v) => {
+                        let start = offset + (y - y0) * sy;
+                        if sx == 1 {
+                            row.copy_from_slice(&v[start..start + row.len()]);
+                        } else {
+                            for (i, r) in row.iter_mut().enumerate() {
+                                *r = v[start + i * sx];
+                            }
+                        }
+                    }
+                    None => row.fill(fill),
+                }
+            }
+        }
     }
 
     /// The array's fill value as `f32` (what an absent chunk holds).
@@ -463,39 +528,7 @@ impl ZarrVolume {
             e.to_string(),
         )
     }
-
-    /// Layer `layer`, decoded now if not held.
-    fn layer(&self, layer: usize) -> Arc<Vec<f32>> {
-        let mut state = self.lock();
-        if let Some(held) = state.held.get(&layer) {
-            return held.clone();
-        }
-        // Decoded with the lock held: the slabs in flight want the same layer, and decoding
-        // is itself parallel over the layer's chunks.
-        let planes = self.layer_planes(layer).len();
-        let values = if state.failed {
-            vec![f32::NAN; self.dims[0] * self.dims[1] * planes]
-        } else {
-            let decoded = self.decode_layer(layer, &mut state);
-            match decoded {
-                Ok(v) => v,
-                Err(e) => {
-                    state.failed = true;
-                    state.error.get_or_insert(e);
-                    vec![f32::NAN; self.dims[0] * self.dims[1] * planes]
-                }
-            }
-        };
-        let values = Arc::new(values);
-        if layer >= state.released {
-            state.held.insert(layer, values.clone());
-        }
-        values
-    }
 }
-
-/// A chunk's indices and its values as `f32` (`None`: absent).
-type DecodedChunk = (Vec<u64>, Option<Vec<f32>>);
 
 /// `bytes` (native order) of `element`s as `f32`.
 fn convert(element: Element, bytes: &[u8]) -> Vec<f32> {
@@ -523,7 +556,7 @@ fn convert(element: Element, bytes: &[u8]) -> Vec<f32> {
 
 impl PlaneSource for ZarrVolume {
     fn dims(&self) -> [usize; 3] {
-        self.dims
+        self.chunks.dims
     }
 
     fn spacing(&self) -> [f64; 3] {
@@ -539,13 +572,14 @@ impl PlaneSource for ZarrVolume {
     }
 
     fn read_planes(&self, first: usize, out: &mut [f32]) {
-        let plane = self.dims[0] * self.dims[1];
+        let chunk_z = self.chunks.chunk_z;
+        let plane = self.chunks.dims[0] * self.chunks.dims[1];
         let mut z = first;
         let mut written = 0;
         while written < out.len() {
-            let layer = z / self.chunk_z;
+            let layer = z / chunk_z;
             let values = self.layer(layer);
-            let start = (z - layer * self.chunk_z) * plane;
+            let start = (z - layer * chunk_z) * plane;
             let n = (values.len() - start).min(out.len() - written);
             out[written..written + n].copy_from_slice(&values[start..start + n]);
             written += n;
@@ -555,7 +589,7 @@ impl PlaneSource for ZarrVolume {
 
     fn release_before(&self, plane: usize) {
         let mut state = self.lock();
-        let layer = plane / self.chunk_z;
+        let layer = plane / self.chunks.chunk_z;
         state.released = state.released.max(layer);
         state.held.retain(|&l, _| l >= layer);
     }
