@@ -34,6 +34,7 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("tet_mesh", "mesh"),
     ("tet_inp", "inp"),
     ("tet_vtu", "vtu"),
+    ("chunk_mesh", "chunk"),
 ];
 
 /// The memory a volume reader may use on a fuzz input: far below libFuzzer's `-malloc_limit_mb`,
@@ -64,6 +65,15 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
         &path
     };
     match name {
+        // A chunk mesh as a Dask task sends it: decoded, or refused; once decoded, what the
+        // merges do with it must not panic, and its bytes come back as they were.
+        "chunk_mesh" => {
+            if let Ok(chunk) = isocube::extract::ChunkMesh::from_bytes(data) {
+                assert_eq!(chunk.to_bytes(), data);
+                let dims = chunk.cells.max.map(|m| m.saturating_add(1).min(1 << 20));
+                let _ = isocube::extract::merge_chunks(dims, vec![chunk]);
+            }
+        }
         "ply" | "obj" | "stl" | "off" => {
             let mesh = io::read_mesh(read);
             same_outcome(&mesh, &io::read_mesh_bytes(data, read));
