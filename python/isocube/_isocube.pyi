@@ -247,3 +247,35 @@ def finish_chunks(
     None,
     dict[str, float],
 ]: ...
+def mesh_label_block(
+    ids: npt.NDArray[np.uint32],
+    at: tuple[int, int, int],
+    shape: tuple[int, int, int],
+    lo: tuple[int, int, int],
+    hi: tuple[int, int, int],
+    names: list[int],
+    *,
+    spacing: tuple[float, float, float],
+    origin: tuple[float, float, float],
+    background: int,
+    only: list[int] | None,
+) -> bytes: ...
+def merge_label_chunks(shape: tuple[int, int, int], chunks: list[bytes]) -> bytes: ...
+def finish_label_chunks(
+    chunk: bytes,
+    shape: tuple[int, int, int],
+    names: list[int],
+    *,
+    spacing: tuple[float, float, float],
+    origin: tuple[float, float, float],
+    background: int,
+    only: list[int] | None,
+    smoothing: int,
+) -> list[
+    tuple[
+        int,
+        npt.NDArray[np.float32],
+        npt.NDArray[np.uint32],
+        npt.NDArray[np.float32] | None,
+    ]
+]: ...

@@ -38,11 +38,14 @@ from ._arrays import ArrayLike, _matrix, _triple
 from ._isocube import FormatError, InputError
 from ._isocube import block_halo as _block_halo
 from ._isocube import finish_chunks as _finish_chunks
+from ._isocube import finish_label_chunks as _finish_label_chunks
 from ._isocube import merge_chunks as _merge_chunks
+from ._isocube import merge_label_chunks as _merge_label_chunks
 from ._isocube import mesh_block as _mesh_block
+from ._isocube import mesh_label_block as _mesh_label_block
 from ._mesh import Mesh
 
-__all__ = ["boxes", "extract", "halo"]
+__all__ = ["boxes", "extract", "halo", "label_surfaces"]
 
 
 def halo(method: str = "mc", normals: bool = True) -> int:
@@ -90,7 +93,7 @@ def _mesh_task(block: Any, at: tuple[int, int, int], **kwargs: Any) -> bytes:
     return bytes(_mesh_block(np.asarray(block, dtype=np.float32), at, **kwargs))
 
 
-def _zarr_array(path: str, component: str | None) -> Any:
+def _zarr_array(path: str, component: str | None, dtype: Any = np.float32) -> Any:
     """The Zarr array at `path` as a dask array whose tasks read one chunk each on the workers
     (naming the chunk when it cannot be read)."""
     import dask.array as da
@@ -119,7 +122,11 @@ def _zarr_array(path: str, component: str | None) -> Any:
 
 
 def _read_block(
-    path: str, component: str | None, lo: tuple[int, int, int], hi: tuple[int, int, int]
+    path: str,
+    component: str | None,
+    lo: tuple[int, int, int],
+    hi: tuple[int, int, int],
+    dtype: Any = np.float32,
 ) -> np.ndarray:
     """Points ``lo..=hi`` of the Zarr array at `path` (`component`), read on the worker; a
     chunk that cannot be read is named in the error."""
@@ -128,7 +135,7 @@ def _read_block(
     z = zarr.open_array(path, mode="r", path=component or "")
     region = tuple(slice(lo[a], hi[a] + 1) for a in range(3))
     try:
-        return np.asarray(z[region], dtype=np.float32)
+        return np.asarray(z[region], dtype=dtype)
     except Exception as e:
         # Find the first chunk of the block that fails on its own, to name it.
         chunks = z.chunks
@@ -280,30 +287,7 @@ def extract(
         (firsts[0].index(p[0]), firsts[1].index(p[1]), firsts[2].index(p[2])): t
         for p, t in parts.items()
     }
-    # A tree of merges: neighbours along the last axis first, then the middle, then the first,
-    # `split_every` at a time; every merge's boxes tile a box.
-    counts = [len(f) for f in firsts]
-    for axis in (2, 1, 0):
-        while counts[axis] > 1:
-            merged: dict[tuple[int, int, int], Any] = {}
-            groups = range(0, counts[axis], int(split_every))
-            for place in list(parts):
-                if place[axis] != 0:
-                    continue
-                for g, start in enumerate(groups):
-                    members = []
-                    for n in range(start, min(start + int(split_every), counts[axis])):
-                        p = list(place)
-                        p[axis] = n
-                        members.append(parts[(p[0], p[1], p[2])])
-                    q = list(place)
-                    q[axis] = g
-                    merged[(q[0], q[1], q[2])] = (
-                        merge_task(shape, *members) if len(members) > 1 else members[0]
-                    )
-            parts = merged
-            counts[axis] = len(groups)
-    (root,) = parts.values()
+    root = _tree(parts, lambda *members: merge_task(shape, *members), int(split_every))
     arrays = delayed(_finish_task, pure=True)(
         root, shape, origin=options["origin"], normals=options["normals"], direction=matrix
     )
@@ -313,6 +297,191 @@ def extract(
     mesh: Mesh = result.compute(scheduler=scheduler)
     mesh.stats["seconds"] = time.perf_counter() - started
     return mesh
+
+
+def _tree(parts: dict[tuple[int, int, int], Any], merge: Any, split_every: int) -> Any:
+    """Merges the chunk tasks at `parts` (by their place in the grid of chunks) in a tree:
+    neighbours along the last axis first, then the middle, then the first, `split_every` at a
+    time; every merge's boxes tile a box."""
+    counts = [len({p[a] for p in parts}) for a in range(3)]
+    for axis in (2, 1, 0):
+        while counts[axis] > 1:
+            merged: dict[tuple[int, int, int], Any] = {}
+            groups = range(0, counts[axis], split_every)
+            for place in list(parts):
+                if place[axis] != 0:
+                    continue
+                for g, start in enumerate(groups):
+                    members = []
+                    for n in range(start, min(start + split_every, counts[axis])):
+                        p = list(place)
+                        p[axis] = n
+                        members.append(parts[(p[0], p[1], p[2])])
+                    q = list(place)
+                    q[axis] = g
+                    merged[(q[0], q[1], q[2])] = merge(*members) if len(members) > 1 else members[0]
+            parts = merged
+            counts[axis] = len(groups)
+    (root,) = parts.values()
+    return root
+
+
+def _first_seen(
+    block: Any, at: tuple[int, int, int], shape: tuple[int, int, int]
+) -> dict[int, int]:
+    """Each label of a block and where a pass over the whole volume (first axis fastest) meets
+    it first; an error for a value that is not an integer."""
+    a = np.asarray(block)
+    if a.dtype.kind == "f":
+        bad = ~np.isfinite(a) | (a != np.round(a))
+        if bad.any():
+            i, j, k = (int(x) for x in np.argwhere(bad)[0])
+            point = (i + at[0], j + at[1], k + at[2])
+            raise InputError(f"point {point} holds {a[i, j, k]}, which is not an integer label")
+    flat = a.ravel(order="F")
+    labels, first = np.unique(flat, return_index=True)
+    ii, jj, kk = np.unravel_index(first, a.shape, order="F")
+    where = (ii + at[0]) + shape[0] * ((jj + at[1]) + shape[1] * (kk + at[2]))
+    return {int(label): int(w) for label, w in zip(labels.tolist(), where.tolist())}
+
+
+def _union_first_seen(*tables: dict[int, int]) -> dict[int, int]:
+    out: dict[int, int] = {}
+    for table in tables:
+        for label, where in table.items():
+            if label not in out or where < out[label]:
+                out[label] = where
+    return out
+
+
+def _mesh_label_task(
+    block: Any, names: np.ndarray, at: tuple[int, int, int], **kwargs: Any
+) -> bytes:
+    a = np.asarray(block)
+    order = np.argsort(names, kind="stable")
+    sorted_names = names[order]
+    ids = (order[np.searchsorted(sorted_names, a.astype(np.int64))] + 1).astype(np.uint32)
+    return bytes(_mesh_label_block(ids, at, names=[int(n) for n in names], **kwargs))
+
+
+def _merge_label_task(shape: tuple[int, int, int], *chunks: bytes) -> bytes:
+    return bytes(_merge_label_chunks(shape, list(chunks)))
+
+
+def _finish_label_task(
+    chunk: bytes, shape: tuple[int, int, int], names: np.ndarray, **kwargs: Any
+) -> dict[int, Mesh]:
+    surfaces = _finish_label_chunks(chunk, shape, [int(n) for n in names], **kwargs)
+    return {label: Mesh(v, t, n) for label, v, t, n in surfaces}
+
+
+def label_surfaces(
+    labels: Any,
+    *,
+    spacing: ArrayLike = (1.0, 1.0, 1.0),
+    origin: ArrayLike = (0.0, 0.0, 0.0),
+    background: int = 0,
+    only: Sequence[int] | None = None,
+    smoothing: int = 60,
+    component: str | None = None,
+    split_every: int = 4,
+    scheduler: Any = None,
+) -> dict[int, Mesh]:
+    """Every label's closed surface of a chunked segmentation on Dask:
+    :func:`isocube.label_surfaces`'s meshes of the whole array.
+
+    A first pass finds the labels in the order a pass over the whole array meets them (a small
+    table per chunk); then each chunk meshes its cells from its points and the plane after
+    them (label cells read no further), the chunk meshes are merged by key in a tree, and the
+    smoothing, which moves vertices over the whole mesh, runs on the merged surfaces.
+
+    Parameters
+    ----------
+    labels : dask.array.Array, or str or os.PathLike
+        Integer labels indexed ``[i, j, k]`` (floats must hold integers), or the path of a
+        Zarr array that the workers read themselves.
+    spacing, origin, background, only, smoothing
+        As :func:`isocube.label_surfaces`.
+    component, split_every, scheduler
+        As :func:`extract`.
+
+    Returns
+    -------
+    dict of int to Mesh
+
+    Examples
+    --------
+    >>> import numpy as np, dask.array as da
+    >>> import isocube, isocube.dask
+    >>> seg = np.zeros((20, 18, 16), np.uint16)
+    >>> seg[2:9, 3:15, 2:14], seg[9:17, 3:15, 2:14] = 7, 3
+    >>> surfaces = isocube.dask.label_surfaces(da.from_array(seg, chunks=6), scheduler="sync")
+    >>> whole = isocube.label_surfaces(seg)
+    >>> sorted(surfaces), all((surfaces[k].vertices == whole[k].vertices).all() for k in whole)
+    ([3, 7], True)
+    """
+    import dask.array as da
+    from dask.base import compute
+    from dask.delayed import delayed
+
+    if isinstance(labels, (str, os.PathLike)):
+        labels = _zarr_array(os.fspath(labels), component, dtype=None)
+    elif not isinstance(labels, da.Array):
+        raise InputError("`labels` must be a dask array or the path of a Zarr store")
+    if labels.ndim != 3:
+        raise InputError(f"the labels must have three dimensions, not {labels.ndim}")
+    if int(split_every) < 2:
+        raise InputError("`split_every` must be at least 2")
+    shape = (int(labels.shape[0]), int(labels.shape[1]), int(labels.shape[2]))
+    # Where each label is first met, chunk by chunk, then over all: the labels' numbers.
+    edges = [np.cumsum([0, *c]) for c in labels.chunks]
+    chunks = labels.to_delayed()
+    seen = delayed(_first_seen, pure=True)
+    tables = [
+        seen(chunks[index], tuple(int(edges[a][index[a]]) for a in range(3)), shape)
+        for index in np.ndindex(*chunks.shape)
+    ]
+    (first,) = compute(delayed(_union_first_seen, pure=True)(*tables), scheduler=scheduler)
+    names = np.array(sorted(first, key=first.__getitem__), dtype=np.int64)
+    if np.abs(names).max(initial=0) > 9.0e15:
+        raise InputError("labels beyond 9e15 in magnitude cannot be meshed")
+    names_task = delayed(names, pure=True)
+    # Padded cells (the volume ringed by one layer of outside points): chunk c owns those
+    # from its first point + 1 to the next chunk's; it reads its points and the next plane.
+    overlapped = da.overlap.overlap(
+        labels, depth={a: min(1, shape[a] - 1) for a in range(3)}, boundary="none"
+    )
+    blocks = overlapped.to_delayed()
+    bounds = [[0, *(int(e) + 1 for e in edges[a][1:-1]), shape[a] + 1] for a in range(3)]
+    options = dict(
+        spacing=_triple("spacing", spacing),
+        origin=_triple("origin", origin),
+        background=int(background),
+        only=None if only is None else [int(x) for x in only],
+    )
+    mesh_task = delayed(_mesh_label_task, pure=True)
+    parts: dict[tuple[int, int, int], Any] = {}
+    for index in np.ndindex(*blocks.shape):
+        lo = tuple(bounds[a][index[a]] for a in range(3))
+        hi = tuple(bounds[a][index[a] + 1] for a in range(3))
+        at = tuple(max(0, int(edges[a][index[a]]) - 1) for a in range(3))
+        parts[(index[0], index[1], index[2])] = mesh_task(
+            blocks[index], names_task, at, shape=shape, lo=lo, hi=hi, **options
+        )
+    merge_task = delayed(_merge_label_task, pure=True)
+    root = _tree(parts, lambda *members: merge_task(shape, *members), int(split_every))
+    result = delayed(_finish_label_task, pure=True)(
+        root,
+        shape,
+        names_task,
+        spacing=options["spacing"],
+        origin=options["origin"],
+        background=options["background"],
+        only=options["only"],
+        smoothing=int(smoothing),
+    )
+    surfaces: dict[int, Mesh] = result.compute(scheduler=scheduler)
+    return surfaces
 
 
 def _to_mesh(arrays: Any) -> Mesh:

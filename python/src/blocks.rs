@@ -6,7 +6,7 @@
 //! `x` is the array's last axis. Indices given by Python are in the array's order `[i, j, k]`
 //! and are reversed here.
 
-use isocube::extract::{self, CellBox, ChunkMesh, ExtractOptions};
+use isocube::extract::{self, CellBox, ChunkMesh, ExtractOptions, LabelOptions, LabelSelection};
 use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
 use numpy::{PyReadonlyArray3, PyUntypedArrayMethods};
@@ -182,4 +182,135 @@ pub(crate) fn finish_chunks<'py>(
         None,
         stats_dict(py, &stats, 0.0)?,
     ))
+}
+
+fn label_options(background: i64, only: Option<Vec<i64>>, smoothing: usize) -> LabelOptions {
+    let options = LabelOptions::default()
+        .with_background(background)
+        .with_smoothing(smoothing);
+    match only {
+        Some(list) => options.with_labels(LabelSelection::Only(list)),
+        None => options,
+    }
+}
+
+/// Meshes the padded label cells `lo..hi` (array order, as the grid's: labels are meshed in
+/// the array's index order) of a segmentation of `shape` points from `ids`, its points
+/// `at .. at + ids.shape` as 1-based numbers into `names`; returns the chunk mesh as bytes.
+#[pyfunction]
+#[pyo3(signature = (ids, at, shape, lo, hi, names, *, spacing, origin, background, only))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn mesh_label_block<'py>(
+    py: Python<'py>,
+    ids: PyReadonlyArray3<'py, u32>,
+    at: [usize; 3],
+    shape: [usize; 3],
+    lo: [usize; 3],
+    hi: [usize; 3],
+    names: Vec<i64>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    background: i64,
+    only: Option<Vec<i64>>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let view = ids.as_array();
+    let b = view.shape();
+    let block = [b[0], b[1], b[2]];
+    // x (the array's first axis) fastest.
+    let mut values = Vec::with_capacity(block.iter().product());
+    for k in 0..block[2] {
+        for j in 0..block[1] {
+            for i in 0..block[0] {
+                values.push(view[[i, j, k]]);
+            }
+        }
+    }
+    let options = label_options(background, only, 0);
+    let bytes = py
+        .detach(|| {
+            extract::mesh_label_block(
+                &values,
+                at,
+                block,
+                shape,
+                CellBox::new(lo, hi),
+                &names,
+                &options,
+                spacing,
+                origin,
+            )
+            .map(|c| c.to_bytes())
+        })
+        .map_err(extract_error)?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// Merges label chunk meshes (bytes) whose boxes tile one box of a segmentation's padded
+/// cells (`shape` + 2 points, in the array's index order).
+#[pyfunction]
+pub(crate) fn merge_label_chunks<'py>(
+    py: Python<'py>,
+    shape: [usize; 3],
+    chunks: Vec<Vec<u8>>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let bytes = py.detach(|| {
+        let chunks = chunks_of(&chunks)?;
+        extract::merge_chunks(shape.map(|n| n + 2), chunks)
+            .map(|c| c.to_bytes())
+            .map_err(extract_error)
+    })?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// Every label's surface from the merged chunk of all padded cells, as `label_surfaces`.
+#[pyfunction]
+#[pyo3(signature = (chunk, shape, names, *, spacing, origin, background, only, smoothing))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn finish_label_chunks<'py>(
+    py: Python<'py>,
+    chunk: Vec<u8>,
+    shape: [usize; 3],
+    names: Vec<i64>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    background: i64,
+    only: Option<Vec<i64>>,
+    smoothing: usize,
+) -> PyResult<Vec<crate::LabelArrays<'py>>> {
+    let options = label_options(background, only, smoothing);
+    let surfaces = py
+        .detach(|| {
+            let chunk = ChunkMesh::from_bytes(&chunk)?;
+            if chunk.cells != CellBox::whole(shape.map(|n| n + 2)) {
+                return Err(isocube::extract::ExtractError::MalformedChunk { cells: chunk.cells });
+            }
+            extract::label_surfaces_of(
+                chunk,
+                &names,
+                &options,
+                spacing,
+                Orientation::IDENTITY,
+                origin,
+            )
+        })
+        .map_err(extract_error)?;
+    surfaces
+        .into_iter()
+        .map(|s| {
+            let Mesh {
+                positions,
+                normals,
+                triangles,
+            } = s.mesh;
+            let normals = (normals.len() == positions.len())
+                .then(|| rows_array(py, normals))
+                .transpose()?;
+            Ok((
+                s.label,
+                rows_array(py, positions)?,
+                rows_array(py, triangles)?,
+                normals,
+            ))
+        })
+        .collect()
 }

@@ -682,7 +682,7 @@ fn read_volume<'py>(
 }
 
 /// One label's surface as `label_surfaces` hands it back: label, vertices, triangles, normals.
-type LabelArrays<'py> = (
+pub(crate) type LabelArrays<'py> = (
     i64,
     Bound<'py, PyArray2<f32>>,
     Bound<'py, PyArray2<u32>>,
@@ -755,6 +755,9 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(blocks::mesh_block, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::merge_chunks, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::finish_chunks, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::mesh_label_block, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::merge_label_chunks, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::finish_label_chunks, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("FormatError", m.py().get_type::<FormatError>())?;

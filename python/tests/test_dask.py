@@ -228,3 +228,66 @@ def test_damaged_and_absent_chunks(tmp_path: Path) -> None:
         isocube.dask.extract(str(raw), 0.0, scheduler="threads")
     meta = json.loads((raw / "zarr.json").read_text())
     assert meta["data_type"] == "float32"
+
+
+def segmentation(shape: tuple[int, int, int], seed: int, size: float = 0.45) -> np.ndarray:
+    """Blobs of several labels (large ids, background 0) touching one another and the border."""
+    rng = np.random.default_rng(seed)
+    grids = np.meshgrid(*[np.arange(n) for n in shape], indexing="ij")
+    seg = np.zeros(shape, np.uint32)
+    for label in rng.choice(100_000, size=7, replace=False):
+        centre = [rng.uniform(0, n) for n in shape]
+        radius = rng.uniform(0.4, 1.0) * size * min(shape)
+        inside = sum((g - c) ** 2 for g, c in zip(grids, centre)) < radius**2
+        seg[inside] = label + 1
+    return seg
+
+
+def assert_same_surfaces(got: dict[int, isocube.Mesh], whole: dict[int, isocube.Mesh]) -> None:
+    assert sorted(got) == sorted(whole) and len(whole) > 2
+    for label, mesh in whole.items():
+        np.testing.assert_array_equal(got[label].vertices, mesh.vertices)
+        np.testing.assert_array_equal(got[label].triangles, mesh.triangles)
+        np.testing.assert_array_equal(got[label].normals, mesh.normals)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"smoothing": 0, "background": 0}, {"only": [1], "spacing": (0.5, 1, 2)}],
+    ids=["smoothed", "staircase", "only"],
+)
+def test_label_surfaces_in_chunks_are_the_whole_ones(options: dict[str, Any]) -> None:
+    seg = segmentation((37, 29, 33), 11)
+    if "only" in options:
+        options = {**options, "only": [int(seg[18, 14, 16]) or int(seg.max())]}
+    whole = isocube.label_surfaces(seg, **options)
+    for chunks, split in [((10, 9, 11), 2), ((37, 29, 33), 4), ((6, 29, 17), 3)]:
+        got = isocube.dask.label_surfaces(
+            da.from_array(seg, chunks=chunks), split_every=split, scheduler="threads", **options
+        )
+        if "only" in options:
+            assert sorted(got) == sorted(whole) == options["only"]
+            for label, mesh in whole.items():
+                np.testing.assert_array_equal(got[label].vertices, mesh.vertices)
+        else:
+            assert_same_surfaces(got, whole)
+
+
+def test_label_values_that_are_not_integers_are_named() -> None:
+    seg = np.zeros((8, 8, 8), np.float32)
+    seg[5, 6, 7] = 1.5
+    with pytest.raises(isocube.InputError, match=r"point \(5, 6, 7\) holds 1.5"):
+        isocube.dask.label_surfaces(da.from_array(seg, chunks=4), scheduler="sync")
+
+
+def test_a_local_cluster_meshes_a_labelled_zarr_as_one_process(
+    cluster: Any, tmp_path: Path
+) -> None:
+    from zarr.codecs import ZstdCodec
+
+    # Cells in a 256³ tile: small blobs, some touching, dense meshes (12 triangles per voxel face).
+    seg = segmentation((256, 251, 243), 5, size=0.12)
+    path = tmp_path / "seg.zarr"
+    write_zarr(path, seg, chunks=(64, 64, 64), compressors=[ZstdCodec()])
+    whole = isocube.label_surfaces(seg)
+    assert_same_surfaces(isocube.dask.label_surfaces(str(path)), whole)

@@ -28,7 +28,7 @@ use rustc_hash::FxHashMap;
 use crate::field::GridView;
 use crate::mesh::Mesh;
 
-use super::chunk::{join_tagged, CellBox, ChunkMesh, VertexKey};
+use super::chunk::{join_tagged, CellBox, ChunkMesh, KeyKind, VertexKey};
 use super::ExtractError;
 
 /// Which labels to mesh.
@@ -202,44 +202,172 @@ pub fn extract_labels_boxes<'a>(
 ) -> Result<Vec<LabelSurface>, ExtractError> {
     let grid = grid.into();
     let labelled = Labelled::new(grid, options)?;
-    let (mut all, tags) = labelled.surfaces(boxes, None)?;
-    let mut triangles: Vec<Vec<[u32; 3]>> = vec![Vec::new(); labelled.names.len() + 1];
-    for (t, &tag) in all.triangles.iter().zip(&tags) {
-        triangles[tag as usize].push(*t);
-    }
-    smooth(
-        &mut all.positions,
-        &triangles,
-        options.smoothing,
+    let (all, tags) = labelled.surfaces(boxes, None)?;
+    Ok(labelled.split(
+        all,
+        &tags,
         grid.spacing(),
-    );
-    // Each label's mesh keeps only its own vertices, numbered by first use.
-    let mut out: Vec<LabelSurface> = Vec::new();
-    let mut order: Vec<u32> = (1..=labelled.names.len() as u32)
-        .filter(|&id| labelled.meshed(id))
-        .collect();
-    order.sort_by_key(|&id| labelled.names[id as usize - 1]);
-    for id in order {
-        let mut map: FxHashMap<u32, u32> = FxHashMap::default();
-        let mut mesh = Mesh::new();
-        for t in &triangles[id as usize] {
-            let t = t.map(|v| {
-                *map.entry(v).or_insert_with(|| {
-                    mesh.positions.push(all.positions[v as usize]);
-                    // At most as many as `all` has, which are numbered by u32.
-                    (mesh.positions.len() - 1) as u32
-                })
-            });
-            mesh.triangles.push(t);
-        }
-        mesh.compute_normals();
-        grid.orientation().orient_mesh(&mut mesh, grid.origin());
-        out.push(LabelSurface {
-            label: labelled.names[id as usize - 1],
-            mesh,
-        });
+        grid.orientation(),
+        grid.origin(),
+    ))
+}
+
+/// The labels of the padded label cells `cells` (see [`label_cells`]) of a labelled grid of
+/// `dims` points, meshed from a block of the grid: `ids` holds points `at .. at + block` (`x`
+/// fastest) as 1-based numbers into `names`, the grid's labels in the order a pass over the
+/// whole grid meets them first (`x` fastest, then `y`, then `z`) — what
+/// [`extract_labels`] numbers them by. The block must hold the grid points of the cells'
+/// corners (label cells read nothing beyond them). Join the chunks (any tiling of
+/// [`label_cells`]) with [`super::merge_chunks`] on the padded grid (`dims` + 2), then
+/// [`label_surfaces_of`].
+///
+/// ```
+/// use isocube::extract::{extract_labels, label_cells, label_surfaces_of, mesh_label_block,
+///     merge_chunks, CellBox, LabelOptions};
+/// use isocube::field::{Grid, Orientation};
+/// let dims = [7, 6, 5];
+/// let values: Vec<f32> = (0..210).map(|p| ((p * 7 % 11) % 3) as f32).collect();
+/// let grid = Grid::new(dims, values.clone()).unwrap();
+/// let options = LabelOptions::default();
+/// // Labels by first appearance: 0, 1, 2 here.
+/// let mut names: Vec<i64> = Vec::new();
+/// for v in &values {
+///     if !names.contains(&(*v as i64)) { names.push(*v as i64); }
+/// }
+/// let ids: Vec<u32> = values.iter()
+///     .map(|v| names.iter().position(|n| *n == *v as i64).unwrap() as u32 + 1).collect();
+/// let padded = dims.map(|d| d + 2);
+/// let chunks: Vec<_> = CellBox::tile(padded, [4, 4, 4]).unwrap().into_iter().map(|cells| {
+///     mesh_label_block(&ids, [0, 0, 0], dims, dims, cells, &names, &options, [1.0; 3], [0.0; 3])
+///         .unwrap()
+/// }).collect();
+/// let whole_chunk = merge_chunks(padded, chunks).unwrap();
+/// let surfaces = label_surfaces_of(whole_chunk, &names, &options, [1.0; 3],
+///     Orientation::IDENTITY, [0.0; 3]).unwrap();
+/// let whole = extract_labels(&grid, &options).unwrap();
+/// assert_eq!(surfaces.len(), whole.len());
+/// for (a, b) in surfaces.iter().zip(&whole) {
+///     assert_eq!((a.label, &a.mesh), (b.label, &b.mesh));
+/// }
+/// ```
+#[allow(clippy::too_many_arguments)]
+pub fn mesh_label_block(
+    ids: &[u32],
+    at: [usize; 3],
+    block: [usize; 3],
+    dims: [usize; 3],
+    cells: CellBox,
+    names: &[i64],
+    options: &LabelOptions,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+) -> Result<ChunkMesh, ExtractError> {
+    let padded_dims = dims.map(|d| d + 2);
+    cells.check(padded_dims)?;
+    if ids.len() != block.iter().product::<usize>() {
+        return Err(ExtractError::Unsupported(
+            "the block's numbers do not fill its dimensions",
+        ));
     }
-    Ok(out)
+    // Padded points cells.min ..= cells.max; padded point q is grid point q - 1.
+    let local: [usize; 3] = std::array::from_fn(|a| cells.max[a] - cells.min[a] + 1);
+    let mut padded = vec![0u32; local.iter().product()];
+    for k in 0..local[2] {
+        for j in 0..local[1] {
+            for i in 0..local[0] {
+                let grid_point: [Option<usize>; 3] = std::array::from_fn(|a| {
+                    let c = [i, j, k][a] + cells.min[a];
+                    (c >= 1 && c <= dims[a]).then(|| c - 1)
+                });
+                let [Some(x), Some(y), Some(z)] = grid_point else {
+                    continue;
+                };
+                let inside = [x, y, z]
+                    .iter()
+                    .zip(at.iter().zip(&block))
+                    .all(|(&p, (&a, &b))| p >= a && p < a + b);
+                if !inside {
+                    return Err(ExtractError::Block {
+                        cells,
+                        at,
+                        block,
+                        halo: 0,
+                    });
+                }
+                let id = ids[(x - at[0]) + block[0] * ((y - at[1]) + block[1] * (z - at[2]))];
+                if id == 0 || id as usize > names.len() {
+                    return Err(ExtractError::Unsupported(
+                        "a label number outside the list of names",
+                    ));
+                }
+                padded[i + local[0] * (j + local[1] * k)] = id;
+            }
+        }
+    }
+    let labelled = Labelled {
+        options,
+        names: names.to_vec(),
+        padded,
+        dims: local,
+        background: names
+            .iter()
+            .position(|&n| n == options.background)
+            .map(|i| i as u32 + 1),
+        spacing,
+        origin,
+        at: cells.min,
+    };
+    let mut chunk = labelled.mesh_box(CellBox::new([0; 3], local.map(|l| l - 1)))?;
+    let [px, py, _] = padded_dims;
+    for key in &mut chunk.keys {
+        if let KeyKind::Simplex { point, corners } = key.kind() {
+            let (i, j, k) = (
+                point % local[0],
+                point / local[0] % local[1],
+                point / (local[0] * local[1]),
+            );
+            let global = (i + cells.min[0]) + px * ((j + cells.min[1]) + py * (k + cells.min[2]));
+            *key = VertexKey::simplex(global, corners);
+        }
+    }
+    chunk.cells = cells;
+    chunk.faces = cells.shared_faces(padded_dims);
+    Ok(chunk)
+}
+
+/// The labels' surfaces from the chunk of all padded label cells (merged from
+/// [`mesh_label_block`]'s chunks): smoothed together, one mesh per label in label order, as
+/// [`extract_labels`] makes them. `orientation` turns the grid's frame into the world.
+pub fn label_surfaces_of(
+    chunk: ChunkMesh,
+    names: &[i64],
+    options: &LabelOptions,
+    spacing: [f64; 3],
+    orientation: crate::field::Orientation,
+    origin: [f64; 3],
+) -> Result<Vec<LabelSurface>, ExtractError> {
+    if chunk.tags.len() != chunk.mesh.triangles.len()
+        || chunk
+            .tags
+            .iter()
+            .any(|&t| t == 0 || t as usize > names.len())
+    {
+        return Err(ExtractError::MalformedChunk { cells: chunk.cells });
+    }
+    let labelled = Labelled {
+        options,
+        names: names.to_vec(),
+        padded: Vec::new(),
+        dims: chunk.cells.max.map(|m| m + 1),
+        background: names
+            .iter()
+            .position(|&n| n == options.background)
+            .map(|i| i as u32 + 1),
+        spacing,
+        origin,
+        at: [0; 3],
+    };
+    Ok(labelled.split(chunk.mesh, &chunk.tags, spacing, orientation, origin))
 }
 
 /// A labelled grid ready for meshing boxes: dense label numbers on a grid padded by one layer
@@ -255,6 +383,8 @@ pub(crate) struct Labelled<'a> {
     background: Option<u32>,
     spacing: [f64; 3],
     origin: [f64; 3],
+    /// The whole padded grid's index of this one's point (0, 0, 0), when it is a block of it.
+    at: [usize; 3],
 }
 
 impl<'a> Labelled<'a> {
@@ -324,7 +454,54 @@ impl<'a> Labelled<'a> {
             background,
             spacing: grid.spacing(),
             origin: grid.origin(),
+            at: [0; 3],
         })
+    }
+
+    /// Every label's triangles out of the joined mesh (`tags`: each triangle's label number),
+    /// smoothed together, each label's mesh with its own vertices numbered by first use, in
+    /// label order, turned into the world.
+    fn split(
+        &self,
+        mut all: Mesh,
+        tags: &[u32],
+        spacing: [f64; 3],
+        orientation: crate::field::Orientation,
+        origin: [f64; 3],
+    ) -> Vec<LabelSurface> {
+        let options = self.options;
+        let mut triangles: Vec<Vec<[u32; 3]>> = vec![Vec::new(); self.names.len() + 1];
+        for (t, &tag) in all.triangles.iter().zip(tags) {
+            triangles[tag as usize].push(*t);
+        }
+        smooth(&mut all.positions, &triangles, options.smoothing, spacing);
+        // Each label's mesh keeps only its own vertices, numbered by first use.
+        let mut out: Vec<LabelSurface> = Vec::new();
+        let mut order: Vec<u32> = (1..=self.names.len() as u32)
+            .filter(|&id| self.meshed(id))
+            .collect();
+        order.sort_by_key(|&id| self.names[id as usize - 1]);
+        for id in order {
+            let mut map: FxHashMap<u32, u32> = FxHashMap::default();
+            let mut mesh = Mesh::new();
+            for t in &triangles[id as usize] {
+                let t = t.map(|v| {
+                    *map.entry(v).or_insert_with(|| {
+                        mesh.positions.push(all.positions[v as usize]);
+                        // At most as many as `all` has, which are numbered by u32.
+                        (mesh.positions.len() - 1) as u32
+                    })
+                });
+                mesh.triangles.push(t);
+            }
+            mesh.compute_normals();
+            orientation.orient_mesh(&mut mesh, origin);
+            out.push(LabelSurface {
+                label: self.names[id as usize - 1],
+                mesh,
+            });
+        }
+        out
     }
 
     pub(crate) fn meshed(&self, id: u32) -> bool {
@@ -350,7 +527,9 @@ impl<'a> Labelled<'a> {
         let [px, py, _] = self.dims;
         let c = [p % px, p / px % py, p / (px * py)];
         // Padded index 0 is one step before the grid.
-        std::array::from_fn(|a| self.origin[a] + self.spacing[a] * (c[a] as f64 - 1.0))
+        std::array::from_fn(|a| {
+            self.origin[a] + self.spacing[a] * ((c[a] + self.at[a]) as f64 - 1.0)
+        })
     }
 
     /// The centroid of padded points, summed in the order given.
@@ -521,6 +700,71 @@ fn smooth(positions: &mut [[f32; 3]], triangles: &[Vec<[u32; 3]>], sweeps: usize
 mod tests {
     use super::*;
     use crate::field::Grid;
+
+    /// Blocks cut from the grid (the cells' points only, at odd offsets) and merged in a
+    /// tree give extract_labels' surfaces to the bit, smoothing included.
+    #[test]
+    fn label_blocks_merge_into_the_whole_surfaces() {
+        use crate::extract::merge_chunks;
+        let dims = [13, 11, 9];
+        let mut rng = crate::TestRng::new(5);
+        let values: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|_| [0.0, 3.0, 900.0, 4.0][(rng.next_u64() >> 60) as usize % 4])
+            .collect();
+        let grid = Grid::new(dims, values.clone()).unwrap();
+        let options = LabelOptions::default();
+        let whole = extract_labels(&grid, &options).unwrap();
+        let mut names: Vec<i64> = Vec::new();
+        for v in &values {
+            if !names.contains(&(*v as i64)) {
+                names.push(*v as i64);
+            }
+        }
+        let id = |p: [usize; 3]| {
+            let v = grid.value(p[0], p[1], p[2]) as i64;
+            names.iter().position(|n| *n == v).unwrap() as u32 + 1
+        };
+        let padded = dims.map(|d| d + 2);
+        let mut chunks = Vec::new();
+        for cells in CellBox::tile(padded, [5, 3, 4]).unwrap() {
+            let at: [usize; 3] = std::array::from_fn(|a| cells.min[a].saturating_sub(1));
+            let end: [usize; 3] = std::array::from_fn(|a| cells.max[a].min(dims[a]));
+            let block: [usize; 3] = std::array::from_fn(|a| end[a] - at[a]);
+            let mut ids = Vec::new();
+            for k in 0..block[2] {
+                for j in 0..block[1] {
+                    for i in 0..block[0] {
+                        ids.push(id([at[0] + i, at[1] + j, at[2] + k]));
+                    }
+                }
+            }
+            let chunk = mesh_label_block(
+                &ids, at, block, dims, cells, &names, &options, [1.0; 3], [0.0; 3],
+            )
+            .unwrap();
+            chunks.push(ChunkMesh::from_bytes(&chunk.to_bytes()).unwrap());
+        }
+        // Merged along z in pairs, then everything.
+        chunks.sort_by_key(|c| (c.cells.min[0], c.cells.min[1], c.cells.min[2]));
+        let mut columns: Vec<ChunkMesh> = Vec::new();
+        for column in chunks.chunk_by(|a, b| a.cells.min[..2] == b.cells.min[..2]) {
+            columns.push(merge_chunks(padded, column.to_vec()).unwrap());
+        }
+        let all = merge_chunks(padded, columns).unwrap();
+        let got = label_surfaces_of(
+            all,
+            &names,
+            &options,
+            [1.0; 3],
+            crate::field::Orientation::IDENTITY,
+            [0.0; 3],
+        )
+        .unwrap();
+        assert_eq!(got.len(), whole.len());
+        for (a, b) in got.iter().zip(&whole) {
+            assert_eq!((a.label, &a.mesh), (b.label, &b.mesh));
+        }
+    }
 
     fn labelled(dims: [usize; 3], mut f: impl FnMut(usize, usize, usize) -> f32) -> Grid {
         let mut v = Vec::new();

@@ -93,7 +93,8 @@ pub use block::{block_halo, merge_chunks, mesh_block};
 pub(crate) use chunk::join_tagged;
 pub use chunk::{join, CellBox, ChunkMesh, KeyKind, VertexKey};
 pub use labels::{
-    extract_labels, extract_labels_boxes, label_cells, LabelOptions, LabelSelection, LabelSurface,
+    extract_labels, extract_labels_boxes, label_cells, label_surfaces_of, mesh_label_block,
+    LabelOptions, LabelSelection, LabelSurface,
 };
 pub(crate) use labels::{label_slabs, Labelled, TETS as KUHN_PATHS};
 pub use stream::{extract_streamed, streams_by_default, MeshSink, StreamError, STREAM_ABOVE_BYTES};
