@@ -345,17 +345,19 @@ impl ChunkMesh {
             on_faces: on_faces.map(pairs),
             faces,
         };
-        let in_range = chunk
+        // The joiner walks the vertices on faces in order, once each.
+        let triangles_in_range = chunk
             .mesh
             .triangles
             .iter()
             .flatten()
-            .all(|&v| (v as usize) < nv)
-            && chunk
-                .on_faces
-                .iter()
-                .flatten()
-                .all(|&[v, row]| (v as usize) < nv && (row as usize) < chunk.rows.len());
+            .all(|&v| (v as usize) < nv);
+        let faces_in_order = chunk.on_faces.as_ref().is_none_or(|list| {
+            list.iter()
+                .all(|&[v, row]| (v as usize) < nv && (row as usize) < chunk.rows.len())
+                && list.windows(2).all(|w| w[0][0] < w[1][0])
+        });
+        let in_range = triangles_in_range && faces_in_order;
         if !in_range || !chunk.well_formed() {
             return Err(ExtractError::MalformedChunk { cells });
         }

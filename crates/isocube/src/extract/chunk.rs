@@ -570,6 +570,16 @@ pub(crate) fn join_tagged(
             global[c][v as usize] = global[oc as usize][ov as usize];
         }
     }
+    // A chunk whose keys repeat (never made by a mesher; bytes from elsewhere may say so)
+    // leaves vertices without a number: refused rather than written out of range.
+    if let Some(c) = global
+        .par_iter()
+        .position_any(|ids| ids.iter().any(|&id| id as usize >= nv))
+    {
+        return Err(ExtractError::MalformedChunk {
+            cells: chunks[c].cells,
+        });
+    }
     if let Some(keys) = keys {
         sized(keys, nv);
         for (chunk, ids) in chunks.iter().zip(&global) {
