@@ -1,7 +1,7 @@
 //! File formats for isocube: volume readers and mesh readers and writers, from paths or bytes.
 //!
 //! The core library ([`isocube`]) does no file I/O and pulls in no format crates; this crate
-//! holds every format, the heavy ones behind features (`nifti`, `tiff`, `dicom`).
+//! holds every format, the heavy ones behind features (`nifti`, `tiff`, `dicom`, `zarr`).
 //!
 //! ```
 //! use isocube::extract::{extract, ExtractOptions};
@@ -18,7 +18,8 @@
 //! or detached `.nhdr` headers; raw, gzip or ASCII encodings), MetaImage (`.mha`, `.mhd`; raw or
 //! zlib), VTK ImageData (`.vti`: ASCII, binary or appended, raw or zlib), and with the `nifti`,
 //! `tiff` and `dicom` features NIfTI-1 (`.nii`, `.nii.gz`), multi-page TIFF stacks and DICOM
-//! series (a folder of uncompressed slices). Readers of formats that
+//! series (a folder of uncompressed slices), and with `zarr` Zarr v2/v3 arrays and OME-Zarr
+//! images (`ZarrVolume`, read a layer of chunks at a time). Readers of formats that
 //! carry a direction return it as an [`Orientation`] ([`read_volume_oriented`]). Every reader returns a
 //! [`Grid`] with `f32` values (integers above 2^24 lose precision),
 //! `x` fastest.

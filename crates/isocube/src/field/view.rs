@@ -140,7 +140,7 @@ impl<'a> GridView<'a> {
     /// positions are computed from the larger grid's indices (its spacing and origin are the
     /// view's), so they come out as the larger grid's to the bit. Not with heights.
     pub(crate) fn with_base(mut self, base: [usize; 3]) -> GridView<'a> {
-        debug_assert!(self.heights.is_none());
+        debug_assert!(self.heights.is_none() || base == [0; 3]);
         self.base = base;
         self
     }
