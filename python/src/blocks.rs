@@ -294,23 +294,5 @@ pub(crate) fn finish_label_chunks<'py>(
             )
         })
         .map_err(extract_error)?;
-    surfaces
-        .into_iter()
-        .map(|s| {
-            let Mesh {
-                positions,
-                normals,
-                triangles,
-            } = s.mesh;
-            let normals = (normals.len() == positions.len())
-                .then(|| rows_array(py, normals))
-                .transpose()?;
-            Ok((
-                s.label,
-                rows_array(py, positions)?,
-                rows_array(py, triangles)?,
-                normals,
-            ))
-        })
-        .collect()
+    crate::label_arrays(py, surfaces)
 }

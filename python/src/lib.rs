@@ -713,6 +713,15 @@ fn label_surfaces<'py>(
     let surfaces = py
         .detach(|| extract_labels(grid, &options))
         .map_err(extract_error)?;
+    label_arrays(py, surfaces)
+}
+
+/// Each label's surface as `(label, vertices, triangles, normals)`, the arrays owning the
+/// meshes' buffers.
+pub(crate) fn label_arrays(
+    py: Python<'_>,
+    surfaces: Vec<isocube::extract::LabelSurface>,
+) -> PyResult<Vec<LabelArrays<'_>>> {
     surfaces
         .into_iter()
         .map(|s| {

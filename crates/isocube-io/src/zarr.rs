@@ -21,50 +21,34 @@ use zarrs::array::{data_type, Array};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::Group;
 
-use super::{Budget, IoError, NpyAxes, Position, VolumeOptions};
+use super::{Budget, IoError, NpyAxes, Position, ScalarType, VolumeOptions};
 
-/// The ten element types isocube reads, as stored.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Element {
-    U8,
-    I8,
-    U16,
-    I16,
-    U32,
-    I32,
-    U64,
-    I64,
-    F32,
-    F64,
-}
-
-impl Element {
-    fn of(array: &Array<FilesystemStore>) -> Option<Element> {
-        let t = array.data_type();
-        Some(if t.is::<data_type::UInt8DataType>() {
-            Element::U8
-        } else if t.is::<data_type::Int8DataType>() {
-            Element::I8
-        } else if t.is::<data_type::UInt16DataType>() {
-            Element::U16
-        } else if t.is::<data_type::Int16DataType>() {
-            Element::I16
-        } else if t.is::<data_type::UInt32DataType>() {
-            Element::U32
-        } else if t.is::<data_type::Int32DataType>() {
-            Element::I32
-        } else if t.is::<data_type::UInt64DataType>() {
-            Element::U64
-        } else if t.is::<data_type::Int64DataType>() {
-            Element::I64
-        } else if t.is::<data_type::Float32DataType>() {
-            Element::F32
-        } else if t.is::<data_type::Float64DataType>() {
-            Element::F64
-        } else {
-            return None;
-        })
-    }
+/// The array's element type, when it is one of the ten isocube reads.
+fn element_of(array: &Array<FilesystemStore>) -> Option<ScalarType> {
+    let t = array.data_type();
+    Some(if t.is::<data_type::UInt8DataType>() {
+        ScalarType::U8
+    } else if t.is::<data_type::Int8DataType>() {
+        ScalarType::I8
+    } else if t.is::<data_type::UInt16DataType>() {
+        ScalarType::U16
+    } else if t.is::<data_type::Int16DataType>() {
+        ScalarType::I16
+    } else if t.is::<data_type::UInt32DataType>() {
+        ScalarType::U32
+    } else if t.is::<data_type::Int32DataType>() {
+        ScalarType::I32
+    } else if t.is::<data_type::UInt64DataType>() {
+        ScalarType::U64
+    } else if t.is::<data_type::Int64DataType>() {
+        ScalarType::I64
+    } else if t.is::<data_type::Float32DataType>() {
+        ScalarType::F32
+    } else if t.is::<data_type::Float64DataType>() {
+        ScalarType::F64
+    } else {
+        return None;
+    })
 }
 
 /// A Zarr array (or an OME-Zarr image's level) as a [`PlaneSource`]: layers of chunks along
@@ -107,7 +91,7 @@ pub struct ZarrVolume {
 struct Chunks {
     path: PathBuf,
     array: Array<FilesystemStore>,
-    element: Element,
+    element: ScalarType,
     /// The array axis of each grid axis. The grid walks the array in its memory order (C order:
     /// its last spatial axis fastest), whatever the axes' names, and the orientation puts each
     /// grid axis back on its world axis, as [`crate::MappedVolume`] does for a `.npy`: the
@@ -157,7 +141,7 @@ impl ZarrVolume {
                 format!("not a readable Zarr array: {e}"),
             )
         })?;
-        let element = Element::of(&array).ok_or_else(|| {
+        let element = element_of(&array).ok_or_else(|| {
             IoError::unsupported(
                 path,
                 Position::Field("data_type".into()),
@@ -504,16 +488,16 @@ impl Chunks {
             };
         }
         let decoded = match self.element {
-            Element::U8 => chunk!(u8),
-            Element::I8 => chunk!(i8),
-            Element::U16 => chunk!(u16),
-            Element::I16 => chunk!(i16),
-            Element::U32 => chunk!(u32),
-            Element::I32 => chunk!(i32),
-            Element::U64 => chunk!(u64),
-            Element::I64 => chunk!(i64),
-            Element::F32 => chunk!(f32),
-            Element::F64 => chunk!(f64),
+            ScalarType::U8 => chunk!(u8),
+            ScalarType::I8 => chunk!(i8),
+            ScalarType::U16 => chunk!(u16),
+            ScalarType::I16 => chunk!(i16),
+            ScalarType::U32 => chunk!(u32),
+            ScalarType::I32 => chunk!(i32),
+            ScalarType::U64 => chunk!(u64),
+            ScalarType::I64 => chunk!(i64),
+            ScalarType::F32 => chunk!(f32),
+            ScalarType::F64 => chunk!(f64),
         };
         decoded.map_err(|e| self.chunk_error(c, e))
     }
@@ -531,7 +515,7 @@ impl Chunks {
 }
 
 /// `bytes` (native order) of `element`s as `f32`.
-fn convert(element: Element, bytes: &[u8]) -> Vec<f32> {
+fn convert(element: ScalarType, bytes: &[u8]) -> Vec<f32> {
     macro_rules! each {
         ($t:ty) => {
             bytes
@@ -541,16 +525,16 @@ fn convert(element: Element, bytes: &[u8]) -> Vec<f32> {
         };
     }
     match element {
-        Element::U8 => each!(u8),
-        Element::I8 => each!(i8),
-        Element::U16 => each!(u16),
-        Element::I16 => each!(i16),
-        Element::U32 => each!(u32),
-        Element::I32 => each!(i32),
-        Element::U64 => each!(u64),
-        Element::I64 => each!(i64),
-        Element::F32 => each!(f32),
-        Element::F64 => each!(f64),
+        ScalarType::U8 => each!(u8),
+        ScalarType::I8 => each!(i8),
+        ScalarType::U16 => each!(u16),
+        ScalarType::I16 => each!(i16),
+        ScalarType::U32 => each!(u32),
+        ScalarType::I32 => each!(i32),
+        ScalarType::U64 => each!(u64),
+        ScalarType::I64 => each!(i64),
+        ScalarType::F32 => each!(f32),
+        ScalarType::F64 => each!(f64),
     }
 }
 
