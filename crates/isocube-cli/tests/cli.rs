@@ -588,6 +588,69 @@ fn readme_examples_run() {
     }
     let npy = common::npy("<u2", &format!("({n}, {n}, {n})"), &data);
     std::fs::write(dir.path().join("ct.npy"), npy).unwrap();
+    // The same ball as a Zarr store, and an OME-Zarr image (Zarr v2, written by hand as other
+    // tools write it) with two channels and two levels for the `--scale`/`--channel` example.
+    let ball = |i: usize, j: usize, k: usize, h: f64| {
+        let r2 = [i, j, k]
+            .map(|c| (c as f64 * h - 11.5).powi(2))
+            .iter()
+            .sum::<f64>();
+        8.0 - r2.sqrt()
+    };
+    let grid = isocube::field::Grid::from_fn([n, n, n], [1.0; 3], [0.0; 3], |p| {
+        if ball(p[0] as usize, p[1] as usize, p[2] as usize, 1.0) > 0.0 {
+            1700.0
+        } else {
+            1000.0
+        }
+    });
+    isocube_io::write_zarr(&dir.path().join("ct.zarr"), &grid, [16, 16, 16]).unwrap();
+    let ome = dir.path().join("image.ome.zarr");
+    std::fs::create_dir_all(&ome).unwrap();
+    std::fs::write(ome.join(".zgroup"), r#"{"zarr_format": 2}"#).unwrap();
+    let axes = r#"[{"name": "c", "type": "channel"}, {"name": "z", "type": "space"},
+        {"name": "y", "type": "space"}, {"name": "x", "type": "space"}]"#;
+    let level = |path: &str, s: f64| {
+        format!(
+            r#"{{"path": "{path}", "coordinateTransformations":
+                [{{"type": "scale", "scale": [1, {s}, {s}, {s}]}}]}}"#
+        )
+    };
+    std::fs::write(
+        ome.join(".zattrs"),
+        format!(
+            r#"{{"multiscales": [{{"version": "0.4", "axes": {axes}, "datasets": [{}, {}]}}]}}"#,
+            level("0", 1.0),
+            level("1", 2.0)
+        ),
+    )
+    .unwrap();
+    for (name, m) in [("0", n), ("1", n / 2)] {
+        let folder = ome.join(name);
+        std::fs::create_dir_all(&folder).unwrap();
+        std::fs::write(
+            folder.join(".zarray"),
+            format!(
+                r#"{{"zarr_format": 2, "shape": [2, {m}, {m}, {m}], "chunks": [1, {m}, {m}, {m}],
+                    "dtype": "<f4", "compressor": null, "fill_value": 0.0, "order": "C",
+                    "filters": null}}"#
+            ),
+        )
+        .unwrap();
+        let h = (n / m) as f64;
+        for c in 0..2 {
+            let mut bytes = Vec::new();
+            for k in 0..m {
+                for j in 0..m {
+                    for i in 0..m {
+                        let v = ball(i, j, k, h) as f32 * if c == 0 { 1.0 } else { -1.0 };
+                        bytes.extend(v.to_le_bytes());
+                    }
+                }
+            }
+            std::fs::write(folder.join(format!("{c}.0.0.0")), bytes).unwrap();
+        }
+    }
     // The volumes in tests/data, at the same relative paths as in a clone.
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
     let copy = dir.path().join("tests/data/volumes");
