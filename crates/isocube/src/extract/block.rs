@@ -325,6 +325,17 @@ impl ChunkMesh {
         let pairs =
             |v: Vec<u32>| -> Vec<[u32; 2]> { v.chunks_exact(2).map(|c| [c[0], c[1]]).collect() };
         let cells = CellBox::new(min, max);
+        // The box's rows, counted without overflow, must be the rows given (which the input's
+        // length bounds): every later count over the box then fits.
+        let extent = (0..3).try_fold(Vec::new(), |mut e, a| {
+            e.push(max[a].checked_sub(min[a]).filter(|&n| n > 0)?);
+            Some(e)
+        });
+        let box_rows = extent.as_ref().and_then(|e| e[1].checked_mul(e[2]));
+        let cell_count = extent.as_ref().and_then(|e| e[0].checked_mul(box_rows?));
+        if box_rows != Some(nr) || cell_count.is_none() {
+            return Err(ExtractError::MalformedChunk { cells });
+        }
         let chunk = ChunkMesh {
             cells,
             mesh: crate::mesh::Mesh {
