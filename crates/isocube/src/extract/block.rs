@@ -4,6 +4,7 @@
 //! whole grid makes — the same vertices and triangles, in the same order.
 
 use super::chunk::{join_rows, CellBox, ChunkMesh, KeyKind, VertexKey};
+use super::layout::{put_box, put_stats};
 use super::ExtractOptions;
 use super::{ExtractError, ExtractStats, Extractor, Method};
 use crate::field::GridView;
@@ -214,21 +215,8 @@ impl ChunkMesh {
         let mut out = Vec::with_capacity(self.bytes() as usize + 256);
         out.extend_from_slice(MAGIC);
         let mut word = |n: u64| out.extend_from_slice(&n.to_le_bytes());
-        for v in self.cells.min.iter().chain(&self.cells.max) {
-            word(*v as u64);
-        }
-        let s = &self.stats;
-        for v in [
-            s.cells,
-            s.active_cells,
-            s.skipped_cells,
-            s.interior_vertices,
-            s.tunnels,
-            s.snapped_points,
-            s.refused_points,
-        ] {
-            word(v as u64);
-        }
+        put_box(&mut word, self.cells);
+        put_stats(&mut word, &self.stats);
         for f in self.faces.iter().flatten() {
             word(*f as u64);
         }
@@ -261,22 +249,9 @@ impl ChunkMesh {
         };
         let body = bytes.strip_prefix(MAGIC.as_slice()).ok_or_else(bad)?;
         let mut r = Reader { bytes: body };
-        let mut word = || {
-            r.u64()
-                .and_then(|v| usize::try_from(v).ok())
-                .ok_or_else(bad)
-        };
-        let min = [word()?, word()?, word()?];
-        let max = [word()?, word()?, word()?];
-        let stats = ExtractStats {
-            cells: word()?,
-            active_cells: word()?,
-            skipped_cells: word()?,
-            interior_vertices: word()?,
-            tunnels: word()?,
-            snapped_points: word()?,
-            refused_points: word()?,
-        };
+        let CellBox { min, max } = r.cell_box().ok_or_else(bad)?;
+        let stats = r.stats().ok_or_else(bad)?;
+        let mut word = || r.count().ok_or_else(bad);
         let mut faces = [[0usize; 2]; 3];
         for f in faces.iter_mut().flatten() {
             *f = word()?;
@@ -327,13 +302,7 @@ impl ChunkMesh {
         let cells = CellBox::new(min, max);
         // The box's rows, counted without overflow, must be the rows given (which the input's
         // length bounds): every later count over the box then fits.
-        let extent = (0..3).try_fold(Vec::new(), |mut e, a| {
-            e.push(max[a].checked_sub(min[a]).filter(|&n| n > 0)?);
-            Some(e)
-        });
-        let box_rows = extent.as_ref().and_then(|e| e[1].checked_mul(e[2]));
-        let cell_count = extent.as_ref().and_then(|e| e[0].checked_mul(box_rows?));
-        if box_rows != Some(nr) || cell_count.is_none() {
+        if cells.checked_rows() != Some(nr) {
             return Err(ExtractError::MalformedChunk { cells });
         }
         let chunk = ChunkMesh {
@@ -379,12 +348,13 @@ impl ChunkMesh {
 /// The first bytes of [`ChunkMesh::to_bytes`]: the format and its version.
 const MAGIC: &[u8; 8] = b"isoCHK\x00\x01";
 
-struct Reader<'a> {
-    bytes: &'a [u8],
+/// Little-endian numbers read off the front of bytes.
+pub(super) struct Reader<'a> {
+    pub(super) bytes: &'a [u8],
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+    pub(super) fn take(&mut self, n: usize) -> Option<&'a [u8]> {
         if n > self.bytes.len() {
             return None;
         }
@@ -393,9 +363,43 @@ impl<'a> Reader<'a> {
         Some(head)
     }
 
-    fn u64(&mut self) -> Option<u64> {
+    pub(super) fn u64(&mut self) -> Option<u64> {
         self.take(8)
             .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+    }
+
+    pub(super) fn u32(&mut self) -> Option<u32> {
+        self.take(4)
+            .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+    }
+
+    /// A `u64` that must fit a `usize`.
+    pub(super) fn count(&mut self) -> Option<usize> {
+        self.u64().and_then(|v| usize::try_from(v).ok())
+    }
+
+    /// Three counts.
+    fn words(&mut self) -> Option<[usize; 3]> {
+        Some([self.count()?, self.count()?, self.count()?])
+    }
+
+    /// A box written by `put_box` (not checked against any grid).
+    pub(super) fn cell_box(&mut self) -> Option<CellBox> {
+        let min = self.words()?;
+        Some(CellBox::new(min, self.words()?))
+    }
+
+    /// Counts written by `put_stats`.
+    pub(super) fn stats(&mut self) -> Option<ExtractStats> {
+        Some(ExtractStats {
+            cells: self.count()?,
+            active_cells: self.count()?,
+            skipped_cells: self.count()?,
+            interior_vertices: self.count()?,
+            tunnels: self.count()?,
+            snapped_points: self.count()?,
+            refused_points: self.count()?,
+        })
     }
 }
 

@@ -34,6 +34,7 @@ use rustc_hash::FxHashMap;
 
 use crate::mesh::Mesh;
 
+use super::layout::{ChunkOutline, JoinLayout};
 use super::{ExtractError, ExtractStats};
 
 /// A box of cells: cells `(i, j, k)` with `min[a] ≤ i, j, k < max[a]` along each axis `a` (a cell
@@ -101,6 +102,18 @@ impl CellBox {
     pub(super) fn rows(&self) -> usize {
         let e = self.extent();
         e[1] * e[2]
+    }
+
+    /// Rows, for a non-empty box whose cells can be counted without overflow (a box read from
+    /// bytes); every count over the box then fits.
+    pub(crate) fn checked_rows(&self) -> Option<usize> {
+        let e = (0..3).try_fold(Vec::new(), |mut e, a| {
+            e.push(self.max[a].checked_sub(self.min[a]).filter(|&n| n > 0)?);
+            Some(e)
+        })?;
+        let rows = e[1].checked_mul(e[2])?;
+        e[0].checked_mul(rows)?;
+        Some(rows)
     }
 
     /// Per axis, the planes of the box's low and high faces where another box of a grid of
@@ -375,28 +388,16 @@ impl ChunkMesh {
             .collect()
     }
 
-    /// The triangles and vertices made by local rows `rows`: ([first, end), [first, end)).
-    fn span(&self, rows: std::ops::Range<usize>) -> ([usize; 2], [usize; 2]) {
-        let [t0, v0] = if rows.start == 0 {
-            [0, 0]
-        } else {
-            self.rows[rows.start - 1]
-        };
-        let [t1, v1] = self.rows[rows.end - 1];
-        ([t0 as usize, t1 as usize], [v0 as usize, v1 as usize])
-    }
-
-    /// The vertices that another box may make too, with the rank of the row that made each.
-    fn shared(&self, dims: [usize; 3], c: u32) -> Vec<Shared> {
+    /// The vertices that another box may make too, with the row that made each, by vertex.
+    pub(crate) fn shared_vertices(&self, dims: [usize; 3]) -> Vec<(usize, usize)> {
         let planes = self.shared_planes(dims);
         if planes.is_empty() {
             return Vec::new();
         }
-        let entry = |v: usize, row: usize| (self.keys[v], self.rank(row), c, v as u32);
         match &self.on_faces {
             Some(list) => list
                 .iter()
-                .map(|&[v, row]| entry(v as usize, row as usize))
+                .map(|&[v, row]| (v as usize, row as usize))
                 .collect(),
             None => (0..self.keys.len())
                 .filter(|&v| {
@@ -404,30 +405,26 @@ impl ChunkMesh {
                         .iter()
                         .any(|&(a, p)| self.keys[v].on_plane(dims, a, p))
                 })
-                .map(|v| {
-                    // The row that made vertex v: the first whose count passes it.
-                    entry(v, self.rows.partition_point(|r| r[1] as usize <= v))
-                })
+                // The row that made vertex v: the first whose count passes it.
+                .map(|v| (v, self.rows.partition_point(|r| r[1] as usize <= v)))
                 .collect(),
         }
     }
 
     /// The global row of local row `r`: (z, y), then the box's first x orders boxes in a row.
     fn rank(&self, r: usize) -> Rank {
-        let ny = self.cells.extent()[1];
-        (
-            self.cells.min[2] + r / ny,
-            self.cells.min[1] + r % ny,
-            self.cells.min[0],
-        )
+        rank_in(self.cells, r)
     }
 }
 
-/// Where a row of cells comes in the canonical order: (z, y, the box's first x).
-type Rank = (usize, usize, usize);
+/// The global row of row `r` of box `cells`.
+pub(crate) fn rank_in(cells: CellBox, r: usize) -> Rank {
+    let ny = cells.extent()[1];
+    (cells.min[2] + r / ny, cells.min[1] + r % ny, cells.min[0])
+}
 
-/// A vertex another chunk may make too: (key, rank of the row that made it, chunk, local).
-type Shared = (VertexKey, Rank, u32, u32);
+/// Where a row of cells comes in the canonical order: (z, y, the box's first x).
+pub(crate) type Rank = (usize, usize, usize);
 
 /// Joins chunk meshes of disjoint boxes of a grid of `dims` points into `mesh` (cleared first):
 /// vertices with one key become one, and vertices and triangles come in the canonical order
@@ -484,92 +481,20 @@ pub(crate) fn join_tagged(
     }) {
         return Err(ExtractError::MalformedChunk { cells: bad.cells });
     }
-    let runs = ordered_runs(dims, &chunks)?;
-    // Vertices on faces two boxes share: the first row to make one owns it; the others alias it.
-    let shared: Vec<Shared> = chunks
+    // The layout from the chunks' outlines, as for chunks that are not in one place.
+    let outlines: Vec<ChunkOutline> = chunks
         .par_iter()
-        .enumerate()
-        .flat_map_iter(|(c, chunk)| chunk.shared(dims, c as u32))
+        .map(|c| c.outline_with(dims, false))
         .collect();
-    let mut owners: FxHashMap<VertexKey, (Rank, u32, u32)> =
-        FxHashMap::with_capacity_and_hasher(shared.len(), Default::default());
-    for &(key, rank, c, v) in &shared {
-        owners
-            .entry(key)
-            .and_modify(|o| {
-                if rank < o.0 {
-                    *o = (rank, c, v);
-                }
-            })
-            .or_insert((rank, c, v));
-    }
-    // Per chunk, by local vertex (entries come in that order): (local, owner chunk, owner local).
-    let mut aliases: Vec<Vec<(u32, u32, u32)>> = chunks.iter().map(|_| Vec::new()).collect();
-    for &(key, _, c, v) in &shared {
-        let (_, oc, ov) = owners[&key];
-        if (oc, ov) != (c, v) {
-            aliases[c as usize].push((v, oc, ov));
-        }
-    }
-    // Where each run's own vertices and its triangles go.
-    let spans: Vec<([usize; 2], [usize; 2])> = runs
-        .iter()
-        .map(|run| chunks[run.chunk as usize].span(run.rows.clone()))
-        .collect();
-    let mut vertex_base = Vec::with_capacity(runs.len() + 1);
-    let mut triangle_base = Vec::with_capacity(runs.len() + 1);
-    let (mut nv, mut nt) = (0usize, 0usize);
-    for (run, &(t, v)) in runs.iter().zip(&spans) {
-        vertex_base.push(nv);
-        triangle_base.push(nt);
-        let a = &aliases[run.chunk as usize];
-        let aliased = a.partition_point(|e| (e.0 as usize) < v[1])
-            - a.partition_point(|e| (e.0 as usize) < v[0]);
-        nv += v[1] - v[0] - aliased;
-        nt += t[1] - t[0];
-    }
-    vertex_base.push(nv);
-    triangle_base.push(nt);
-    if nv > u32::MAX as usize {
-        return Err(ExtractError::TooManyVertices);
-    }
-    // Each chunk's runs, in its own row order.
-    let mut runs_of: Vec<Vec<usize>> = chunks.iter().map(|_| Vec::new()).collect();
-    for (s, run) in runs.iter().enumerate() {
-        runs_of[run.chunk as usize].push(s);
-    }
-    // Local → global: own vertices by their run, the others through their owner.
-    let mut global: Vec<Vec<u32>> = chunks
+    let layout = JoinLayout::new(dims, &outlines)?;
+    drop(outlines);
+    let (nv, nt) = (layout.vertices(), layout.triangles());
+    let places = layout.places();
+    let global: Vec<Vec<u32>> = chunks
         .par_iter()
-        .enumerate()
-        .map(|(c, chunk)| {
-            // The chunk's runs cover its vertices in order, so ids are pushed, not filled.
-            let mut ids = Vec::with_capacity(chunk.keys.len());
-            let mut alias = aliases[c].iter().map(|e| e.0 as usize).peekable();
-            for &s in &runs_of[c] {
-                let mut next = vertex_base[s] as u32;
-                let [mut v, end] = spans[s].1;
-                while v < end {
-                    // Own vertices up to the next aliased one are numbered in one stretch.
-                    let stop = alias.peek().map_or(end, |&a| a.min(end));
-                    ids.extend(next..next + (stop - v) as u32);
-                    next += (stop - v) as u32;
-                    v = stop;
-                    if v < end {
-                        alias.next();
-                        ids.push(u32::MAX);
-                        v += 1;
-                    }
-                }
-            }
-            ids
-        })
+        .zip(places)
+        .map(|(chunk, place)| place.ids(chunk.keys.len()))
         .collect();
-    for (c, list) in aliases.iter().enumerate() {
-        for &(v, oc, ov) in list {
-            global[c][v as usize] = global[oc as usize][ov as usize];
-        }
-    }
     // A chunk whose keys repeat (never made by a mesher; bytes from elsewhere may say so)
     // leaves vertices without a number: refused rather than written out of range.
     if let Some(c) = global
@@ -612,9 +537,15 @@ pub(crate) fn join_tagged(
             &mut mesh.triangles[..],
             &mut tags[..],
         );
-        for (s, run) in runs.iter().enumerate() {
-            let v = vertex_base[s + 1] - vertex_base[s];
-            let t = triangle_base[s + 1] - triangle_base[s];
+        for (s, &(c, r)) in layout.order.iter().enumerate() {
+            let run = &places[c as usize].runs[r as usize];
+            let end = layout
+                .order
+                .get(s + 1)
+                .map(|&(c, r)| &places[c as usize].runs[r as usize]);
+            let v = end.map_or(nv as u64, |e| e.first_vertex) - run.first_vertex;
+            let t = (run.triangles[1] - run.triangles[0]) as usize;
+            let v = v as usize;
             let (p, rest) = std::mem::take(&mut p_rest).split_at_mut(v);
             p_rest = rest;
             let (n, rest) = std::mem::take(&mut n_rest).split_at_mut(if normals { v } else { 0 });
@@ -623,7 +554,7 @@ pub(crate) fn join_tagged(
             t_rest = rest;
             let (g, rest) = std::mem::take(&mut g_rest).split_at_mut(if tagged { t } else { 0 });
             g_rest = rest;
-            outputs[run.chunk as usize].push((s, p, n, tri, g));
+            outputs[c as usize].push((r as usize, p, n, tri, g));
         }
     }
     // Each chunk is dropped as soon as it is copied: the joined mesh's memory is touched only
@@ -637,28 +568,22 @@ pub(crate) fn join_tagged(
     let fits = chunks
         .into_par_iter()
         .zip(outputs)
-        .zip(&aliases)
+        .zip(places)
         .zip(&global)
-        .map(|(((chunk, outs), aliases), ids)| {
+        .map(|(((chunk, outs), place), ids)| {
             let mut fits = true;
-            for (s, p, n, tri, g) in outs {
-                let ([t0, t1], [v0, v1]) = spans[s];
+            for (r, p, n, tri, g) in outs {
+                let run = &place.runs[r];
+                let [t0, t1] = run.triangles.map(|t| t as usize);
                 // Own vertices: runs between aliased ones, copied whole.
-                let first = aliases.partition_point(|e| (e.0 as usize) < v0);
-                let skip = aliases[first..]
-                    .iter()
-                    .map(|e| e.0 as usize)
-                    .take_while(|&v| v < v1);
                 let mut at = 0;
-                let mut from = v0;
-                for stop in skip.chain(std::iter::once(v1)) {
-                    let len = stop - from;
-                    p[at..at + len].copy_from_slice(&chunk.mesh.positions[from..stop]);
+                for range in place.own(run) {
+                    let len = range.len();
+                    p[at..at + len].copy_from_slice(&chunk.mesh.positions[range.clone()]);
                     if !n.is_empty() {
-                        n[at..at + len].copy_from_slice(&chunk.mesh.normals[from..stop]);
+                        n[at..at + len].copy_from_slice(&chunk.mesh.normals[range]);
                     }
                     at += len;
-                    from = stop + 1;
                 }
                 for (out, t) in tri.iter_mut().zip(&chunk.mesh.triangles[t0..t1]) {
                     *out = t.map(|x| match ids.get(x as usize) {
@@ -718,14 +643,18 @@ pub(super) fn join_rows(
             before = row;
         }
     }
-    let shared: Vec<Shared> = chunks
+    let shared: Vec<(VertexKey, Rank)> = chunks
         .par_iter()
-        .enumerate()
-        .flat_map_iter(|(c, chunk)| chunk.shared(dims, c as u32))
+        .flat_map_iter(|chunk| {
+            chunk
+                .shared_vertices(dims)
+                .into_iter()
+                .map(|(v, row)| (chunk.keys[v], chunk.rank(row)))
+        })
         .collect();
     let mut first: FxHashMap<VertexKey, Rank> =
         FxHashMap::with_capacity_and_hasher(shared.len(), Default::default());
-    for &(key, rank, _, _) in &shared {
+    for &(key, rank) in &shared {
         first
             .entry(key)
             .and_modify(|f| *f = (*f).min(rank))
@@ -734,7 +663,7 @@ pub(super) fn join_rows(
     // Each seam vertex counted once, in its first row: the later makers' counts come off.
     let mut counted: FxHashMap<VertexKey, ()> =
         FxHashMap::with_capacity_and_hasher(first.len(), Default::default());
-    for &(key, rank, _, _) in &shared {
+    for &(key, rank) in &shared {
         if rank != first[&key] || counted.insert(key, ()).is_some() {
             // Malformed chunks can make this wrap; the total is checked after the join.
             let v = &mut vertices[row_of(rank)];
@@ -786,22 +715,21 @@ fn sized<T: Clone + Default>(v: &mut Vec<T>, n: usize) {
 }
 
 /// Rows of one chunk that follow one another in the canonical order.
-struct Run {
+pub(crate) struct Run {
     /// The first row's place.
     rank: Rank,
-    chunk: u32,
+    pub(crate) chunk: u32,
     /// Local rows.
-    rows: std::ops::Range<usize>,
+    pub(crate) rows: std::ops::Range<usize>,
 }
 
 /// The chunks' rows in the canonical order, as runs: a box spanning every cell in `x` is one run
 /// per layer, one spanning `x` and `y` a single run, any other box a run per row. Fails if two
 /// boxes share a cell.
-fn ordered_runs(dims: [usize; 3], chunks: &[ChunkMesh]) -> Result<Vec<Run>, ExtractError> {
+pub(crate) fn ordered_runs(dims: [usize; 3], chunks: &[CellBox]) -> Result<Vec<Run>, ExtractError> {
     let whole = CellBox::whole(dims);
     let mut runs = Vec::new();
-    for (c, chunk) in chunks.iter().enumerate() {
-        let b = chunk.cells;
+    for (c, &b) in chunks.iter().enumerate() {
         let [_, by, bz] = b.extent();
         let full_x = b.min[0] == 0 && b.max[0] == whole.max[0];
         let full_y = b.min[1] == 0 && b.max[1] == whole.max[1];
@@ -812,7 +740,7 @@ fn ordered_runs(dims: [usize; 3], chunks: &[ChunkMesh]) -> Result<Vec<Run>, Extr
         };
         for first in (0..by * bz).step_by(per_run) {
             runs.push(Run {
-                rank: chunk.rank(first),
+                rank: rank_in(b, first),
                 chunk: c as u32,
                 rows: first..first + per_run,
             });
@@ -822,7 +750,7 @@ fn ordered_runs(dims: [usize; 3], chunks: &[ChunkMesh]) -> Result<Vec<Run>, Extr
     // Rows counted over the grid: a run covers [start, end) and cells [x0, x1) of each.
     let ny = whole.max[1];
     let place = |r: &Run| {
-        let b = chunks[r.chunk as usize].cells;
+        let b = chunks[r.chunk as usize];
         let start = r.rank.0 * ny + r.rank.1;
         (start, start + r.rows.len(), b.min[0], b.max[0])
     };
@@ -842,8 +770,8 @@ fn ordered_runs(dims: [usize; 3], chunks: &[ChunkMesh]) -> Result<Vec<Run>, Extr
         };
         if let Some(other) = clash {
             return Err(ExtractError::OverlappingBoxes {
-                first: chunks[other].cells,
-                second: chunks[run.chunk as usize].cells,
+                first: chunks[other],
+                second: chunks[run.chunk as usize],
             });
         }
         if end > start + 1 && end > covered.0 {

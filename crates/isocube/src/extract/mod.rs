@@ -78,6 +78,7 @@ mod block;
 mod chunk;
 mod classify;
 mod labels;
+mod layout;
 mod place;
 
 pub(crate) use classify::{cell_config, face_decisions};
@@ -97,6 +98,7 @@ pub use labels::{
     LabelOptions, LabelSelection, LabelSurface,
 };
 pub(crate) use labels::{label_slabs, Labelled, TETS as KUHN_PATHS};
+pub use layout::{ChunkOutline, ChunkPlace, JoinLayout, PlacedPiece};
 pub use stream::{extract_streamed, streams_by_default, MeshSink, StreamError, STREAM_ABOVE_BYTES};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};

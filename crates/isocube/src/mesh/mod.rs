@@ -122,8 +122,7 @@ impl Mesh {
     pub fn compute_normals(&mut self) {
         let mut acc = vec![[0.0f64; 3]; self.positions.len()];
         for t in &self.triangles {
-            let p = t.map(|v| self.positions[v as usize].map(f64::from));
-            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            let n = area_vector(t.map(|v| self.positions[v as usize]));
             for &v in t {
                 for a in 0..3 {
                     acc[v as usize][a] += n[a];
@@ -167,8 +166,7 @@ impl Mesh {
             if t.iter().all(|&v| normals[v as usize] != [0.0; 3]) {
                 continue;
             }
-            let p = t.map(|v| self.positions[v as usize].map(f64::from));
-            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            let n = area_vector(t.map(|v| self.positions[v as usize]));
             for &v in t {
                 for a in 0..3 {
                     acc[v as usize][a] += n[a];
@@ -177,12 +175,7 @@ impl Mesh {
         }
         for (n, a) in normals.iter_mut().zip(&acc) {
             if *n == [0.0; 3] {
-                let len = dot(*a, *a).sqrt();
-                *n = if len > 0.0 && len.is_finite() {
-                    a.map(|c| (c / len) as f32)
-                } else {
-                    [0.0, 0.0, 1.0]
-                };
+                *n = unit_or_up(*a);
             }
         }
         Some(normals)
@@ -220,6 +213,22 @@ impl Mesh {
 /// ```
 pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Twice the area of triangle `p` along its normal: what [`Mesh::filled_normals`] sums.
+pub(crate) fn area_vector(p: [[f32; 3]; 3]) -> [f64; 3] {
+    let p = p.map(|q| q.map(f64::from));
+    cross(sub(p[1], p[0]), sub(p[2], p[0]))
+}
+
+/// A sum of [`area_vector`]s made a unit normal, or +z when they cancel.
+pub(crate) fn unit_or_up(a: [f64; 3]) -> [f32; 3] {
+    let len = dot(a, a).sqrt();
+    if len > 0.0 && len.is_finite() {
+        a.map(|c| (c / len) as f32)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
 }
 
 /// The cross product `a × b` (see [`sub`] for an example).
