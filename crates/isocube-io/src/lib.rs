@@ -87,7 +87,7 @@ pub use inflating::InflatingVolume;
 pub use mapped::MappedVolume;
 pub use mesh_io::{
     read_mesh, read_mesh_bytes, write_file_atomic, write_mesh, write_mesh_data_to, write_mesh_to,
-    write_mesh_with_values, MeshFormat, MeshWriteOptions, PlyWriter,
+    write_mesh_with_values, MeshFormat, MeshWriteOptions, PlyLayout, PlyWriter,
 };
 pub use metaimage::read_metaimage;
 #[cfg(feature = "nifti")]

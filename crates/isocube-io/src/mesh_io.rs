@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use super::blocks::{put_le, write_blocks};
 use super::export::{self, VertexValues};
 use super::{read_file, IoError, Position};
-use isocube::extract::MeshSink;
+use isocube::extract::{MeshSink, PlacedPiece};
 use isocube::mesh::Mesh;
 
 /// A mesh file format.
@@ -370,6 +370,164 @@ impl PlyWriter {
         }
         out.persist(&path)
             .map_err(|e| IoError::os(&path, e.error))?;
+        Ok(())
+    }
+}
+
+/// A binary PLY file filled in place by many writers at once: the tasks of a cluster, each
+/// writing its own pieces of a mesh ([`isocube::extract::ChunkPlace::place`]) at their
+/// offsets, so that a mesh larger than any one machine's memory is written without being
+/// gathered. The file's bytes are those [`write_mesh`] writes for the whole mesh. Writers on
+/// several machines need a filesystem they all see (NFS, Lustre, GPFS…); every write is a plain
+/// positioned write of whole records, repeated identically if a task runs again.
+///
+/// ```
+/// use isocube::extract::{extract, CellBox, ExtractOptions, Extractor, JoinLayout};
+/// use isocube::field::Sample;
+/// use isocube_io::{write_mesh, MeshWriteOptions, PlyLayout};
+/// let dir = tempfile::tempdir().unwrap();
+/// let grid = Sample::Torus.grid(24);
+/// let extractor = Extractor::new(&grid, &ExtractOptions::default()).unwrap();
+/// let chunks: Vec<_> = CellBox::tile(grid.dims(), [23, 8, 8]).unwrap().into_iter()
+///     .map(|b| extractor.mesh_box(b).unwrap()).collect();
+/// let outlines: Vec<_> = chunks.iter().map(|c| c.outline(grid.dims())).collect();
+/// let layout = JoinLayout::new(grid.dims(), &outlines).unwrap();
+/// let ply = PlyLayout::new(layout.vertices() as u64, layout.triangles() as u64, true);
+/// let path = dir.path().join("torus.ply");
+/// ply.create(&path).unwrap();
+/// for (chunk, place) in chunks.iter().zip(layout.places()) {
+///     ply.write_pieces(&path, &place.place(chunk).unwrap()).unwrap();
+/// }
+/// let whole = dir.path().join("whole.ply");
+/// write_mesh(&whole, &extract(&grid, &ExtractOptions::default()).unwrap().0, &MeshWriteOptions::default()).unwrap();
+/// assert_eq!(std::fs::read(&path).unwrap(), std::fs::read(&whole).unwrap());
+/// ```
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PlyLayout {
+    vertices: u64,
+    triangles: u64,
+    normals: bool,
+    header: Vec<u8>,
+}
+
+impl PlyLayout {
+    /// The layout of a binary PLY file of `vertices` vertices (with normals if `normals`) and
+    /// `triangles` triangles.
+    pub fn new(vertices: u64, triangles: u64, normals: bool) -> PlyLayout {
+        let mut header = Vec::new();
+        // Writing to a Vec cannot fail; counts print the same as `usize`s.
+        let _ = ply_header(
+            &mut header,
+            "binary_little_endian",
+            vertices as usize,
+            triangles as usize,
+            normals,
+            None,
+        );
+        PlyLayout {
+            vertices,
+            triangles,
+            normals,
+            header,
+        }
+    }
+
+    fn vertex_width(&self) -> u64 {
+        if self.normals {
+            24
+        } else {
+            12
+        }
+    }
+
+    /// The file's length in bytes.
+    pub fn file_len(&self) -> u64 {
+        self.header.len() as u64 + self.vertices * self.vertex_width() + self.triangles * 13
+    }
+
+    /// Makes the file at `path` its full length with the header written, keeping what is
+    /// already there (creating it again, as a retried task does, loses no piece written).
+    pub fn create(&self, path: &Path) -> Result<(), IoError> {
+        let os = |e| IoError::os(path, e);
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)
+            .map_err(os)?;
+        file.set_len(self.file_len()).map_err(os)?;
+        file.write_all(&self.header).map_err(os)
+    }
+
+    /// Writes pieces of the mesh at their places in the file [`PlyLayout::create`] made.
+    /// Pieces beyond the layout's counts, or without normals where the file has them, are
+    /// refused before anything is written.
+    pub fn write_pieces(&self, path: &Path, pieces: &[PlacedPiece]) -> Result<(), IoError> {
+        for p in pieces {
+            let fits = |first: u64, n: usize, total: u64| {
+                first.checked_add(n as u64).is_some_and(|end| end <= total)
+            };
+            let normals_ok = !self.normals || p.normals.len() == p.positions.len();
+            let indices_ok = p
+                .triangles
+                .iter()
+                .flatten()
+                .all(|&v| u64::from(v) < self.vertices);
+            if !fits(p.first_vertex, p.positions.len(), self.vertices)
+                || !fits(p.first_triangle, p.triangles.len(), self.triangles)
+                || !normals_ok
+                || !indices_ok
+            {
+                return Err(IoError::Format {
+                    path: path.to_path_buf(),
+                    position: Position::File,
+                    reason: format!(
+                        "a piece of vertices {}.. and triangles {}.. does not fit a mesh of {} vertices and {} triangles{}",
+                        p.first_vertex,
+                        p.first_triangle,
+                        self.vertices,
+                        self.triangles,
+                        if normals_ok { "" } else { " with normals" }
+                    ),
+                });
+            }
+        }
+        let os = |e| IoError::os(path, e);
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .map_err(os)?;
+        let width = self.vertex_width() as usize;
+        let faces_at = self.header.len() as u64 + self.vertices * self.vertex_width();
+        let mut buffer = Vec::new();
+        for p in pieces {
+            buffer.clear();
+            buffer.resize(p.positions.len() * width, 0);
+            for (i, record) in buffer.chunks_exact_mut(width).enumerate() {
+                let mut words = p.positions[i].into_iter().chain(if self.normals {
+                    p.normals[i]
+                } else {
+                    [f32::NAN; 3]
+                });
+                for x in record.chunks_exact_mut(4) {
+                    x.copy_from_slice(&words.next().unwrap_or(0.0).to_le_bytes());
+                }
+            }
+            let at = self.header.len() as u64 + p.first_vertex * self.vertex_width();
+            file.seek(SeekFrom::Start(at)).map_err(os)?;
+            file.write_all(&buffer).map_err(os)?;
+            buffer.clear();
+            buffer.resize(p.triangles.len() * 13, 0);
+            for (record, t) in buffer.chunks_exact_mut(13).zip(&p.triangles) {
+                record[0] = 3;
+                for (c, v) in t.iter().enumerate() {
+                    record[1 + 4 * c..5 + 4 * c].copy_from_slice(&v.to_le_bytes());
+                }
+            }
+            file.seek(SeekFrom::Start(faces_at + p.first_triangle * 13))
+                .map_err(os)?;
+            file.write_all(&buffer).map_err(os)?;
+        }
         Ok(())
     }
 }
@@ -1219,6 +1377,95 @@ mod tests {
         extract(&Sample::Torus.grid(20), &ExtractOptions::default())
             .unwrap()
             .0
+    }
+
+    /// Chunks meshed apart, outlined, laid out and written piece by piece into one PLY (their
+    /// outlines and places passed as bytes, as between a cluster's processes, and the pieces
+    /// written last chunk first) give the bytes of the whole mesh written at once: for boxes
+    /// of every shape (runs of one row, of whole layers, one run), ternary and binary, with
+    /// and without normals, on a smooth field and on random 0/1 voxels. (Flat shared vertices,
+    /// whose normals the layout fills, are tested in the library.)
+    #[test]
+    fn ply_written_in_place_is_the_whole_file() {
+        use isocube::extract::{
+            CellBox, ChunkOutline, ChunkPlace, Extractor, JoinLayout, Method, Snapping,
+        };
+        use isocube::field::Grid;
+        let dir = tempfile::tempdir().unwrap();
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let noise: Vec<f32> = (0..26 * 24 * 22)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 40 & 1) as f32
+            })
+            .collect();
+        let grids = [
+            ("tangle", Sample::Tangle.grid(30), 0.0),
+            ("noise", Grid::new([26, 24, 22], noise).unwrap(), 0.5),
+        ];
+        let ternary = Method::Ternary(Snapping::default());
+        for (name, grid, level) in &grids {
+            let d = grid.dims();
+            let cells = d.map(|n| n - 1);
+            for (o, options) in [
+                ExtractOptions::default(),
+                ExtractOptions::default().with_normals(false),
+                ExtractOptions::default().with_method(ternary),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let options = options.with_level(*level);
+                let whole = extract(grid, &options).unwrap().0;
+                let expected = dir.path().join(format!("{name}{o}.ply"));
+                write_mesh(&expected, &whole, &MeshWriteOptions::default()).unwrap();
+                let expected = std::fs::read(&expected).unwrap();
+                let extractor = Extractor::new(grid, &options).unwrap();
+                for tile in [
+                    [7, 5, 3],
+                    [cells[0], 6, 4],
+                    [cells[0], cells[1], 5],
+                    [9, 9, 9],
+                ] {
+                    let chunks: Vec<_> = CellBox::tile(d, tile)
+                        .unwrap()
+                        .into_iter()
+                        .map(|b| extractor.mesh_box(b).unwrap())
+                        .collect();
+                    let outlines: Vec<_> = chunks
+                        .iter()
+                        .map(|c| ChunkOutline::from_bytes(&c.outline(d).to_bytes()).unwrap())
+                        .collect();
+                    let layout = JoinLayout::new(d, &outlines).unwrap();
+                    assert_eq!(layout.vertices(), whole.vertex_count());
+                    let ply = PlyLayout::new(
+                        layout.vertices() as u64,
+                        layout.triangles() as u64,
+                        options.normals,
+                    );
+                    let path = dir.path().join("in-place.ply");
+                    let _ = std::fs::remove_file(&path);
+                    ply.create(&path).unwrap();
+                    for (n, (chunk, place)) in chunks.iter().zip(layout.places()).enumerate().rev()
+                    {
+                        let place = ChunkPlace::from_bytes(&place.to_bytes()).unwrap();
+                        ply.write_pieces(&path, &place.place(chunk).unwrap())
+                            .unwrap();
+                        if n == chunks.len() / 2 {
+                            // A retried creation keeps the pieces written.
+                            ply.create(&path).unwrap();
+                        }
+                    }
+                    let got = std::fs::read(&path).unwrap();
+                    assert!(
+                        got == expected,
+                        "{name}, options {o}, boxes of {tile:?}: the file differs from the whole mesh's"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -119,6 +119,12 @@ impl ChunkOutline {
         self.cells
     }
 
+    /// Shared vertices without a normal (the field flat there): the joined mesh fills their
+    /// normals from triangles that several chunks hold.
+    pub fn flat_shared(&self) -> usize {
+        self.shared.iter().filter(|s| s.flat).count()
+    }
+
     /// Vertices and triangles of the chunk.
     fn counts(&self) -> [usize; 2] {
         self.rows
@@ -758,5 +764,100 @@ pub(super) fn put_stats(word: &mut impl FnMut(u64), s: &ExtractStats) {
         s.refused_points,
     ] {
         word(v as u64);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extract::{join, ExtractOptions, Extractor};
+    use crate::field::Sample;
+    use crate::mesh::Mesh;
+
+    /// The layout fills the normals of flat vertices on shared faces from the triangles of
+    /// every chunk around them, summed in the joined mesh's order: the pieces placed are the
+    /// joined mesh with its normals filled, to the bit. (Extraction gives zero normals only
+    /// where a snapped point's gradient vanishes; here every fifth vertex by key is made
+    /// flat, alike in every chunk, as a flat field would.)
+    #[test]
+    fn flat_shared_vertices_are_filled_as_the_whole_mesh_fills_them() {
+        let grid = Sample::Tangle.grid(30);
+        let dims = grid.dims();
+        let extractor = Extractor::new(&grid, &ExtractOptions::default()).unwrap();
+        for tile in [[7, 5, 3], [29, 4, 6], [10, 29, 10]] {
+            let mut chunks: Vec<ChunkMesh> = CellBox::tile(dims, tile)
+                .unwrap()
+                .into_iter()
+                .map(|b| extractor.mesh_box(b).unwrap())
+                .collect();
+            for c in &mut chunks {
+                for (n, k) in c.mesh.normals.iter_mut().zip(&c.keys) {
+                    if k.to_bits() % 5 == 0 {
+                        *n = [0.0; 3];
+                    }
+                }
+            }
+            let mut whole = Mesh::new();
+            join(dims, chunks.clone(), &mut whole, &mut |_| {}).unwrap();
+            whole.normals = whole.filled_normals().unwrap();
+            let outlines: Vec<ChunkOutline> = chunks
+                .iter()
+                .map(|c| ChunkOutline::from_bytes(&c.outline(dims).to_bytes()).unwrap())
+                .collect();
+            assert!(outlines.iter().map(|o| o.flat_shared()).sum::<usize>() > 10);
+            let layout = JoinLayout::new(dims, &outlines).unwrap();
+            let mut placed = Mesh::new();
+            placed.positions = vec![[f32::NAN; 3]; layout.vertices()];
+            placed.normals = vec![[f32::NAN; 3]; layout.vertices()];
+            placed.triangles = vec![[u32::MAX; 3]; layout.triangles()];
+            for (chunk, place) in chunks.iter().zip(layout.places()) {
+                let place = ChunkPlace::from_bytes(&place.to_bytes()).unwrap();
+                for p in place.place(chunk).unwrap() {
+                    let (v, t) = (p.first_vertex as usize, p.first_triangle as usize);
+                    placed.positions[v..v + p.positions.len()].copy_from_slice(&p.positions);
+                    placed.normals[v..v + p.normals.len()].copy_from_slice(&p.normals);
+                    placed.triangles[t..t + p.triangles.len()].copy_from_slice(&p.triangles);
+                }
+            }
+            let bits = |m: &Mesh| -> Vec<u32> {
+                m.positions
+                    .iter()
+                    .chain(&m.normals)
+                    .flatten()
+                    .map(|x| x.to_bits())
+                    .collect()
+            };
+            assert_eq!(bits(&placed), bits(&whole), "boxes of {tile:?}");
+            assert_eq!(placed.triangles, whole.triangles, "boxes of {tile:?}");
+        }
+    }
+
+    /// A place refuses a chunk it was not made for, and bytes cut short or altered are refused.
+    #[test]
+    fn places_and_outlines_refuse_what_does_not_fit() {
+        let grid = Sample::Gyroid.grid(20);
+        let dims = grid.dims();
+        let extractor = Extractor::new(&grid, &ExtractOptions::default()).unwrap();
+        let chunks: Vec<ChunkMesh> = CellBox::tile(dims, [10, 19, 19])
+            .unwrap()
+            .into_iter()
+            .map(|b| extractor.mesh_box(b).unwrap())
+            .collect();
+        let outlines: Vec<ChunkOutline> = chunks.iter().map(|c| c.outline(dims)).collect();
+        let layout = JoinLayout::new(dims, &outlines).unwrap();
+        let places = layout.places();
+        assert!(places[0].place(&chunks[1]).is_err());
+        for bytes in [outlines[1].to_bytes(), places[1].to_bytes()] {
+            for cut in [0, 8, bytes.len() / 2, bytes.len() - 1] {
+                assert!(ChunkOutline::from_bytes(&bytes[..cut]).is_err());
+                assert!(ChunkPlace::from_bytes(&bytes[..cut]).is_err());
+            }
+        }
+        // A place whose runs claim more triangles than the chunk has.
+        let mut wrong = places[1].clone();
+        wrong.runs.last_mut().unwrap().triangles[1] += 1;
+        assert!(wrong.place(&chunks[1]).is_err());
+        // Two outlines of one box overlap.
+        assert!(JoinLayout::new(dims, &[outlines[0].clone(), outlines[0].clone()]).is_err());
     }
 }
