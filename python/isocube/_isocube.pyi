@@ -233,6 +233,20 @@ def mesh_block(
     normals: bool,
 ) -> bytes: ...
 def merge_chunks(shape: tuple[int, int, int], chunks: list[bytes]) -> bytes: ...
+def chunk_outline(chunk: bytes, shape: tuple[int, int, int]) -> bytes: ...
+def join_layout(
+    shape: tuple[int, int, int], outlines: list[bytes]
+) -> tuple[int, int, dict[str, float], list[bytes]]: ...
+def create_ply(path: str, vertices: int, triangles: int, normals: bool) -> None: ...
+def write_ply_chunk(
+    path: str,
+    chunk: bytes,
+    place: bytes,
+    *,
+    origin: tuple[float, float, float],
+    normals: bool,
+    direction: list[list[float]] | None = None,
+) -> tuple[int, int]: ...
 def finish_chunks(
     chunk: bytes,
     shape: tuple[int, int, int],

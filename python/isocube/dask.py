@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import os
 import time
+import uuid
 from collections.abc import Sequence
 from typing import Any
 
@@ -37,15 +38,19 @@ import numpy as np
 from ._arrays import ArrayLike, _matrix, _triple
 from ._isocube import FormatError, InputError
 from ._isocube import block_halo as _block_halo
+from ._isocube import chunk_outline as _chunk_outline
+from ._isocube import create_ply as _create_ply
 from ._isocube import finish_chunks as _finish_chunks
 from ._isocube import finish_label_chunks as _finish_label_chunks
+from ._isocube import join_layout as _join_layout
 from ._isocube import merge_chunks as _merge_chunks
 from ._isocube import merge_label_chunks as _merge_label_chunks
 from ._isocube import mesh_block as _mesh_block
 from ._isocube import mesh_label_block as _mesh_label_block
+from ._isocube import write_ply_chunk as _write_ply_chunk
 from ._mesh import Mesh
 
-__all__ = ["boxes", "extract", "halo", "label_surfaces"]
+__all__ = ["boxes", "extract", "halo", "label_surfaces", "write_ply"]
 
 
 def halo(method: str = "mc", normals: bool = True) -> int:
@@ -163,6 +168,76 @@ def _finish_task(chunk: bytes, shape: tuple[int, int, int], **kwargs: Any) -> An
     return _finish_chunks(chunk, shape, **kwargs)
 
 
+def _chunk_meshes(
+    array: Any, level: float, *, component: str | None, split_every: int, **kwargs: Any
+) -> tuple[dict[tuple[int, int, int], Any], tuple[int, int, int], dict[str, Any]]:
+    """The tasks meshing each chunk's cells (by the chunk's place in the grid of chunks that
+    own cells), the volume's shape and the options passed to every task."""
+    import dask.array as da
+    from dask.delayed import delayed
+
+    if isinstance(array, (str, os.PathLike)):
+        array = _zarr_array(os.fspath(array), component)
+    elif not isinstance(array, da.Array):
+        raise InputError("`array` must be a dask array or the path of a Zarr store")
+    if array.ndim != 3:
+        raise InputError(f"the volume must have three dimensions, not {array.ndim}")
+    if int(split_every) < 2:
+        raise InputError("`split_every` must be at least 2")
+    shape = (int(array.shape[0]), int(array.shape[1]), int(array.shape[2]))
+    if min(shape) < 2:
+        raise InputError("every axis of the volume needs at least two points")
+    # Each chunk is read once; its neighbours send it the `depth` points around it (dask's
+    # overlap: thin slices, not whole chunks). Its last cell needs the point after the chunk,
+    # and the halo is counted from there: one more than the halo. Chunks thinner than the
+    # depth are first joined.
+    # (No more than the axis holds: dask's overlap refuses that, and it reaches the ends.)
+    reach = halo(kwargs["method"], kwargs["normals"]) + 1
+    depth = tuple(min(reach, n - 1) for n in shape)
+    if any(min(c) < d for c, d in zip(array.chunks, depth)):
+        from dask.array.overlap import ensure_minimum_chunksize
+
+        array = array.rechunk(
+            tuple(ensure_minimum_chunksize(d, c) for c, d in zip(array.chunks, depth))
+        )
+    options: dict[str, Any] = dict(
+        level=float(level),
+        spacing=_triple("spacing", kwargs["spacing"]),
+        origin=_triple("origin", kwargs["origin"]),
+        method=kwargs["method"],
+        topology=kwargs["topology"],
+        triangulate=kwargs["triangulate"],
+        snap=float(kwargs["snap"]),
+        zero_threshold=float(kwargs["zero_threshold"]),
+        snap_position=kwargs["snap_position"],
+        flip=bool(kwargs["flip"]),
+        normals=bool(kwargs["normals"]),
+    )
+    mesh_task = delayed(_mesh_task, pure=True)
+    overlapped = da.overlap.overlap(array, depth={a: depth[a] for a in range(3)}, boundary="none")
+    blocks = overlapped.to_delayed()
+    edges = [np.cumsum([0, *c]) for c in array.chunks]
+    # Per chunk: the task meshing the cells it owns (those whose first point it holds; none
+    # for a last chunk of one point) from its block.
+    parts: dict[tuple[int, int, int], Any] = {}
+    for index in np.ndindex(*blocks.shape):
+        first = [int(edges[a][index[a]]) for a in range(3)]
+        lo = tuple(min(first[a], shape[a] - 1) for a in range(3))
+        hi = tuple(min(int(edges[a][index[a] + 1]), shape[a] - 1) for a in range(3))
+        if any(lo[a] == hi[a] for a in range(3)):
+            continue
+        at = tuple(max(0, first[a] - depth[a]) for a in range(3))
+        parts[(index[0], index[1], index[2])] = mesh_task(
+            blocks[index], at, shape=shape, lo=lo, hi=hi, **options
+        )
+    firsts = [sorted({p[a] for p in parts}) for a in range(3)]
+    parts = {
+        (firsts[0].index(p[0]), firsts[1].index(p[1]), firsts[2].index(p[2])): t
+        for p, t in parts.items()
+    }
+    return parts, shape, options
+
+
 def extract(
     array: Any,
     level: float = 0.0,
@@ -222,71 +297,27 @@ def extract(
     >>> bool((mesh.triangles == whole.triangles).all() and (mesh.vertices == whole.vertices).all())
     True
     """
-    import dask.array as da
     from dask.delayed import delayed
 
     started = time.perf_counter()
-    if isinstance(array, (str, os.PathLike)):
-        array = _zarr_array(os.fspath(array), component)
-    elif not isinstance(array, da.Array):
-        raise InputError("`array` must be a dask array or the path of a Zarr store")
-    if array.ndim != 3:
-        raise InputError(f"the volume must have three dimensions, not {array.ndim}")
-    if int(split_every) < 2:
-        raise InputError("`split_every` must be at least 2")
-    shape = (int(array.shape[0]), int(array.shape[1]), int(array.shape[2]))
-    if min(shape) < 2:
-        raise InputError("every axis of the volume needs at least two points")
-    # Each chunk is read once; its neighbours send it the `depth` points around it (dask's
-    # overlap: thin slices, not whole chunks). Its last cell needs the point after the chunk,
-    # and the halo is counted from there: one more than the halo. Chunks thinner than the
-    # depth are first joined.
-    # (No more than the axis holds: dask's overlap refuses that, and it reaches the ends.)
-    reach = halo(method, normals) + 1
-    depth = tuple(min(reach, n - 1) for n in shape)
-    if any(min(c) < d for c, d in zip(array.chunks, depth)):
-        from dask.array.overlap import ensure_minimum_chunksize
-
-        array = array.rechunk(
-            tuple(ensure_minimum_chunksize(d, c) for c, d in zip(array.chunks, depth))
-        )
-    options: dict[str, Any] = dict(
-        level=float(level),
-        spacing=_triple("spacing", spacing),
-        origin=_triple("origin", origin),
+    parts, shape, options = _chunk_meshes(
+        array,
+        level,
+        spacing=spacing,
+        origin=origin,
         method=method,
         topology=topology,
         triangulate=triangulate,
-        snap=float(snap),
-        zero_threshold=float(zero_threshold),
+        snap=snap,
+        zero_threshold=zero_threshold,
         snap_position=snap_position,
-        flip=bool(flip),
-        normals=bool(normals),
+        flip=flip,
+        normals=normals,
+        component=component,
+        split_every=split_every,
     )
     matrix = None if direction is None else _matrix(direction)
-    mesh_task = delayed(_mesh_task, pure=True)
     merge_task = delayed(_merge_task, pure=True)
-    overlapped = da.overlap.overlap(array, depth={a: depth[a] for a in range(3)}, boundary="none")
-    blocks = overlapped.to_delayed()
-    edges = [np.cumsum([0, *c]) for c in array.chunks]
-    # Per chunk: the task meshing the cells it owns (those whose first point it holds; none
-    # for a last chunk of one point) from its block.
-    parts: dict[tuple[int, int, int], Any] = {}
-    for index in np.ndindex(*blocks.shape):
-        first = [int(edges[a][index[a]]) for a in range(3)]
-        lo = tuple(min(first[a], shape[a] - 1) for a in range(3))
-        hi = tuple(min(int(edges[a][index[a] + 1]), shape[a] - 1) for a in range(3))
-        if any(lo[a] == hi[a] for a in range(3)):
-            continue
-        at = tuple(max(0, first[a] - depth[a]) for a in range(3))
-        parts[(index[0], index[1], index[2])] = mesh_task(
-            blocks[index], at, shape=shape, lo=lo, hi=hi, **options
-        )
-    firsts = [sorted({p[a] for p in parts}) for a in range(3)]
-    parts = {
-        (firsts[0].index(p[0]), firsts[1].index(p[1]), firsts[2].index(p[2])): t
-        for p, t in parts.items()
-    }
     root = _tree(parts, lambda *members: merge_task(shape, *members), int(split_every))
     arrays = delayed(_finish_task, pure=True)(
         root, shape, origin=options["origin"], normals=options["normals"], direction=matrix
@@ -299,31 +330,200 @@ def extract(
     return mesh
 
 
+def write_ply(
+    array: Any,
+    path: str | os.PathLike[str],
+    level: float = 0.0,
+    *,
+    spacing: ArrayLike = (1.0, 1.0, 1.0),
+    origin: ArrayLike = (0.0, 0.0, 0.0),
+    direction: ArrayLike | None = None,
+    method: str = "mc",
+    topology: str = "mc33",
+    triangulate: str = "fan",
+    snap: float = 0.3,
+    zero_threshold: float = 0.0,
+    snap_position: str = "crossing",
+    flip: bool = False,
+    normals: bool = True,
+    component: str | None = None,
+    split_every: int = 4,
+    scheduler: Any = None,
+) -> dict[str, Any]:
+    """Writes the isosurface of a chunked volume to a binary PLY file from the workers,
+    without ever gathering the mesh: for meshes larger than any one machine's memory.
+
+    The file holds, byte for byte, what ``isocube.extract(volume, ...).save(path)`` (and the
+    ``isocube extract`` command) write for the whole volume. The chunk meshes are joined along
+    the array's last axis into bands (each a line of chunks: no bigger than that line's mesh),
+    and only each band's *outline* travels to one task — where its rows of cells end and its
+    vertices on faces other bands share (a few percent of its bytes) — which lays out the
+    whole mesh: who owns each shared vertex, where each band's runs of rows go. Each band then
+    writes its own vertices and triangles at their offsets in the file. Every worker must see
+    `path`'s directory (one machine's disk, or a shared filesystem on a cluster: NFS, Lustre,
+    GPFS…). The file is written under a temporary name beside `path` and renamed when whole;
+    writes are positioned and repeat identically when Dask runs a task again.
+
+    A single PLY rather than fragments and a manifest: it is the file a single pass writes,
+    every mesh tool opens it, and the canonical order (rows of cells) needs no welding later.
+
+    Parameters
+    ----------
+    array, level, spacing, origin, direction, method, topology, triangulate, snap,
+    zero_threshold, snap_position, flip, normals, component, split_every, scheduler
+        As :func:`extract`.
+    path : str or os.PathLike
+        The PLY file to write.
+
+    Returns
+    -------
+    dict
+        ``vertices``, ``triangles``, the counts :func:`extract` puts in ``Mesh.stats``,
+        ``layout_bytes`` (what the outlines sent to the layout task weighed) and ``seconds``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np, dask.array as da
+    >>> import isocube, isocube.dask
+    >>> x, y, z = np.mgrid[-1:1:40j, -1:1:40j, -1:1:40j]
+    >>> volume = (np.sqrt(x**2 + y**2 + z**2) - 0.7).astype(np.float32)
+    >>> out = tempfile.mkdtemp()
+    >>> stats = isocube.dask.write_ply(da.from_array(volume, chunks=16), os.path.join(out, "a.ply"))
+    >>> isocube.extract(volume, 0.0).save(os.path.join(out, "b.ply"))
+    >>> stats["triangles"] == isocube.extract(volume, 0.0).triangles.shape[0]
+    True
+    >>> a, b = (open(os.path.join(out, n), "rb").read() for n in ("a.ply", "b.ply"))
+    >>> a == b
+    True
+    """
+    from dask.delayed import delayed
+
+    started = time.perf_counter()
+    target = os.path.abspath(os.fspath(path))
+    parts, shape, options = _chunk_meshes(
+        array,
+        level,
+        spacing=spacing,
+        origin=origin,
+        method=method,
+        topology=topology,
+        triangulate=triangulate,
+        snap=snap,
+        zero_threshold=zero_threshold,
+        snap_position=snap_position,
+        flip=flip,
+        normals=normals,
+        component=component,
+        split_every=split_every,
+    )
+    matrix = None if direction is None else _matrix(direction)
+    merge_task = delayed(_merge_task, pure=True)
+    bands = _merge_along(
+        parts, lambda *members: merge_task(shape, *members), int(split_every), axis=2
+    )
+    order = sorted(bands)
+    outline = delayed(_outline_task, pure=True)
+    outlines = [outline(bands[k], shape) for k in order]
+    layout = delayed(_layout_task, pure=True)(shape, *outlines)
+    folder, name = os.path.split(target)
+    temporary = os.path.join(folder, f".{name}.{uuid.uuid4().hex}.tmp")
+    created = delayed(_create_task, pure=True)(temporary, layout, options["normals"])
+    place = delayed(_place_task, pure=True)
+    write = delayed(_write_task, pure=True)
+    written = [
+        write(
+            temporary,
+            bands[k],
+            place(layout, i),
+            created,
+            origin=options["origin"],
+            normals=options["normals"],
+            direction=matrix,
+        )
+        for i, k in enumerate(order)
+    ]
+    done = delayed(_rename_task, pure=True)(temporary, target, layout, *written)
+    try:
+        stats: dict[str, Any] = done.compute(scheduler=scheduler)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.remove(temporary)
+        raise
+    stats["seconds"] = time.perf_counter() - started
+    return stats
+
+
+def _outline_task(chunk: bytes, shape: tuple[int, int, int]) -> bytes:
+    return bytes(_chunk_outline(chunk, shape))
+
+
+def _layout_task(shape: tuple[int, int, int], *outlines: bytes) -> tuple[Any, ...]:
+    vertices, triangles, stats, places = _join_layout(shape, list(outlines))
+    stats["layout_bytes"] = sum(len(o) for o in outlines)
+    return vertices, triangles, stats, [bytes(p) for p in places]
+
+
+def _create_task(path: str, layout: tuple[Any, ...], normals: bool) -> bool:
+    _create_ply(path, layout[0], layout[1], normals)
+    return True
+
+
+def _place_task(layout: tuple[Any, ...], index: int) -> bytes:
+    place: bytes = layout[3][index]
+    return place
+
+
+def _write_task(
+    path: str, chunk: bytes, place: bytes, created: bool, **kwargs: Any
+) -> tuple[int, int]:
+    vertices, triangles = _write_ply_chunk(path, chunk, place, **kwargs)
+    return int(vertices), int(triangles)
+
+
+def _rename_task(
+    temporary: str, path: str, layout: tuple[Any, ...], *written: tuple[int, int]
+) -> dict[str, Any]:
+    vertices, triangles, stats, _ = layout
+    if (sum(w[0] for w in written), sum(w[1] for w in written)) != (vertices, triangles):
+        raise InputError(f"{path}: the bands wrote other counts than the layout's")
+    os.replace(temporary, path)
+    return {"vertices": vertices, "triangles": triangles, **stats}
+
+
 def _tree(parts: dict[tuple[int, int, int], Any], merge: Any, split_every: int) -> Any:
     """Merges the chunk tasks at `parts` (by their place in the grid of chunks) in a tree:
     neighbours along the last axis first, then the middle, then the first, `split_every` at a
     time; every merge's boxes tile a box."""
-    counts = [len({p[a] for p in parts}) for a in range(3)]
     for axis in (2, 1, 0):
-        while counts[axis] > 1:
-            merged: dict[tuple[int, int, int], Any] = {}
-            groups = range(0, counts[axis], split_every)
-            for place in list(parts):
-                if place[axis] != 0:
-                    continue
-                for g, start in enumerate(groups):
-                    members = []
-                    for n in range(start, min(start + split_every, counts[axis])):
-                        p = list(place)
-                        p[axis] = n
-                        members.append(parts[(p[0], p[1], p[2])])
-                    q = list(place)
-                    q[axis] = g
-                    merged[(q[0], q[1], q[2])] = merge(*members) if len(members) > 1 else members[0]
-            parts = merged
-            counts[axis] = len(groups)
+        parts = _merge_along(parts, merge, split_every, axis)
     (root,) = parts.values()
     return root
+
+
+def _merge_along(
+    parts: dict[tuple[int, int, int], Any], merge: Any, split_every: int, axis: int
+) -> dict[tuple[int, int, int], Any]:
+    """Merges the tasks at `parts` along `axis` until one is left in each line of that axis."""
+    count = len({p[axis] for p in parts})
+    while count > 1:
+        merged: dict[tuple[int, int, int], Any] = {}
+        groups = range(0, count, split_every)
+        for place in list(parts):
+            if place[axis] != 0:
+                continue
+            for g, start in enumerate(groups):
+                members = []
+                for n in range(start, min(start + split_every, count)):
+                    p = list(place)
+                    p[axis] = n
+                    members.append(parts[(p[0], p[1], p[2])])
+                q = list(place)
+                q[axis] = g
+                merged[(q[0], q[1], q[2])] = merge(*members) if len(members) > 1 else members[0]
+        parts = merged
+        count = len(groups)
+    return parts
 
 
 def _first_seen(

@@ -6,16 +6,20 @@
 //! `x` is the array's last axis. Indices given by Python are in the array's order `[i, j, k]`
 //! and are reversed here.
 
-use isocube::extract::{self, CellBox, ChunkMesh, ExtractOptions, LabelOptions, LabelSelection};
+use isocube::extract::{
+    self, CellBox, ChunkMesh, ChunkOutline, ChunkPlace, ExtractOptions, JoinLayout, LabelOptions,
+    LabelSelection,
+};
 use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
+use isocube_io::PlyLayout;
 use numpy::{PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
+use pyo3::types::{PyBytes, PyDict};
 
 use crate::{
     direction_of, extract_error, method_of, rows_array, samples_of, stats_dict, surface_options,
-    Extracted, InputError,
+    Extracted, FormatError, InputError,
 };
 
 /// Array order `[i, j, k]` → the grid's `[x, y, z]` (and back).
@@ -182,6 +186,109 @@ pub(crate) fn finish_chunks<'py>(
         None,
         stats_dict(py, &stats, 0.0)?,
     ))
+}
+
+/// The outline of a chunk mesh (bytes) of a volume of `shape` points: its rows and the
+/// vertices it may share, all the layout needs of it.
+#[pyfunction]
+pub(crate) fn chunk_outline<'py>(
+    py: Python<'py>,
+    chunk: Vec<u8>,
+    shape: [usize; 3],
+) -> PyResult<Bound<'py, PyBytes>> {
+    let bytes = py.detach(|| {
+        ChunkMesh::from_bytes(&chunk)
+            .map(|c| c.outline(reversed(shape)).to_bytes())
+            .map_err(extract_error)
+    })?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// The layout of the mesh of a whole volume of `shape` points from its chunks' outlines
+/// (bytes): (vertices, triangles, counts, each chunk's place as bytes).
+#[pyfunction]
+pub(crate) fn join_layout<'py>(
+    py: Python<'py>,
+    shape: [usize; 3],
+    outlines: Vec<Vec<u8>>,
+) -> PyResult<(usize, usize, Bound<'py, PyDict>, Vec<Bound<'py, PyBytes>>)> {
+    let dims = reversed(shape);
+    let layout = py.detach(|| -> PyResult<JoinLayout> {
+        let outlines = outlines
+            .iter()
+            .map(|o| ChunkOutline::from_bytes(o).map_err(extract_error))
+            .collect::<PyResult<Vec<_>>>()?;
+        let layout = JoinLayout::new(dims, &outlines).map_err(extract_error)?;
+        let whole = CellBox::whole(dims).cell_count();
+        if layout.stats().cells != whole {
+            return Err(InputError::new_err(format!(
+                "the chunks cover {} of the volume's {whole} cells",
+                layout.stats().cells
+            )));
+        }
+        Ok(layout)
+    })?;
+    let stats = stats_dict(py, layout.stats(), 0.0)?;
+    let (nv, nt) = (layout.vertices(), layout.triangles());
+    let places = layout
+        .places()
+        .iter()
+        .map(|p| PyBytes::new(py, &p.to_bytes()))
+        .collect();
+    Ok((nv, nt, stats, places))
+}
+
+/// Makes the binary PLY file at `path` that chunks' pieces fill: its header and length, what
+/// is already there kept (a task run again loses nothing).
+#[pyfunction]
+pub(crate) fn create_ply(
+    py: Python<'_>,
+    path: std::path::PathBuf,
+    vertices: u64,
+    triangles: u64,
+    normals: bool,
+) -> PyResult<()> {
+    py.detach(|| PlyLayout::new(vertices, triangles, normals).create(&path))
+        .map_err(|e| FormatError::new_err(e.to_string()))
+}
+
+/// Places a chunk mesh (bytes) by its place (bytes) and writes its pieces into the PLY file
+/// at `path` that [`create_ply`] made, turned as `finish_chunks` turns the whole mesh; returns
+/// the vertices and triangles written.
+#[pyfunction]
+#[pyo3(signature = (path, chunk, place, *, origin, normals, direction=None))]
+pub(crate) fn write_ply_chunk(
+    py: Python<'_>,
+    path: std::path::PathBuf,
+    chunk: Vec<u8>,
+    place: Vec<u8>,
+    origin: [f64; 3],
+    normals: bool,
+    direction: Option<[[f64; 3]; 3]>,
+) -> PyResult<(usize, usize)> {
+    let turn = direction_of(direction)?;
+    py.detach(|| {
+        let chunk = ChunkMesh::from_bytes(&chunk).map_err(extract_error)?;
+        let place = ChunkPlace::from_bytes(&place).map_err(extract_error)?;
+        let mut pieces = place.place(&chunk).map_err(extract_error)?;
+        let axes = Orientation::axes([2, 1, 0]).expect("a permutation");
+        let (mut nv, mut nt) = (0, 0);
+        for p in &mut pieces {
+            if !normals {
+                p.normals.clear();
+            }
+            for o in std::iter::once(axes).chain(turn) {
+                o.orient_parts(&mut p.positions, &mut p.normals, &mut p.triangles, origin);
+            }
+            nv += p.positions.len();
+            nt += p.triangles.len();
+        }
+        let [v, t] = place.whole();
+        PlyLayout::new(v, t, normals)
+            .write_pieces(&path, &pieces)
+            .map_err(|e| FormatError::new_err(e.to_string()))?;
+        Ok((nv, nt))
+    })
 }
 
 fn label_options(background: i64, only: Option<Vec<i64>>, smoothing: usize) -> LabelOptions {

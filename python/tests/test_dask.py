@@ -70,6 +70,44 @@ def test_threaded_chunks_give_the_whole_mesh(options: dict[str, Any]) -> None:
         assert_same(mesh, whole)
 
 
+@pytest.mark.parametrize("options", OPTIONS, ids=lambda o: ",".join(map(str, o)) or "mc")
+def test_ply_written_by_the_chunks_is_the_whole_meshs_file(
+    options: dict[str, Any], tmp_path: Path
+) -> None:
+    volume = gyroid((230, 26, 21))
+    expected = tmp_path / "whole.ply"
+    isocube.extract(volume, 0.1, **options).save(expected)
+    for n, (chunks, split) in enumerate([((40, 9, 8), 2), ((64, 26, 21), 4), ((17, 13, 5), 3)]):
+        path = tmp_path / f"dask{n}.ply"
+        stats = isocube.dask.write_ply(
+            da.from_array(volume, chunks=chunks),
+            path,
+            0.1,
+            split_every=split,
+            scheduler="threads",
+            **options,
+        )
+        assert path.read_bytes() == expected.read_bytes(), chunks
+        assert stats["cells"] == 229 * 25 * 20
+    # Nothing but the files asked for is left beside them.
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "dask0.ply",
+        "dask1.ply",
+        "dask2.ply",
+        "whole.ply",
+    ]
+
+
+def test_a_failed_ply_leaves_nothing(tmp_path: Path) -> None:
+    volume = gyroid((40, 40, 40))
+    store = tmp_path / "g.zarr"
+    write_zarr(store, volume, chunks=(16, 16, 16))
+    (store / "c" / "1" / "2" / "0").write_bytes(b"not a chunk")
+    with pytest.raises(isocube.FormatError, match=r"chunk 'c/1/2/0'"):
+        isocube.dask.write_ply(str(store), tmp_path / "out.ply", scheduler="threads")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.zarr"]
+
+
 def test_integer_volumes_and_ties_at_the_level() -> None:
     rng = np.random.default_rng(7)
     volume = rng.integers(0, 5, size=(31, 23, 27), dtype=np.uint16)
@@ -172,6 +210,19 @@ def test_a_local_cluster_meshes_zarr_v3_as_one_process(
     # A dask array the client made (da.from_zarr), not a path: the same.
     array = da.from_zarr(str(stores["root"] / "v3.zarr"))
     assert_same(isocube.dask.extract(array, 0.0, **options), whole)
+
+
+@pytest.mark.parametrize("method", ["mc", "ternary"])
+def test_a_local_cluster_writes_the_ply_without_gathering_the_mesh(
+    cluster: Any, stores: dict[str, Any], method: str, tmp_path: Path
+) -> None:
+    expected = tmp_path / "whole.ply"
+    isocube.extract(stores["volume"], 0.0, method=method).save(expected)
+    path = tmp_path / "dask.ply"
+    stats = isocube.dask.write_ply(str(stores["root"] / "v3.zarr"), path, 0.0, method=method)
+    assert path.read_bytes() == expected.read_bytes()
+    # What went to the layout task: the bands' outlines, a few percent of the file.
+    assert stats["layout_bytes"] < 0.1 * path.stat().st_size
 
 
 def test_zarr_v2_and_ome_zarr_levels(cluster: Any, stores: dict[str, Any]) -> None:
