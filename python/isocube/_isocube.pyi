@@ -237,6 +237,17 @@ def chunk_outline(chunk: bytes, shape: tuple[int, int, int]) -> bytes: ...
 def join_layout(
     shape: tuple[int, int, int], outlines: list[bytes]
 ) -> tuple[int, int, dict[str, float], list[bytes]]: ...
+def place_chunk(
+    chunk: bytes,
+    place: bytes,
+    *,
+    origin: tuple[float, float, float],
+    normals: bool,
+    direction: list[list[float]] | None = None,
+) -> bytes: ...
+def assemble_pieces(
+    vertices: int, triangles: int, normals: bool, pieces: list[bytes]
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32], npt.NDArray[np.float32] | None]: ...
 def create_ply(path: str, vertices: int, triangles: int, normals: bool) -> None: ...
 def write_ply_chunk(
     path: str,
@@ -247,20 +258,6 @@ def write_ply_chunk(
     normals: bool,
     direction: list[list[float]] | None = None,
 ) -> tuple[int, int]: ...
-def finish_chunks(
-    chunk: bytes,
-    shape: tuple[int, int, int],
-    *,
-    origin: tuple[float, float, float],
-    normals: bool,
-    direction: list[list[float]] | None = None,
-) -> tuple[
-    npt.NDArray[np.float32],
-    npt.NDArray[np.uint32],
-    npt.NDArray[np.float32] | None,
-    None,
-    dict[str, float],
-]: ...
 def mesh_label_block(
     ids: npt.NDArray[np.uint32],
     at: tuple[int, int, int],

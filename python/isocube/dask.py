@@ -37,16 +37,17 @@ import numpy as np
 
 from ._arrays import ArrayLike, _matrix, _triple
 from ._isocube import FormatError, InputError
+from ._isocube import assemble_pieces as _assemble_pieces
 from ._isocube import block_halo as _block_halo
 from ._isocube import chunk_outline as _chunk_outline
 from ._isocube import create_ply as _create_ply
-from ._isocube import finish_chunks as _finish_chunks
 from ._isocube import finish_label_chunks as _finish_label_chunks
 from ._isocube import join_layout as _join_layout
 from ._isocube import merge_chunks as _merge_chunks
 from ._isocube import merge_label_chunks as _merge_label_chunks
 from ._isocube import mesh_block as _mesh_block
 from ._isocube import mesh_label_block as _mesh_label_block
+from ._isocube import place_chunk as _place_chunk
 from ._isocube import write_ply_chunk as _write_ply_chunk
 from ._mesh import Mesh
 
@@ -162,10 +163,6 @@ def _read_block(
 
 def _merge_task(shape: tuple[int, int, int], *chunks: bytes) -> bytes:
     return bytes(_merge_chunks(shape, list(chunks)))
-
-
-def _finish_task(chunk: bytes, shape: tuple[int, int, int], **kwargs: Any) -> Any:
-    return _finish_chunks(chunk, shape, **kwargs)
 
 
 def _chunk_meshes(
@@ -317,12 +314,20 @@ def extract(
         split_every=split_every,
     )
     matrix = None if direction is None else _matrix(direction)
-    merge_task = delayed(_merge_task, pure=True)
-    root = _tree(parts, lambda *members: merge_task(shape, *members), int(split_every))
-    arrays = delayed(_finish_task, pure=True)(
-        root, shape, origin=options["origin"], normals=options["normals"], direction=matrix
-    )
-    result = delayed(_to_mesh, pure=True)(arrays)
+    bands, layout = _bands_and_layout(parts, shape, int(split_every))
+    place = delayed(_place_task, pure=True)
+    placed = delayed(_placed_task, pure=True)
+    pieces = [
+        placed(
+            band,
+            place(layout, i),
+            origin=options["origin"],
+            normals=options["normals"],
+            direction=matrix,
+        )
+        for i, band in enumerate(bands)
+    ]
+    result = delayed(_assemble_task, pure=True)(layout, options["normals"], *pieces)
     if not compute:
         return result
     mesh: Mesh = result.compute(scheduler=scheduler)
@@ -418,14 +423,7 @@ def write_ply(
         split_every=split_every,
     )
     matrix = None if direction is None else _matrix(direction)
-    merge_task = delayed(_merge_task, pure=True)
-    bands = _merge_along(
-        parts, lambda *members: merge_task(shape, *members), int(split_every), axis=2
-    )
-    order = sorted(bands)
-    outline = delayed(_outline_task, pure=True)
-    outlines = [outline(bands[k], shape) for k in order]
-    layout = delayed(_layout_task, pure=True)(shape, *outlines)
+    bands, layout = _bands_and_layout(parts, shape, int(split_every))
     folder, name = os.path.split(target)
     temporary = os.path.join(folder, f".{name}.{uuid.uuid4().hex}.tmp")
     created = delayed(_create_task, pure=True)(temporary, layout, options["normals"])
@@ -434,14 +432,14 @@ def write_ply(
     written = [
         write(
             temporary,
-            bands[k],
+            band,
             place(layout, i),
             created,
             origin=options["origin"],
             normals=options["normals"],
             direction=matrix,
         )
-        for i, k in enumerate(order)
+        for i, band in enumerate(bands)
     ]
     done = delayed(_rename_task, pure=True)(temporary, target, layout, *written)
     try:
@@ -452,6 +450,32 @@ def write_ply(
         raise
     stats["seconds"] = time.perf_counter() - started
     return stats
+
+
+def _bands_and_layout(
+    parts: dict[tuple[int, int, int], Any], shape: tuple[int, int, int], split_every: int
+) -> tuple[list[Any], Any]:
+    """The chunk meshes joined along the array's last axis into bands (lines of chunks), and
+    the task laying out the whole mesh from the bands' outlines."""
+    from dask.delayed import delayed
+
+    merge_task = delayed(_merge_task, pure=True)
+    joined = _merge_along(parts, lambda *members: merge_task(shape, *members), split_every, 2)
+    bands = [joined[k] for k in sorted(joined)]
+    outline = delayed(_outline_task, pure=True)
+    layout = delayed(_layout_task, pure=True)(shape, *(outline(b, shape) for b in bands))
+    return bands, layout
+
+
+def _placed_task(band: bytes, place: bytes, **kwargs: Any) -> bytes:
+    return bytes(_place_chunk(band, place, **kwargs))
+
+
+def _assemble_task(layout: tuple[Any, ...], normals: bool, *pieces: bytes) -> Mesh:
+    vertices, triangles, stats, _ = layout
+    v, t, n = _assemble_pieces(vertices, triangles, normals, list(pieces))
+    stats = {k: x for k, x in stats.items() if k != "layout_bytes"}
+    return Mesh(v, t, n, None, stats)
 
 
 def _outline_task(chunk: bytes, shape: tuple[int, int, int]) -> bytes:
@@ -682,8 +706,3 @@ def label_surfaces(
     )
     surfaces: dict[int, Mesh] = result.compute(scheduler=scheduler)
     return surfaces
-
-
-def _to_mesh(arrays: Any) -> Mesh:
-    v, t, n, values, stats = arrays
-    return Mesh(v, t, n, values, stats)

@@ -8,7 +8,7 @@
 
 use isocube::extract::{
     self, CellBox, ChunkMesh, ChunkOutline, ChunkPlace, ExtractOptions, JoinLayout, LabelOptions,
-    LabelSelection,
+    LabelSelection, PlacedPiece,
 };
 use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
@@ -19,7 +19,7 @@ use pyo3::types::{PyBytes, PyDict};
 
 use crate::{
     direction_of, extract_error, method_of, rows_array, samples_of, stats_dict, surface_options,
-    Extracted, FormatError, InputError,
+    FormatError, InputError,
 };
 
 /// Array order `[i, j, k]` → the grid's `[x, y, z]` (and back).
@@ -137,57 +137,6 @@ pub(crate) fn merge_chunks<'py>(
     Ok(PyBytes::new(py, &bytes))
 }
 
-/// The merged chunk of a whole volume as `isocube.extract` returns it: normals filled where
-/// the field was flat, the grid's frame turned into the array's index order, then by
-/// `direction`.
-#[pyfunction]
-#[pyo3(signature = (chunk, shape, *, origin, normals, direction=None))]
-pub(crate) fn finish_chunks<'py>(
-    py: Python<'py>,
-    chunk: Vec<u8>,
-    shape: [usize; 3],
-    origin: [f64; 3],
-    normals: bool,
-    direction: Option<[[f64; 3]; 3]>,
-) -> PyResult<Extracted<'py>> {
-    let turn = direction_of(direction)?;
-    let (mesh, stats) = py.detach(|| -> PyResult<(Mesh, _)> {
-        let chunk = ChunkMesh::from_bytes(&chunk).map_err(extract_error)?;
-        if chunk.cells != CellBox::whole(reversed(shape)) {
-            return Err(InputError::new_err(format!(
-                "the chunk covers cells {:?}, not the whole volume of {shape:?} points",
-                chunk.cells
-            )));
-        }
-        let mut mesh = chunk.mesh;
-        if let Some(filled) = mesh.filled_normals() {
-            mesh.normals = filled;
-        }
-        Orientation::axes([2, 1, 0])
-            .expect("a permutation")
-            .orient_mesh(&mut mesh, origin);
-        if let Some(turn) = turn {
-            turn.orient_mesh(&mut mesh, origin);
-        }
-        Ok((mesh, chunk.stats))
-    })?;
-    let Mesh {
-        positions,
-        normals: vertex_normals,
-        triangles,
-    } = mesh;
-    let normals = (normals && vertex_normals.len() == positions.len())
-        .then(|| rows_array(py, vertex_normals))
-        .transpose()?;
-    Ok((
-        rows_array(py, positions)?,
-        rows_array(py, triangles)?,
-        normals,
-        None,
-        stats_dict(py, &stats, 0.0)?,
-    ))
-}
-
 /// The outline of a chunk mesh (bytes) of a volume of `shape` points: its rows and the
 /// vertices it may share, all the layout needs of it.
 #[pyfunction]
@@ -252,9 +201,33 @@ pub(crate) fn create_ply(
         .map_err(|e| FormatError::new_err(e.to_string()))
 }
 
+/// A chunk mesh (bytes) placed by its place (bytes): its pieces of the whole mesh, turned as
+/// `isocube.extract` turns a C-ordered volume's mesh (the grid's frame into the array's index
+/// order, then by `direction`).
+fn placed(
+    chunk: &[u8],
+    place: &[u8],
+    origin: [f64; 3],
+    normals: bool,
+    turn: Option<Orientation>,
+) -> PyResult<(Vec<PlacedPiece>, [u64; 2])> {
+    let chunk = ChunkMesh::from_bytes(chunk).map_err(extract_error)?;
+    let place = ChunkPlace::from_bytes(place).map_err(extract_error)?;
+    let mut pieces = place.place(&chunk).map_err(extract_error)?;
+    let axes = Orientation::axes([2, 1, 0]).expect("a permutation");
+    for p in &mut pieces {
+        if !normals {
+            p.normals.clear();
+        }
+        for o in std::iter::once(axes).chain(turn) {
+            o.orient_parts(&mut p.positions, &mut p.normals, &mut p.triangles, origin);
+        }
+    }
+    Ok((pieces, place.whole()))
+}
+
 /// Places a chunk mesh (bytes) by its place (bytes) and writes its pieces into the PLY file
-/// at `path` that [`create_ply`] made, turned as `finish_chunks` turns the whole mesh; returns
-/// the vertices and triangles written.
+/// at `path` that [`create_ply`] made; returns the vertices and triangles written.
 #[pyfunction]
 #[pyo3(signature = (path, chunk, place, *, origin, normals, direction=None))]
 pub(crate) fn write_ply_chunk(
@@ -268,28 +241,72 @@ pub(crate) fn write_ply_chunk(
 ) -> PyResult<(usize, usize)> {
     let turn = direction_of(direction)?;
     py.detach(|| {
-        let chunk = ChunkMesh::from_bytes(&chunk).map_err(extract_error)?;
-        let place = ChunkPlace::from_bytes(&place).map_err(extract_error)?;
-        let mut pieces = place.place(&chunk).map_err(extract_error)?;
-        let axes = Orientation::axes([2, 1, 0]).expect("a permutation");
-        let (mut nv, mut nt) = (0, 0);
-        for p in &mut pieces {
-            if !normals {
-                p.normals.clear();
-            }
-            for o in std::iter::once(axes).chain(turn) {
-                o.orient_parts(&mut p.positions, &mut p.normals, &mut p.triangles, origin);
-            }
-            nv += p.positions.len();
-            nt += p.triangles.len();
-        }
-        let [v, t] = place.whole();
+        let (pieces, [v, t]) = placed(&chunk, &place, origin, normals, turn)?;
         PlyLayout::new(v, t, normals)
             .write_pieces(&path, &pieces)
             .map_err(|e| FormatError::new_err(e.to_string()))?;
+        let nv = pieces.iter().map(|p| p.positions.len()).sum();
+        let nt = pieces.iter().map(|p| p.triangles.len()).sum();
         Ok((nv, nt))
     })
 }
+
+/// A chunk mesh (bytes) placed by its place (bytes): its pieces of the whole mesh as bytes.
+#[pyfunction]
+#[pyo3(signature = (chunk, place, *, origin, normals, direction=None))]
+pub(crate) fn place_chunk<'py>(
+    py: Python<'py>,
+    chunk: Vec<u8>,
+    place: Vec<u8>,
+    origin: [f64; 3],
+    normals: bool,
+    direction: Option<[[f64; 3]; 3]>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let turn = direction_of(direction)?;
+    let bytes = py.detach(|| {
+        placed(&chunk, &place, origin, normals, turn).map(|(p, _)| PlacedPiece::list_to_bytes(&p))
+    })?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// The whole mesh's arrays (vertices, triangles, normals or `None`) from every chunk's pieces
+/// (bytes).
+#[pyfunction]
+pub(crate) fn assemble_pieces<'py>(
+    py: Python<'py>,
+    vertices: usize,
+    triangles: usize,
+    normals: bool,
+    pieces: Vec<Vec<u8>>,
+) -> PyResult<Assembled<'py>> {
+    let mesh = py.detach(|| -> PyResult<Mesh> {
+        let mut all = Vec::new();
+        for p in &pieces {
+            all.extend(PlacedPiece::list_from_bytes(p).map_err(extract_error)?);
+        }
+        extract::assemble(vertices, triangles, normals, all).map_err(extract_error)
+    })?;
+    let Mesh {
+        positions,
+        normals: vertex_normals,
+        triangles,
+    } = mesh;
+    let normals = normals
+        .then(|| rows_array(py, vertex_normals))
+        .transpose()?;
+    Ok((
+        rows_array(py, positions)?,
+        rows_array(py, triangles)?,
+        normals,
+    ))
+}
+
+/// Vertices, triangles and normals (or `None`).
+type Assembled<'py> = (
+    Bound<'py, numpy::PyArray2<f32>>,
+    Bound<'py, numpy::PyArray2<u32>>,
+    Option<Bound<'py, numpy::PyArray2<f32>>>,
+);
 
 fn label_options(background: i64, only: Option<Vec<i64>>, smoothing: usize) -> LabelOptions {
     let options = LabelOptions::default()

@@ -763,11 +763,12 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(blocks::block_halo, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::mesh_block, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::merge_chunks, m)?)?;
-    m.add_function(wrap_pyfunction!(blocks::finish_chunks, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::chunk_outline, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::join_layout, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::create_ply, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::write_ply_chunk, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::place_chunk, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::assemble_pieces, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::mesh_label_block, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::merge_label_chunks, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::finish_label_chunks, m)?)?;

@@ -10,7 +10,7 @@ use rustc_hash::FxHashMap;
 use super::block::Reader;
 use super::chunk::{ordered_runs, CellBox, ChunkMesh, Rank, VertexKey};
 use super::{ExtractError, ExtractStats};
-use crate::mesh::{area_vector, unit_or_up};
+use crate::mesh::{area_vector, unit_or_up, Mesh};
 
 /// A vertex of a chunk that another chunk may make too.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -522,6 +522,172 @@ pub struct PlacedPiece {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// The joined mesh of `vertices` vertices and `triangles` triangles (with normals if
+/// `normals`) from the pieces every chunk placed, in any order; the pieces must cover each
+/// vertex and triangle exactly once.
+///
+/// ```
+/// use isocube::extract::{assemble, extract, CellBox, ExtractOptions, Extractor, JoinLayout};
+/// use isocube::field::Sample;
+/// let grid = Sample::Sphere.grid(20);
+/// let extractor = Extractor::new(&grid, &ExtractOptions::default()).unwrap();
+/// let chunks: Vec<_> = CellBox::tile(grid.dims(), [19, 19, 6]).unwrap().into_iter()
+///     .map(|b| extractor.mesh_box(b).unwrap()).collect();
+/// let outlines: Vec<_> = chunks.iter().map(|c| c.outline(grid.dims())).collect();
+/// let layout = JoinLayout::new(grid.dims(), &outlines).unwrap();
+/// let mut pieces = Vec::new();
+/// for (chunk, place) in chunks.iter().zip(layout.places()) {
+///     pieces.extend(place.place(chunk).unwrap());
+/// }
+/// let mesh = assemble(layout.vertices(), layout.triangles(), true, pieces).unwrap();
+/// assert_eq!(mesh, extract(&grid, &ExtractOptions::default()).unwrap().0);
+/// ```
+pub fn assemble(
+    vertices: usize,
+    triangles: usize,
+    normals: bool,
+    mut pieces: Vec<PlacedPiece>,
+) -> Result<Mesh, ExtractError> {
+    let bad = || ExtractError::MalformedChunk {
+        cells: CellBox::default(),
+    };
+    // Sorted by where they start, the pieces must follow one another with no gap or overlap.
+    let tiles = |spans: &mut Vec<(u64, usize)>, total: usize| {
+        spans.sort_unstable();
+        let mut end = 0u64;
+        for &(first, n) in spans.iter() {
+            if first != end {
+                return false;
+            }
+            end += n as u64;
+        }
+        end == total as u64
+    };
+    let mut v: Vec<(u64, usize)> = pieces
+        .iter()
+        .filter(|p| !p.positions.is_empty())
+        .map(|p| (p.first_vertex, p.positions.len()))
+        .collect();
+    let mut t: Vec<(u64, usize)> = pieces
+        .iter()
+        .filter(|p| !p.triangles.is_empty())
+        .map(|p| (p.first_triangle, p.triangles.len()))
+        .collect();
+    let normals_ok = pieces
+        .iter()
+        .all(|p| p.normals.len() == if normals { p.positions.len() } else { 0 });
+    let indices_ok = pieces.iter().all(|p| {
+        p.triangles
+            .iter()
+            .flatten()
+            .all(|&i| (i as usize) < vertices)
+    });
+    if !tiles(&mut v, vertices) || !tiles(&mut t, triangles) || !normals_ok || !indices_ok {
+        return Err(bad());
+    }
+    let mut mesh = Mesh::new();
+    mesh.positions = vec![[0.0; 3]; vertices];
+    if normals {
+        mesh.normals = vec![[0.0; 3]; vertices];
+    }
+    mesh.triangles = vec![[0; 3]; triangles];
+    for p in pieces.drain(..) {
+        let (v, t) = (p.first_vertex as usize, p.first_triangle as usize);
+        mesh.positions[v..v + p.positions.len()].copy_from_slice(&p.positions);
+        if normals {
+            mesh.normals[v..v + p.normals.len()].copy_from_slice(&p.normals);
+        }
+        mesh.triangles[t..t + p.triangles.len()].copy_from_slice(&p.triangles);
+    }
+    Ok(mesh)
+}
+
+impl PlacedPiece {
+    /// Pieces as bytes (little-endian), to send between processes; read back by
+    /// [`PlacedPiece::list_from_bytes`].
+    pub fn list_to_bytes(pieces: &[PlacedPiece]) -> Vec<u8> {
+        let size: usize = pieces
+            .iter()
+            .map(|p| 32 + (p.positions.len() + p.normals.len() + p.triangles.len()) * 12)
+            .sum();
+        let mut out = Vec::with_capacity(16 + size);
+        out.extend_from_slice(PIECES_MAGIC);
+        out.extend_from_slice(&(pieces.len() as u64).to_le_bytes());
+        for p in pieces {
+            for n in [
+                p.first_vertex,
+                p.first_triangle,
+                p.positions.len() as u64,
+                p.normals.len() as u64,
+                p.triangles.len() as u64,
+            ] {
+                out.extend_from_slice(&n.to_le_bytes());
+            }
+            for x in p.positions.iter().chain(&p.normals).flatten() {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+            for v in p.triangles.iter().flatten() {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        out
+    }
+
+    /// Pieces from [`PlacedPiece::list_to_bytes`]; anything else is refused with
+    /// [`ExtractError::MalformedChunk`].
+    pub fn list_from_bytes(bytes: &[u8]) -> Result<Vec<PlacedPiece>, ExtractError> {
+        let bad = || ExtractError::MalformedChunk {
+            cells: CellBox::default(),
+        };
+        let body = bytes
+            .strip_prefix(PIECES_MAGIC.as_slice())
+            .ok_or_else(bad)?;
+        let mut r = Reader { bytes: body };
+        let n = r.count().ok_or_else(bad)?;
+        let mut pieces = Vec::with_capacity(n.min(r.bytes.len() / 40));
+        for _ in 0..n {
+            let first_vertex = r.u64().ok_or_else(bad)?;
+            let first_triangle = r.u64().ok_or_else(bad)?;
+            let [nv, nn, nt] = [r.count(), r.count(), r.count()];
+            let (nv, nn, nt) = (
+                nv.ok_or_else(bad)?,
+                nn.ok_or_else(bad)?,
+                nt.ok_or_else(bad)?,
+            );
+            if nn != 0 && nn != nv {
+                return Err(bad());
+            }
+            let mut triple = |n: usize| -> Option<Vec<[u32; 3]>> {
+                let raw = r.take(n.checked_mul(12)?)?;
+                Some(
+                    raw.chunks_exact(12)
+                        .map(|c| {
+                            std::array::from_fn(|i| {
+                                u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())
+                            })
+                        })
+                        .collect(),
+                )
+            };
+            let floats = |v: Vec<[u32; 3]>| v.into_iter().map(|w| w.map(f32::from_bits)).collect();
+            let positions = floats(triple(nv).ok_or_else(bad)?);
+            let normals = floats(triple(nn).ok_or_else(bad)?);
+            let triangles = triple(nt).ok_or_else(bad)?;
+            pieces.push(PlacedPiece {
+                first_vertex,
+                positions,
+                normals,
+                first_triangle,
+                triangles,
+            });
+        }
+        if !r.bytes.is_empty() {
+            return Err(bad());
+        }
+        Ok(pieces)
+    }
+}
+
 impl ChunkPlace {
     /// The box of cells placed.
     pub fn cells(&self) -> CellBox {
@@ -744,6 +910,7 @@ impl ChunkPlace {
 
 const OUTLINE_MAGIC: &[u8; 8] = b"isoOUT\x00\x01";
 const PLACE_MAGIC: &[u8; 8] = b"isoPLC\x00\x01";
+const PIECES_MAGIC: &[u8; 8] = b"isoPCS\x00\x01";
 
 /// Writes a box's six coordinates.
 pub(super) fn put_box(word: &mut impl FnMut(u64), cells: CellBox) {
@@ -772,7 +939,6 @@ mod tests {
     use super::*;
     use crate::extract::{join, ExtractOptions, Extractor};
     use crate::field::Sample;
-    use crate::mesh::Mesh;
 
     /// The layout fills the normals of flat vertices on shared faces from the triangles of
     /// every chunk around them, summed in the joined mesh's order: the pieces placed are the

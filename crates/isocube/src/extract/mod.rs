@@ -98,7 +98,7 @@ pub use labels::{
     LabelOptions, LabelSelection, LabelSurface,
 };
 pub(crate) use labels::{label_slabs, Labelled, TETS as KUHN_PATHS};
-pub use layout::{ChunkOutline, ChunkPlace, JoinLayout, PlacedPiece};
+pub use layout::{assemble, ChunkOutline, ChunkPlace, JoinLayout, PlacedPiece};
 pub use stream::{extract_streamed, streams_by_default, MeshSink, StreamError, STREAM_ABOVE_BYTES};
 
 pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
