@@ -35,6 +35,7 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("tet_inp", "inp"),
     ("tet_vtu", "vtu"),
     ("chunk_mesh", "chunk"),
+    ("chunk_join", "join"),
 ];
 
 /// The memory a volume reader may use on a fuzz input: far below libFuzzer's `-malloc_limit_mb`,
@@ -74,6 +75,7 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
                 let _ = isocube::extract::merge_chunks(dims, vec![chunk]);
             }
         }
+        "chunk_join" => join_parts(data),
         "ply" | "obj" | "stl" | "off" => {
             let mesh = io::read_mesh(read);
             same_outcome(&mesh, &io::read_mesh_bytes(data, read));
@@ -196,5 +198,52 @@ fn same_outcome<T: PartialEq + std::fmt::Debug>(
         (Ok(a), Ok(b)) => assert_eq!(a, b),
         (Err(_), Err(_)) => {}
         _ => panic!("file and bytes disagree: {file:?} / {bytes:?}"),
+    }
+}
+
+/// The bytes a cluster's join passes around (outlines, places, placed pieces), each from its
+/// own decoder: whatever decodes round-trips, and using it never panics.
+fn join_parts(data: &[u8]) {
+    use isocube::extract::{
+        assemble, CellBox, ChunkOutline, ChunkPlace, ExtractOptions, Extractor, JoinLayout,
+        PlacedPiece,
+    };
+    if let Ok(outline) = ChunkOutline::from_bytes(data) {
+        assert_eq!(outline.to_bytes(), data);
+        let cells = outline.cells();
+        let dims = cells.max.map(|m| m.saturating_add(1).min(1 << 20));
+        if let Ok(layout) = JoinLayout::new(dims, std::slice::from_ref(&outline)) {
+            assert_eq!(layout.places().len(), 1);
+        }
+    }
+    if let Ok(place) = ChunkPlace::from_bytes(data) {
+        assert_eq!(place.to_bytes(), data);
+        // Placed against a real chunk of the box it names, when that box is small.
+        let cells = place.cells();
+        let small = (0..3).all(|a| cells.min[a] < cells.max[a] && cells.max[a] <= 12);
+        if small {
+            let dims = cells.max.map(|m| m + 1);
+            let grid = isocube::field::Sample::Tangle.grid(dims[0].max(dims[1]).max(dims[2]));
+            if let Ok(chunk) = Extractor::new(&grid, &ExtractOptions::default())
+                .and_then(|e| e.mesh_box(CellBox::new(cells.min, cells.max)))
+            {
+                if let Ok(pieces) = place.place(&chunk) {
+                    let [v, t] = place.whole();
+                    assert!(pieces
+                        .iter()
+                        .all(|p| p.first_vertex + p.positions.len() as u64 <= v
+                            && p.first_triangle + p.triangles.len() as u64 <= t));
+                }
+            }
+        }
+    }
+    if let Ok(pieces) = PlacedPiece::list_from_bytes(data) {
+        assert_eq!(PlacedPiece::list_to_bytes(&pieces), data);
+        let v: u64 = pieces.iter().map(|p| p.positions.len() as u64).sum();
+        let t: u64 = pieces.iter().map(|p| p.triangles.len() as u64).sum();
+        let normals = pieces.first().is_some_and(|p| !p.normals.is_empty());
+        if let Ok(mesh) = assemble(v as usize, t as usize, normals, pieces) {
+            assert_eq!(mesh.positions.len() as u64, v);
+        }
     }
 }

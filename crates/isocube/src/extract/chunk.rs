@@ -723,6 +723,21 @@ pub(crate) struct Run {
     pub(crate) rows: std::ops::Range<usize>,
 }
 
+/// How many of box `b`'s rows follow one another in the canonical order of a grid of `dims`
+/// points: all of them for a box spanning every cell in `x` and `y`, a layer's for one spanning
+/// `x`, else one.
+pub(crate) fn rows_per_run(dims: [usize; 3], b: CellBox) -> usize {
+    let whole = CellBox::whole(dims);
+    let [_, by, bz] = b.extent();
+    let full_x = b.min[0] == 0 && b.max[0] == whole.max[0];
+    let full_y = b.min[1] == 0 && b.max[1] == whole.max[1];
+    match (full_x, full_y) {
+        (true, true) => by * bz,
+        (true, false) => by,
+        _ => 1,
+    }
+}
+
 /// The chunks' rows in the canonical order, as runs: a box spanning every cell in `x` is one run
 /// per layer, one spanning `x` and `y` a single run, any other box a run per row. Fails if two
 /// boxes share a cell.
@@ -731,13 +746,7 @@ pub(crate) fn ordered_runs(dims: [usize; 3], chunks: &[CellBox]) -> Result<Vec<R
     let mut runs = Vec::new();
     for (c, &b) in chunks.iter().enumerate() {
         let [_, by, bz] = b.extent();
-        let full_x = b.min[0] == 0 && b.max[0] == whole.max[0];
-        let full_y = b.min[1] == 0 && b.max[1] == whole.max[1];
-        let per_run = match (full_x, full_y) {
-            (true, true) => by * bz,
-            (true, false) => by,
-            _ => 1,
-        };
+        let per_run = rows_per_run(dims, b);
         for first in (0..by * bz).step_by(per_run) {
             runs.push(Run {
                 rank: rank_in(b, first),

@@ -8,7 +8,7 @@
 use rustc_hash::FxHashMap;
 
 use super::block::Reader;
-use super::chunk::{ordered_runs, CellBox, ChunkMesh, Rank, VertexKey};
+use super::chunk::{ordered_runs, rows_per_run, CellBox, ChunkMesh, Rank, VertexKey};
 use super::{ExtractError, ExtractStats};
 use crate::mesh::{area_vector, unit_or_up, Mesh};
 
@@ -52,8 +52,8 @@ pub(crate) struct FlatTouch {
 pub struct ChunkOutline {
     pub(crate) cells: CellBox,
     pub(crate) stats: ExtractStats,
-    /// After each row of cells: triangles and vertices made so far.
-    pub(crate) rows: Vec<[u32; 2]>,
+    /// After each run of rows (see `rows_per_run`): triangles and vertices made so far.
+    pub(crate) runs: Vec<[u32; 2]>,
     /// By vertex.
     pub(crate) shared: Vec<SharedVertex>,
     /// By triangle.
@@ -103,10 +103,19 @@ impl ChunkMesh {
                 }
             }
         }
+        // Rows that follow one another in the joined mesh are one run there: their ends
+        // within the run are not needed.
+        let per_run = rows_per_run(dims, self.cells);
         ChunkOutline {
             cells: self.cells,
             stats: self.stats,
-            rows: self.rows.clone(),
+            runs: self
+                .rows
+                .iter()
+                .skip(per_run - 1)
+                .step_by(per_run)
+                .copied()
+                .collect(),
             shared,
             touches: list,
         }
@@ -127,25 +136,31 @@ impl ChunkOutline {
 
     /// Vertices and triangles of the chunk.
     fn counts(&self) -> [usize; 2] {
-        self.rows
+        self.runs
             .last()
             .map_or([0, 0], |r| [r[1] as usize, r[0] as usize])
     }
 
-    /// Whether the parts agree with one another (outlines may come from bytes).
-    fn well_formed(&self) -> bool {
+    /// Whether the parts agree with one another (outlines may come from bytes) in a grid of
+    /// `dims` points.
+    fn well_formed(&self, dims: [usize; 3]) -> bool {
         let [nv, nt] = self.counts();
-        let rows_ok = self.rows.len() == self.cells.rows()
+        let per_run = rows_per_run(dims, self.cells);
+        let runs_ok = self.runs.len() * per_run == self.cells.rows()
             && self
-                .rows
+                .runs
                 .windows(2)
                 .all(|w| w[0][0] <= w[1][0] && w[0][1] <= w[1][1]);
+        if !runs_ok {
+            return false;
+        }
         let shared_ok = self.shared.windows(2).all(|w| w[0].vertex < w[1].vertex)
             && self.shared.iter().all(|s| {
+                let k = s.row as usize / per_run;
                 (s.vertex as usize) < nv
-                    && (s.row as usize) < self.rows.len()
-                    && self.rows[s.row as usize][1] > s.vertex
-                    && (s.row == 0 || self.rows[s.row as usize - 1][1] <= s.vertex)
+                    && (s.row as usize) < self.cells.rows()
+                    && self.runs[k][1] > s.vertex
+                    && (k == 0 || self.runs[k - 1][1] <= s.vertex)
             });
         let touches_ok = self
             .touches
@@ -158,22 +173,22 @@ impl ChunkOutline {
                         .binary_search_by_key(&t.vertex, |s| s.vertex)
                         .is_ok_and(|at| self.shared[at].flat)
             });
-        rows_ok && shared_ok && touches_ok
+        shared_ok && touches_ok
     }
 
     /// The outline as bytes (little-endian), read back by [`ChunkOutline::from_bytes`].
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(
-            160 + self.rows.len() * 8 + self.shared.len() * 17 + self.touches.len() * 32,
+            160 + self.runs.len() * 8 + self.shared.len() * 17 + self.touches.len() * 32,
         );
         out.extend_from_slice(OUTLINE_MAGIC);
         let mut word = |n: u64| out.extend_from_slice(&n.to_le_bytes());
         put_box(&mut word, self.cells);
         put_stats(&mut word, &self.stats);
-        word(self.rows.len() as u64);
+        word(self.runs.len() as u64);
         word(self.shared.len() as u64);
         word(self.touches.len() as u64);
-        for r in self.rows.iter().flatten() {
+        for r in self.runs.iter().flatten() {
             out.extend_from_slice(&r.to_le_bytes());
         }
         for s in &self.shared {
@@ -205,12 +220,15 @@ impl ChunkOutline {
         let stats = r.stats().ok_or_else(bad)?;
         let mut count = || r.count().ok_or_else(bad);
         let [nr, ns, nt] = [count()?, count()?, count()?];
-        if Some(nr) != cells.checked_rows() {
+        // Runs of rows: as many as the rows, a layer's, or one (checked against the grid by
+        // the layout).
+        let rows = cells.checked_rows().ok_or_else(bad)?;
+        if nr == 0 || rows % nr != 0 {
             return Err(bad());
         }
-        let mut rows = Vec::with_capacity(nr.min(r.bytes.len() / 8));
+        let mut runs = Vec::with_capacity(nr.min(r.bytes.len() / 8));
         for _ in 0..nr {
-            rows.push([r.u32().ok_or_else(bad)?, r.u32().ok_or_else(bad)?]);
+            runs.push([r.u32().ok_or_else(bad)?, r.u32().ok_or_else(bad)?]);
         }
         let mut shared = Vec::with_capacity(ns.min(r.bytes.len() / 17));
         for _ in 0..ns {
@@ -246,11 +264,11 @@ impl ChunkOutline {
         let outline = ChunkOutline {
             cells,
             stats,
-            rows,
+            runs,
             shared,
             touches,
         };
-        if !r.bytes.is_empty() || !outline.well_formed() {
+        if !r.bytes.is_empty() {
             return Err(bad());
         }
         Ok(outline)
@@ -338,7 +356,7 @@ impl JoinLayout {
     pub fn new(dims: [usize; 3], outlines: &[ChunkOutline]) -> Result<JoinLayout, ExtractError> {
         for o in outlines {
             o.cells.check(dims)?;
-            if !o.well_formed() {
+            if !o.well_formed(dims) {
                 return Err(ExtractError::MalformedChunk { cells: o.cells });
             }
         }
@@ -387,13 +405,10 @@ impl JoinLayout {
         let (mut nv, mut nt) = (0u64, 0u64);
         for run in &runs {
             let c = run.chunk as usize;
-            let rows = &outlines[c].rows;
-            let [t0, v0] = if run.rows.start == 0 {
-                [0, 0]
-            } else {
-                rows[run.rows.start - 1]
-            };
-            let [t1, v1] = rows[run.rows.end - 1];
+            let ends = &outlines[c].runs;
+            let k = run.rows.start / run.rows.len();
+            let [t0, v0] = if k == 0 { [0, 0] } else { ends[k - 1] };
+            let [t1, v1] = ends[k];
             let a = &aliased[c];
             let others = a.partition_point(|e| e.0 < v1) - a.partition_point(|e| e.0 < v0);
             order.push((run.chunk, places[c].runs.len() as u32));
@@ -591,13 +606,18 @@ pub fn assemble(
         mesh.normals = vec![[0.0; 3]; vertices];
     }
     mesh.triangles = vec![[0; 3]; triangles];
+    // Only non-empty parts were checked to fit; an empty one may name any place.
     for p in pieces.drain(..) {
         let (v, t) = (p.first_vertex as usize, p.first_triangle as usize);
-        mesh.positions[v..v + p.positions.len()].copy_from_slice(&p.positions);
-        if normals {
-            mesh.normals[v..v + p.normals.len()].copy_from_slice(&p.normals);
+        if !p.positions.is_empty() {
+            mesh.positions[v..v + p.positions.len()].copy_from_slice(&p.positions);
+            if normals {
+                mesh.normals[v..v + p.normals.len()].copy_from_slice(&p.normals);
+            }
         }
-        mesh.triangles[t..t + p.triangles.len()].copy_from_slice(&p.triangles);
+        if !p.triangles.is_empty() {
+            mesh.triangles[t..t + p.triangles.len()].copy_from_slice(&p.triangles);
+        }
     }
     Ok(mesh)
 }
