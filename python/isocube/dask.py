@@ -3,14 +3,19 @@
 Each task meshes the cells one chunk of the array owns, from that chunk and the points around
 it the method needs (:func:`halo`: one for Marching Cubes' normals, none without normals, 90
 for ternary snapping), read on the worker. Every vertex carries a global key (the grid edge,
-point or cell it belongs to), so chunk meshes are welded by key in a tree of merges, never by
-comparing coordinates; the result is :func:`isocube.extract`'s on the whole array (C order):
-the same vertices, triangles and normals, in the same order, array for array — whatever the
-chunks, the workers, the scheduler or the retries. Tasks are pure: a lost worker's work done
-again gives the same bytes.
+point or cell it belongs to), so chunk meshes are welded by key, never by comparing
+coordinates: each line of chunks along the last axis is merged into a band, one task lays out
+the whole mesh from the bands' *outlines* (where their runs of rows end, and the vertices they
+share), and each band numbers its vertices as the whole mesh does. The result is
+:func:`isocube.extract`'s on the whole array (C order): the same vertices, triangles and
+normals, in the same order, array for array — whatever the chunks, the workers, the scheduler
+or the retries. Tasks are pure: a lost worker's work done again gives the same bytes.
+:func:`write_ply` has the bands write their parts of one PLY file in place, so the mesh is
+never gathered: for meshes larger than any one machine's memory.
 
-Only keys and chunk meshes travel between tasks; voxels stay where the chunks are read (a
-Zarr store opened by the workers themselves when a path is given).
+Voxels stay where the chunks are read (a Zarr store opened by the workers themselves when a
+path is given); halos travel as thin slices, chunk meshes once into their band, and only
+outlines and places to and from the layout.
 
 Examples
 --------
@@ -99,9 +104,11 @@ def _mesh_task(block: Any, at: tuple[int, int, int], **kwargs: Any) -> bytes:
     return bytes(_mesh_block(np.asarray(block, dtype=np.float32), at, **kwargs))
 
 
-def _zarr_array(path: str, component: str | None, dtype: Any = np.float32) -> Any:
+def _zarr_array(
+    path: str, component: str | None, dtype: Any = np.float32, strict: bool = False
+) -> Any:
     """The Zarr array at `path` as a dask array whose tasks read one chunk each on the workers
-    (naming the chunk when it cannot be read)."""
+    (naming the chunk when it cannot be read, or, if `strict`, when it is absent)."""
     import dask.array as da
     import zarr
     from dask.delayed import delayed
@@ -121,7 +128,8 @@ def _zarr_array(path: str, component: str | None, dtype: Any = np.float32) -> An
                 end = (edges[0][i + 1], edges[1][j + 1], edges[2][k + 1])
                 shape = tuple(end[a] - lo[a] for a in range(3))
                 hi = (end[0] - 1, end[1] - 1, end[2] - 1)
-                line.append(da.from_delayed(read(path, component, lo, hi), shape, dtype=np.float32))
+                block = read(path, component, lo, hi, strict=strict)
+                line.append(da.from_delayed(block, shape, dtype=np.float32))
             plane.append(line)
         rows.append(plane)
     return da.block(rows)
@@ -133,12 +141,15 @@ def _read_block(
     lo: tuple[int, int, int],
     hi: tuple[int, int, int],
     dtype: Any = np.float32,
+    strict: bool = False,
 ) -> np.ndarray:
     """Points ``lo..=hi`` of the Zarr array at `path` (`component`), read on the worker; a
-    chunk that cannot be read is named in the error."""
+    chunk that cannot be read is named in the error, and so is an absent one if `strict`."""
     import zarr
 
     z = zarr.open_array(path, mode="r", path=component or "")
+    if strict:
+        _refuse_absent(z, path, lo, hi)
     region = tuple(slice(lo[a], hi[a] + 1) for a in range(3))
     try:
         return np.asarray(z[region], dtype=dtype)
@@ -161,12 +172,36 @@ def _read_block(
         raise FormatError(f"{path}: points {lo} to {hi}: {e}") from e
 
 
+def _refuse_absent(z: Any, path: str, lo: tuple[int, int, int], hi: tuple[int, int, int]) -> None:
+    """An error naming the first chunk (a shard, for sharded arrays) of points ``lo..=hi``
+    that the store does not hold."""
+    from zarr.core.sync import sync
+
+    grid = getattr(z, "shards", None) or z.chunks
+    prefix = f"{z.path}/" if z.path else ""
+    for i in range(lo[0] // grid[0], hi[0] // grid[0] + 1):
+        for j in range(lo[1] // grid[1], hi[1] // grid[1] + 1):
+            for k in range(lo[2] // grid[2], hi[2] // grid[2] + 1):
+                key = z.metadata.encode_chunk_key((i, j, k))
+                if not sync(z.store.exists(prefix + key)):
+                    raise FormatError(
+                        f"{path}: chunk '{key}' (chunk grid indices {i}, {j}, {k}) is absent "
+                        f"(strict: not read as the fill value {z.fill_value})"
+                    )
+
+
 def _merge_task(shape: tuple[int, int, int], *chunks: bytes) -> bytes:
     return bytes(_merge_chunks(shape, list(chunks)))
 
 
 def _chunk_meshes(
-    array: Any, level: float, *, component: str | None, split_every: int, **kwargs: Any
+    array: Any,
+    level: float,
+    *,
+    component: str | None,
+    split_every: int,
+    strict: bool,
+    **kwargs: Any,
 ) -> tuple[dict[tuple[int, int, int], Any], tuple[int, int, int], dict[str, Any]]:
     """The tasks meshing each chunk's cells (by the chunk's place in the grid of chunks that
     own cells), the volume's shape and the options passed to every task."""
@@ -174,7 +209,7 @@ def _chunk_meshes(
     from dask.delayed import delayed
 
     if isinstance(array, (str, os.PathLike)):
-        array = _zarr_array(os.fspath(array), component)
+        array = _zarr_array(os.fspath(array), component, strict=strict)
     elif not isinstance(array, da.Array):
         raise InputError("`array` must be a dask array or the path of a Zarr store")
     if array.ndim != 3:
@@ -251,6 +286,7 @@ def extract(
     flip: bool = False,
     normals: bool = True,
     component: str | None = None,
+    strict: bool = False,
     split_every: int = 4,
     compute: bool = True,
     scheduler: Any = None,
@@ -269,6 +305,10 @@ def extract(
         not offered).
     component : str, optional
         The array inside the Zarr group at `array` (e.g. ``"0"``, an OME-Zarr level).
+    strict : bool
+        For a Zarr path: an absent chunk is an error naming it, not the fill value (which
+        the Zarr specification makes it, and zarr-python leaves chunks of the fill value
+        unwritten).
     split_every : int
         How many neighbouring chunk meshes one merge task welds (the tree's fan-in).
     compute : bool
@@ -311,6 +351,7 @@ def extract(
         flip=flip,
         normals=normals,
         component=component,
+        strict=strict,
         split_every=split_every,
     )
     matrix = None if direction is None else _matrix(direction)
@@ -352,9 +393,11 @@ def write_ply(
     flip: bool = False,
     normals: bool = True,
     component: str | None = None,
+    strict: bool = False,
     split_every: int = 4,
+    compute: bool = True,
     scheduler: Any = None,
-) -> dict[str, Any]:
+) -> Any:
     """Writes the isosurface of a chunked volume to a binary PLY file from the workers,
     without ever gathering the mesh: for meshes larger than any one machine's memory.
 
@@ -375,14 +418,18 @@ def write_ply(
     Parameters
     ----------
     array, level, spacing, origin, direction, method, topology, triangulate, snap,
-    zero_threshold, snap_position, flip, normals, component, split_every, scheduler
+    zero_threshold, snap_position, flip, normals, component, strict, split_every, scheduler
         As :func:`extract`.
     path : str or os.PathLike
         The PLY file to write.
+    compute : bool
+        Write now and return the counts, or return a ``dask.delayed`` that writes the file
+        and computes them (a failed computation then leaves its temporary file, named
+        ``.NAME.*.tmp`` beside `path`, for the caller to remove).
 
     Returns
     -------
-    dict
+    dict, or dask.delayed.Delayed of one
         ``vertices``, ``triangles``, the counts :func:`extract` puts in ``Mesh.stats``,
         ``layout_bytes`` (what the outlines sent to the layout task weighed) and ``seconds``.
 
@@ -420,6 +467,7 @@ def write_ply(
         flip=flip,
         normals=normals,
         component=component,
+        strict=strict,
         split_every=split_every,
     )
     matrix = None if direction is None else _matrix(direction)
@@ -442,6 +490,8 @@ def write_ply(
         for i, band in enumerate(bands)
     ]
     done = delayed(_rename_task, pure=True)(temporary, target, layout, *written)
+    if not compute:
+        return done
     try:
         stats: dict[str, Any] = done.compute(scheduler=scheduler)
     except BaseException:
@@ -608,6 +658,7 @@ def label_surfaces(
     only: Sequence[int] | None = None,
     smoothing: int = 60,
     component: str | None = None,
+    strict: bool = False,
     split_every: int = 4,
     scheduler: Any = None,
 ) -> dict[int, Mesh]:
@@ -626,7 +677,7 @@ def label_surfaces(
         Zarr array that the workers read themselves.
     spacing, origin, background, only, smoothing
         As :func:`isocube.label_surfaces`.
-    component, split_every, scheduler
+    component, strict, split_every, scheduler
         As :func:`extract`.
 
     Returns
@@ -649,7 +700,7 @@ def label_surfaces(
     from dask.delayed import delayed
 
     if isinstance(labels, (str, os.PathLike)):
-        labels = _zarr_array(os.fspath(labels), component, dtype=None)
+        labels = _zarr_array(os.fspath(labels), component, dtype=None, strict=strict)
     elif not isinstance(labels, da.Array):
         raise InputError("`labels` must be a dask array or the path of a Zarr store")
     if labels.ndim != 3:

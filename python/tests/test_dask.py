@@ -234,11 +234,18 @@ def test_zarr_v2_and_ome_zarr_levels(cluster: Any, stores: dict[str, Any]) -> No
     assert_same(isocube.dask.extract(ome, 0.0, component="1", spacing=(2, 2, 2)), coarse)
 
 
-def test_a_worker_killed_mid_run_changes_nothing(cluster: Any, stores: dict[str, Any]) -> None:
+@pytest.mark.parametrize("write", [False, True], ids=["extract", "write_ply"])
+def test_a_worker_killed_mid_run_changes_nothing(
+    cluster: Any, stores: dict[str, Any], write: bool, tmp_path: Path
+) -> None:
     whole = isocube.extract(stores["volume"], 0.0, method="ternary")
-    delayed = isocube.dask.extract(
-        str(stores["root"] / "v3.zarr"), 0.0, method="ternary", compute=False
-    )
+    store = str(stores["root"] / "v3.zarr")
+    if write:
+        delayed = isocube.dask.write_ply(
+            store, tmp_path / "dask.ply", 0.0, method="ternary", compute=False
+        )
+    else:
+        delayed = isocube.dask.extract(store, 0.0, method="ternary", compute=False)
     future = cluster.compute(delayed)
     # Kill one worker's process once tasks are under way; its nanny starts another and the
     # scheduler runs the lost tasks again.
@@ -250,8 +257,13 @@ def test_a_worker_killed_mid_run_changes_nothing(cluster: Any, stores: dict[str,
         time.sleep(0.05)
     victim = next(iter(cluster.scheduler_info()["workers"]))
     cluster.run(lambda: os._exit(1), workers=[victim], nanny=False, on_error="ignore")
-    mesh = future.result(timeout=600)
-    assert_same(mesh, whole)
+    result = future.result(timeout=600)
+    if write:
+        whole.save(tmp_path / "whole.ply")
+        assert (tmp_path / "dask.ply").read_bytes() == (tmp_path / "whole.ply").read_bytes()
+        assert result["triangles"] == len(whole.triangles)
+    else:
+        assert_same(result, whole)
     # The process was replaced (a new address), so its tasks were run again elsewhere.
     assert victim not in cluster.scheduler_info()["workers"]
 
@@ -265,6 +277,11 @@ def test_damaged_and_absent_chunks(tmp_path: Path) -> None:
     expected = np.asarray(zarr.open_array(str(path), mode="r")[:])
     mesh = isocube.dask.extract(str(path), 0.0, scheduler="threads")
     assert_same(mesh, isocube.extract(expected, 0.0))
+    # Unless asked to refuse them: then the first absent chunk is named.
+    with pytest.raises(
+        isocube.FormatError, match=r"chunk 'c/1/1/0' \(chunk grid indices 1, 1, 0\) is absent"
+    ):
+        isocube.dask.extract(str(path), 0.0, scheduler="threads", strict=True)
     # Damaged: the error names the chunk.
     (path / "c" / "2" / "0" / "1").write_bytes(b"not a chunk")
     with pytest.raises(
