@@ -160,7 +160,7 @@ pub(crate) fn join_layout<'py>(
     py: Python<'py>,
     shape: [usize; 3],
     outlines: Vec<Vec<u8>>,
-) -> PyResult<(usize, usize, Bound<'py, PyDict>, Vec<Bound<'py, PyBytes>>)> {
+) -> PyResult<Layout<'py>> {
     let dims = reversed(shape);
     let layout = py.detach(|| -> PyResult<JoinLayout> {
         let outlines = outlines
@@ -186,6 +186,9 @@ pub(crate) fn join_layout<'py>(
         .collect();
     Ok((nv, nt, stats, places))
 }
+
+/// Vertices, triangles, counts and the chunks' places (bytes).
+type Layout<'py> = (usize, usize, Bound<'py, PyDict>, Vec<Bound<'py, PyBytes>>);
 
 /// Makes the binary PLY file at `path` that chunks' pieces fill: its header and length, what
 /// is already there kept (a task run again loses nothing).
