@@ -233,6 +233,13 @@ def mesh_block(
     normals: bool,
 ) -> bytes: ...
 def merge_chunks(shape: tuple[int, int, int], chunks: list[bytes]) -> bytes: ...
+def read_zarr_block(
+    path: str,
+    component: str | None,
+    lo: tuple[int, int, int],
+    hi: tuple[int, int, int],
+    strict: bool,
+) -> npt.NDArray[np.float32]: ...
 def chunk_outline(chunk: bytes, shape: tuple[int, int, int]) -> bytes: ...
 def join_layout(
     shape: tuple[int, int, int], outlines: list[bytes]

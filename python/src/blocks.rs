@@ -13,7 +13,7 @@ use isocube::extract::{
 use isocube::field::{GridView, Orientation};
 use isocube::mesh::Mesh;
 use isocube_io::PlyLayout;
-use numpy::{PyReadonlyArray3, PyUntypedArrayMethods};
+use numpy::{PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
@@ -58,6 +58,32 @@ pub(crate) fn block_halo(method: &str, normals: bool) -> PyResult<usize> {
         .with_method(method_of(method, 0.3, 0.0, "crossing")?)
         .with_normals(normals);
     Ok(extract::block_halo(&options))
+}
+
+/// Points `lo..=hi` (array order) of the 3-d Zarr array at `path` (`component` in a group) as
+/// `float32`, read with zarrs without holding the GIL; absent chunks are the fill value unless
+/// `strict`, and a chunk that cannot be read is named.
+#[pyfunction]
+#[pyo3(signature = (path, component, lo, hi, strict))]
+pub(crate) fn read_zarr_block<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+    component: Option<String>,
+    lo: [u64; 3],
+    hi: [u64; 3],
+    strict: bool,
+) -> PyResult<Bound<'py, numpy::PyArray3<f32>>> {
+    if (0..3).any(|a| hi[a] < lo[a]) {
+        return Err(InputError::new_err(format!(
+            "points {lo:?} to {hi:?}: an empty block"
+        )));
+    }
+    let shape: [u64; 3] = std::array::from_fn(|a| hi[a] - lo[a] + 1);
+    let values = py
+        .detach(|| isocube_io::read_zarr_block(&path, component.as_deref(), lo, shape, strict))
+        .map_err(|e| FormatError::new_err(e.to_string()))?;
+    let shape = shape.map(|n| n as usize);
+    Ok(numpy::PyArray1::from_vec(py, values).reshape(shape)?)
 }
 
 /// Meshes cells `lo..hi` (array order) of a volume of `shape` points from `block`, its points

@@ -761,6 +761,7 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(subdiv::read, m)?)?;
     m.add_function(wrap_pyfunction!(tables, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::block_halo, m)?)?;
+    m.add_function(wrap_pyfunction!(blocks::read_zarr_block, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::mesh_block, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::merge_chunks, m)?)?;
     m.add_function(wrap_pyfunction!(blocks::chunk_outline, m)?)?;

@@ -279,7 +279,8 @@ def test_damaged_and_absent_chunks(tmp_path: Path) -> None:
     assert_same(mesh, isocube.extract(expected, 0.0))
     # Unless asked to refuse them: then an absent chunk (whichever task met one first) is named.
     with pytest.raises(
-        isocube.FormatError, match=r"chunk 'c/1/1/(\d)' \(chunk grid indices 1, 1, \1\) is absent"
+        isocube.FormatError,
+        match=r"chunk 'c/1/1/(\d)' \(chunk grid indices 1, 1, \1\): absent \(strict",
     ):
         isocube.dask.extract(str(path), 0.0, scheduler="threads", strict=True)
     # Damaged: the error names the chunk.

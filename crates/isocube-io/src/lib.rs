@@ -105,7 +105,7 @@ pub use tiff_stack::read_tiff_stack;
 pub use vti::read_vti;
 #[cfg(feature = "zarr")]
 #[cfg_attr(docsrs, doc(cfg(feature = "zarr")))]
-pub use zarr::{write_zarr, ZarrVolume};
+pub use zarr::{read_zarr_block, write_zarr, ZarrVolume};
 
 /// Where in a file a problem was found.
 #[derive(Clone, Debug, PartialEq, Eq)]

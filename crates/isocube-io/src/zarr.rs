@@ -514,6 +514,118 @@ impl Chunks {
     }
 }
 
+/// Points `start .. start + shape` of the 3-d Zarr array at `path` (or at `component` inside
+/// the group there), in the array's own axis order, as `f32` in C order: what a task of a
+/// cluster reads for its chunk. Absent chunks are the fill value, or with `strict` an error
+/// naming the first; a chunk that cannot be decoded is named in the error.
+///
+/// ```
+/// use isocube::field::Sample;
+/// let dir = tempfile::tempdir().unwrap();
+/// let grid = Sample::Sphere.grid(12);
+/// let path = dir.path().join("sphere.zarr");
+/// isocube_io::write_zarr(&path, &grid, [5, 5, 5]).unwrap();
+/// // An OME-Zarr image: level "0", axes (z, y, x); points 3..9 along each, across chunks.
+/// let block = isocube_io::read_zarr_block(&path, Some("0"), [3, 3, 3], [6, 6, 6], false).unwrap();
+/// assert_eq!(block[0], grid.value(3, 3, 3));
+/// assert_eq!(block[6 * 6 * 6 - 1], grid.value(8, 8, 8));
+/// assert_eq!(block[1], grid.value(4, 3, 3)); // x, the last axis, fastest
+/// ```
+pub fn read_zarr_block(
+    path: &Path,
+    component: Option<&str>,
+    start: [u64; 3],
+    shape: [u64; 3],
+    strict: bool,
+) -> Result<Vec<f32>, IoError> {
+    let store =
+        Arc::new(FilesystemStore::new(path).map_err(|e| {
+            IoError::format(path, Position::File, format!("not a Zarr store: {e}"))
+        })?);
+    let array_path = format!("/{}", component.unwrap_or("").trim_matches('/'));
+    let array = Array::open(store, &array_path).map_err(|e| {
+        IoError::format(
+            path,
+            Position::File,
+            format!("not a readable Zarr array: {e}"),
+        )
+    })?;
+    let element = element_of(&array).ok_or_else(|| {
+        IoError::unsupported(
+            path,
+            Position::Field("data_type".into()),
+            format!("element type {:?}", array.data_type()),
+        )
+    })?;
+    let dims = array.shape().to_vec();
+    let inside = dims.len() == 3
+        && (0..3)
+            .all(|a| shape[a] > 0 && start[a].checked_add(shape[a]).is_some_and(|e| e <= dims[a]));
+    if !inside {
+        return Err(IoError::format(
+            path,
+            Position::File,
+            format!("points {start:?} + {shape:?} are not inside the array's shape {dims:?}"),
+        ));
+    }
+    let chunks = Chunks {
+        path: path.to_path_buf(),
+        array,
+        element,
+        axes: [2, 1, 0],
+        fixed: vec![0; 3],
+        dims: [dims[2] as usize, dims[1] as usize, dims[0] as usize],
+        chunk_z: 1,
+    };
+    let size = chunks
+        .array
+        .chunk_shape(&[0, 0, 0])
+        .map_err(|e| chunks.chunk_error(&[0, 0, 0], e))?;
+    let size: Vec<u64> = size.iter().map(|n| n.get()).collect();
+    let fill = chunks.fill_value();
+    let n = shape.iter().product::<u64>() as usize;
+    let mut out = vec![0.0f32; n];
+    let ranges: Vec<std::ops::RangeInclusive<u64>> = (0..3)
+        .map(|a| start[a] / size[a]..=(start[a] + shape[a] - 1) / size[a])
+        .collect();
+    for c0 in ranges[0].clone() {
+        for c1 in ranges[1].clone() {
+            for c2 in ranges[2].clone() {
+                let c = [c0, c1, c2];
+                let values = chunks.decode_chunk(&c)?;
+                if values.is_none() && strict {
+                    return Err(chunks.chunk_error(
+                        &c,
+                        format!("absent (strict: not read as the fill value {fill})"),
+                    ));
+                }
+                // The chunk's points that the block holds, per axis.
+                let lo: [u64; 3] = std::array::from_fn(|a| (c[a] * size[a]).max(start[a]));
+                let hi: [u64; 3] =
+                    std::array::from_fn(|a| ((c[a] + 1) * size[a]).min(start[a] + shape[a]));
+                for i in lo[0]..hi[0] {
+                    for j in lo[1]..hi[1] {
+                        let row = ((i - start[0]) * shape[1] + (j - start[1])) * shape[2];
+                        let to =
+                            (row + lo[2] - start[2]) as usize..(row + hi[2] - start[2]) as usize;
+                        match &values {
+                            Some(v) => {
+                                let at = (((i - c[0] * size[0]) * size[1] + (j - c[1] * size[1]))
+                                    * size[2]
+                                    + (lo[2] - c[2] * size[2]))
+                                    as usize;
+                                out[to.clone()].copy_from_slice(&v[at..at + to.len()]);
+                            }
+                            None => out[to].fill(fill),
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// `bytes` (native order) of `element`s as `f32`.
 fn convert(element: ScalarType, bytes: &[u8]) -> Vec<f32> {
     macro_rules! each {
