@@ -83,7 +83,7 @@ pub(crate) fn read_zarr_block<'py>(
         .detach(|| isocube_io::read_zarr_block(&path, component.as_deref(), lo, shape, strict))
         .map_err(|e| FormatError::new_err(e.to_string()))?;
     let shape = shape.map(|n| n as usize);
-    Ok(numpy::PyArray1::from_vec(py, values).reshape(shape)?)
+    numpy::PyArray1::from_vec(py, values).reshape(shape)
 }
 
 /// Meshes cells `lo..hi` (array order) of a volume of `shape` points from `block`, its points
