@@ -129,28 +129,7 @@ impl ZarrVolume {
             IoError::format(path, Position::File, format!("not a Zarr store: {e}"))
         })?);
         let (array_path, placement) = locate(path, &store, options)?;
-        let array = Array::open(store, &array_path).map_err(|e| {
-            let folder = path.join(array_path.trim_start_matches('/'));
-            let metadata = match folder.join(".zarray").is_file() {
-                true => folder.join(".zarray"),
-                false => folder.join("zarr.json"),
-            };
-            IoError::format(
-                &metadata,
-                Position::File,
-                format!("not a readable Zarr array: {e}"),
-            )
-        })?;
-        let element = element_of(&array).ok_or_else(|| {
-            IoError::unsupported(
-                path,
-                Position::Field("data_type".into()),
-                format!(
-                    "element type {:?}: isocube reads u8, i8, u16, i16, u32, i32, u64, i64, f32 and f64",
-                    array.data_type()
-                ),
-            )
-        })?;
+        let (array, element) = open_array(path, store, &array_path)?;
         let shape: Vec<u64> = array.shape().to_vec();
         let names: Option<Vec<String>> = placement
             .as_ref()
@@ -514,6 +493,38 @@ impl Chunks {
     }
 }
 
+/// The array at `array_path` in the store at `path`, and its element type; errors name the
+/// metadata file.
+fn open_array(
+    path: &Path,
+    store: Arc<FilesystemStore>,
+    array_path: &str,
+) -> Result<(Array<FilesystemStore>, ScalarType), IoError> {
+    let array = Array::open(store, array_path).map_err(|e| {
+        let folder = path.join(array_path.trim_start_matches('/'));
+        let metadata = match folder.join(".zarray").is_file() {
+            true => folder.join(".zarray"),
+            false => folder.join("zarr.json"),
+        };
+        IoError::format(
+            &metadata,
+            Position::File,
+            format!("not a readable Zarr array: {e}"),
+        )
+    })?;
+    let element = element_of(&array).ok_or_else(|| {
+        IoError::unsupported(
+            path,
+            Position::Field("data_type".into()),
+            format!(
+                "element type {:?}: isocube reads u8, i8, u16, i16, u32, i32, u64, i64, f32 and f64",
+                array.data_type()
+            ),
+        )
+    })?;
+    Ok((array, element))
+}
+
 /// Points `start .. start + shape` of the 3-d Zarr array at `path` (or at `component` inside
 /// the group there), in the array's own axis order, as `f32` in C order: what a task of a
 /// cluster reads for its chunk. Absent chunks are the fill value, or with `strict` an error
@@ -543,20 +554,7 @@ pub fn read_zarr_block(
             IoError::format(path, Position::File, format!("not a Zarr store: {e}"))
         })?);
     let array_path = format!("/{}", component.unwrap_or("").trim_matches('/'));
-    let array = Array::open(store, &array_path).map_err(|e| {
-        IoError::format(
-            path,
-            Position::File,
-            format!("not a readable Zarr array: {e}"),
-        )
-    })?;
-    let element = element_of(&array).ok_or_else(|| {
-        IoError::unsupported(
-            path,
-            Position::Field("data_type".into()),
-            format!("element type {:?}", array.data_type()),
-        )
-    })?;
+    let (array, element) = open_array(path, store, &array_path)?;
     let dims = array.shape().to_vec();
     let inside = dims.len() == 3
         && (0..3)
