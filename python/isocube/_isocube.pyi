@@ -142,7 +142,9 @@ def tetmesh(
     max_memory: int | None,
     progress: Callable[[int, int], object] | None = None,
 ) -> TetMesh: ...
-def contours_read(path: str) -> list[tuple[float, list[npt.NDArray[np.float64]]]]: ...
+def contours_read(
+    path: str, close: bool = False
+) -> list[tuple[float, list[npt.NDArray[np.float64]]]]: ...
 def contours_reconstruct(
     path: str | None,
     sections: list[tuple[float, list[npt.NDArray[np.float64]]]] | None,
@@ -154,6 +156,7 @@ def contours_reconstruct(
     plain: bool,
     triangulate: str,
     max_memory: int | None,
+    close: bool = False,
 ) -> tuple[
     npt.NDArray[np.float32],
     npt.NDArray[np.uint32],
@@ -175,6 +178,7 @@ def contours_tetmesh(
     snap_position: str,
     triangulate: str,
     max_memory: int | None,
+    close: bool = False,
 ) -> TetMesh: ...
 
 class PolyMesh:

@@ -57,11 +57,14 @@ def _grid(grid: tuple[int, int] | None) -> tuple[int, int] | None:
     return None if grid is None else (int(grid[0]), int(grid[1]))
 
 
-def read(path: str | os.PathLike[str]) -> list[tuple[float, list[np.ndarray]]]:
+def read(
+    path: str | os.PathLike[str], *, close: bool = False
+) -> list[tuple[float, list[np.ndarray]]]:
     """The sections of a contour file (``.csv``, ``.json``, ``.dxf``, or
     ``"sample:orebody"``): ``(z, contours)`` pairs, lowest first, each contour an ``(n, 2)``
     ``float64`` array, validated as the command line validates them (errors name the section
-    and contour).
+    and contour). A contour is a closed curve: in CSV and JSON its last point may repeat its
+    first or not; an open DXF polyline is refused unless `close` (as ``--close``).
 
     Raises
     ------
@@ -76,7 +79,7 @@ def read(path: str | os.PathLike[str]) -> list[tuple[float, list[np.ndarray]]]:
     >>> len(sections) > 3, sections[0][1][0].shape[1]
     (True, 2)
     """
-    return _isocube.contours_read(os.fspath(path))
+    return _isocube.contours_read(os.fspath(path), bool(close))
 
 
 def reconstruct(
@@ -89,6 +92,7 @@ def reconstruct(
     plain: bool = False,
     triangulate: str = "local",
     max_memory: int | None = None,
+    close: bool = False,
 ) -> Mesh:
     """The surface of the body a stack's contours outline, watertight and outward.
 
@@ -110,6 +114,8 @@ def reconstruct(
     triangulate : {'local', 'optimal', 'fan'}
     max_memory : int, optional
         Refuse (``MemoryLimitError``) a reconstruction estimated to need more bytes.
+    close : bool
+        Close open DXF polylines of a contour file instead of refusing them (``--close``).
 
     Returns
     -------
@@ -136,6 +142,7 @@ def reconstruct(
         plain=bool(plain),
         triangulate=triangulate,
         max_memory=max_memory,
+        close=bool(close),
     )
     return Mesh(v, t, n, None, stats)
 
@@ -154,13 +161,14 @@ def tetmesh(
     snap_position: str = "grid",
     triangulate: str = "fan",
     max_memory: int | None = None,
+    close: bool = False,
 ) -> TetMesh:
     """Tetrahedra of the body a stack's contours outline, as ``isocube tetmesh`` makes them
     from a contour file: conforming, positive, bounded by the body's surface.
 
     Parameters
     ----------
-    stack, cell, grid, cap, extend
+    stack, cell, grid, cap, extend, close
         As in :func:`reconstruct`.
     layer_spacing : float or 'sections', optional
         Planes between sections at most this far apart (by default the plane grid's cell),
@@ -191,5 +199,6 @@ def tetmesh(
         snap_position=snap_position,
         triangulate=triangulate,
         max_memory=max_memory,
+        close=bool(close),
     )
     return TetMesh(mesh)

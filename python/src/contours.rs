@@ -21,13 +21,22 @@ use crate::{extract_error, method_of, parse, rows_array, FormatError, InputError
 /// `float64` points (closed implicitly: the last point joins the first).
 type Sections<'py> = Vec<(f64, Vec<PyReadonlyArray2<'py, f64>>)>;
 
-/// The stack: read from `path` (`.csv`, `.json`, `.dxf`; `sample:orebody`), or built from
-/// `sections`, validated either way (errors name the section and contour).
-fn stack_of(path: Option<&str>, sections: Option<Sections<'_>>) -> PyResult<SectionStack> {
+/// The stack: read from `path` (`.csv`, `.json`, `.dxf`, open DXF polylines closed if `close`;
+/// `sample:orebody`), or built from `sections`, validated either way (errors name the section
+/// and contour).
+fn stack_of(
+    path: Option<&str>,
+    sections: Option<Sections<'_>>,
+    close: bool,
+) -> PyResult<SectionStack> {
     match (path, sections) {
         (Some("sample:orebody"), _) => Ok(SectionStack::sample_orebody()),
-        (Some(path), _) => isocube_io::read_contours(std::path::Path::new(path))
-            .map_err(|e| FormatError::new_err(e.to_string())),
+        (Some(path), _) => {
+            let options = isocube_io::ContourOptions::default().with_close(close);
+            isocube_io::read_contours_with(std::path::Path::new(path), &options)
+                .map(|r| r.stack)
+                .map_err(|e| FormatError::new_err(e.to_string()))
+        }
         (None, Some(sections)) => {
             let mut points = Vec::with_capacity(sections.len());
             for (s, (z, contours)) in sections.into_iter().enumerate() {
@@ -117,7 +126,9 @@ type Surface<'py> = (
 
 /// The surface through a stack's contours, as `isocube contours` makes it.
 #[pyfunction(name = "contours_reconstruct")]
-#[pyo3(signature = (path, sections, *, cell, grid, cap, extend, plain, triangulate, max_memory))]
+#[pyo3(signature = (
+    path, sections, *, cell, grid, cap, extend, plain, triangulate, max_memory, close=false
+))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn reconstruct<'py>(
     py: Python<'py>,
@@ -130,8 +141,9 @@ pub(crate) fn reconstruct<'py>(
     plain: bool,
     triangulate: &str,
     max_memory: Option<u64>,
+    close: bool,
 ) -> PyResult<Surface<'py>> {
-    let stack = stack_of(path, sections)?;
+    let stack = stack_of(path, sections, close)?;
     let plane = plane_of(&stack, cell, grid)?;
     let mut options = ReconstructOptions::new(cap_of(&stack, cap, extend)?)
         .with_fidelity(if plain {
@@ -180,7 +192,7 @@ pub(crate) fn reconstruct<'py>(
 #[pyfunction(name = "contours_tetmesh")]
 #[pyo3(signature = (
     path, sections, *, cell, grid, cap, extend, layer_spacing, method, snap, zero_threshold,
-    snap_position, triangulate, max_memory
+    snap_position, triangulate, max_memory, close=false
 ))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn tetmesh(
@@ -198,8 +210,9 @@ pub(crate) fn tetmesh(
     snap_position: &str,
     triangulate: &str,
     max_memory: Option<u64>,
+    close: bool,
 ) -> PyResult<PyTetMesh> {
-    let stack = stack_of(path, sections)?;
+    let stack = stack_of(path, sections, close)?;
     let plane = plane_of(&stack, cell, grid)?;
     let cap = cap_of(&stack, cap, extend)?;
     let layer_spacing = match layer_spacing {
@@ -234,8 +247,9 @@ type SectionArrays<'py> = Vec<(f64, Vec<Bound<'py, PyArray2<f64>>>)>;
 /// ...])` with each contour an `(n, 2)` array of its points, validated as the command line
 /// validates them.
 #[pyfunction(name = "contours_read")]
-pub(crate) fn read<'py>(py: Python<'py>, path: &str) -> PyResult<SectionArrays<'py>> {
-    let stack = stack_of(Some(path), None)?;
+#[pyo3(signature = (path, close=false))]
+pub(crate) fn read<'py>(py: Python<'py>, path: &str, close: bool) -> PyResult<SectionArrays<'py>> {
+    let stack = stack_of(Some(path), None, close)?;
     stack
         .sections()
         .iter()

@@ -113,9 +113,27 @@ def test_bad_stacks_name_the_section_and_contour(tmp_path: Path) -> None:
     with pytest.raises(isocube.MemoryLimitError):
         contours.reconstruct(sections(), cell=1e-4, max_memory=10**6)
     bad = tmp_path / "bad.csv"
-    bad.write_text("section,z,contour,x,y\n0,0,0,0,0\n0,0,0,1,0\n0,0,0,1,1\n")
+    bad.write_text("section,z,contour,x,y\n0,0,0,0,0\n0,1,0,1,0\n0,0,0,1,1\n")
     with pytest.raises(isocube.FormatError, match="bad.csv"):
         contours.read(bad)
+
+
+def test_contours_are_closed_curves_and_open_dxf_needs_close(tmp_path: Path) -> None:
+    square = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
+    rows = ["section,z,contour,x,y"]
+    implicit = [*rows, *(f"a,0,c,{x},{y}" for x, y in square)]
+    explicit = [*implicit, "a,0,c,0,0"]
+    (tmp_path / "i.csv").write_text("\n".join(implicit) + "\n")
+    (tmp_path / "e.csv").write_text("\n".join(explicit) + "\n")
+    a, b = contours.read(tmp_path / "i.csv"), contours.read(tmp_path / "e.csv")
+    assert np.array_equal(a[0][1][0], b[0][1][0])
+    dxf = "0\nSECTION\n2\nENTITIES\n0\nLWPOLYLINE\n5\nP1\n38\n0\n90\n4\n70\n0\n"
+    dxf += "".join(f"10\n{x}\n20\n{y}\n" for x, y in square) + "0\nENDSEC\n0\nEOF\n"
+    (tmp_path / "open.dxf").write_text(dxf)
+    with pytest.raises(isocube.FormatError, match="polyline 'P1' is open.*close"):
+        contours.read(tmp_path / "open.dxf")
+    closed = contours.read(tmp_path / "open.dxf", close=True)
+    assert np.array_equal(closed[0][1][0], a[0][1][0])
 
 
 def test_read_gives_the_files_sections(tmp_path: Path) -> None:

@@ -916,6 +916,61 @@ fn triangulation_strategies_and_relaxation() {
 /// `isocube contours`: the built-in ore body closes into one surface of genus 1; a CSV stack
 /// reconstructs; an open contour is bad input naming the line, section and contour, with no
 /// output written.
+/// Contours whose last point does not repeat their first are closed curves all the same (CSV,
+/// JSON): the mesh is the explicitly closed file's, byte for byte, with a note. An open DXF
+/// polyline is refused naming `--close`, and meshed with it.
+#[test]
+fn contours_are_closed_implicitly_and_open_dxf_needs_close() {
+    let dir = tempfile::tempdir().unwrap();
+    let square = |s: f64| [[-s, -s], [s, -s], [s, s], [-s, s]];
+    let mut explicit = String::from("section,z,contour,x,y\n");
+    let mut implicit = explicit.clone();
+    for (label, z, s) in [("a", 0.0, 2.0), ("b", 1.0, 1.5), ("c", 3.0, 2.5)] {
+        let points = square(s);
+        for [x, y] in points.iter().chain(&points[..1]) {
+            explicit += &format!("{label},{z},outer,{x},{y}\n");
+        }
+        for [x, y] in points {
+            implicit += &format!("{label},{z},outer,{x},{y}\n");
+        }
+    }
+    std::fs::write(dir.path().join("explicit.csv"), &explicit).unwrap();
+    std::fs::write(dir.path().join("implicit.csv"), &implicit).unwrap();
+    ok(dir.path(), &["contours", "explicit.csv", "-o", "e.ply"]);
+    let out = isocube(dir.path(), &["contours", "implicit.csv", "-o", "i.ply"]);
+    assert!(out.status.success());
+    let note = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        note.contains("3 contours closed by the segment back"),
+        "{note}"
+    );
+    let read = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
+    assert_eq!(read("e.ply"), read("i.ply"));
+    // DXF: open polylines (flag 70 = 0) at three elevations.
+    let mut dxf = String::from("0\nSECTION\n2\nENTITIES\n");
+    for (n, (z, s)) in [(0.0, 2.0), (1.0, 1.5), (3.0, 2.5)].into_iter().enumerate() {
+        dxf += &format!("0\nLWPOLYLINE\n5\nP{n}\n38\n{z}\n90\n4\n70\n0\n");
+        for [x, y] in square(s) {
+            dxf += &format!("10\n{x}\n20\n{y}\n");
+        }
+    }
+    dxf += "0\nENDSEC\n0\nEOF\n";
+    std::fs::write(dir.path().join("open.dxf"), &dxf).unwrap();
+    let out = isocube(dir.path(), &["contours", "open.dxf", "-o", "d.ply"]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("is open") && message.contains("--close"),
+        "{message}"
+    );
+    assert!(!dir.path().join("d.ply").exists());
+    ok(
+        dir.path(),
+        &["contours", "open.dxf", "-o", "d.ply", "--close"],
+    );
+    assert_eq!(read("d.ply"), read("e.ply"));
+}
+
 #[test]
 fn contours_command() {
     let dir = tempfile::tempdir().unwrap();
@@ -1016,12 +1071,12 @@ fn contours_command() {
     );
     let single = "section,z,contour,x,y\ns,0,c,0,0\ns,0,c,1,0\ns,0,c,1,1\ns,0,c,0,0\n";
     std::fs::write(dir.path().join("single.csv"), single).unwrap();
-    let open = "section,z,contour,x,y\ns,0,c,0,0\ns,0,c,1,0\ns,0,c,1,1\n";
-    std::fs::write(dir.path().join("open.csv"), open).unwrap();
+    let point = "section,z,contour,x,y\ns,0,c,0,0\nt,1,c,1,1\nt,1,c,2,1\nt,1,c,2,2\n";
+    std::fs::write(dir.path().join("point.csv"), point).unwrap();
     for (args, needle) in [
         (
-            &["contours", "open.csv", "-o", "bad.ply"][..],
-            "line 2: section 's' (z = 0), contour 'c': open",
+            &["contours", "point.csv", "-o", "bad.ply"][..],
+            "line 2: section 's' (z = 0), contour 'c': a single point",
         ),
         (
             &["contours", "stack.csv", "-o", "bad.ply", "--cap", "round"][..],

@@ -13,10 +13,12 @@
 //! must be closed (flag 70 bit 1); other entities are ignored. Contours are named by their handle
 //! (group 5) or line.
 //!
-//! In both, every contour is closed explicitly by repeating its first point at the end (as GeoJSON
-//! rings are); a contour that does not return to its start is reported as open. Sections may come
-//! in any order and at any spacing; they are sorted by height, and two sections at one height are
-//! an error.
+//! A contour is a closed curve: in CSV and JSON its last point may repeat its first (as GeoJSON
+//! rings do) or not, the segment back to the first point being implied either way
+//! ([`ContourRead::closed_implicitly`] counts those). A DXF polyline says whether it is closed
+//! (flag 70 bit 1): an open one is refused unless [`ContourOptions::close`] asks to close it.
+//! Sections may come in any order and at any spacing; they are sorted by height, and two
+//! sections at one height are an error.
 //!
 //! ```
 //! use isocube_io::parse_contours_csv;
@@ -32,13 +34,56 @@ use isocube::contours::{ContourError, Point2, SectionStack};
 
 use super::{IoError, Position};
 
+/// How contour files are read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct ContourOptions {
+    /// Close open DXF polylines (the segment from the last vertex back to the first implied)
+    /// instead of refusing them.
+    pub close: bool,
+}
+
+impl ContourOptions {
+    /// With [`ContourOptions::close`] set to `close`.
+    pub fn with_close(mut self, close: bool) -> ContourOptions {
+        self.close = close;
+        self
+    }
+}
+
+/// A contour stack read from a file, and what the reader did to it.
+#[derive(Clone, Debug)]
+pub struct ContourRead {
+    /// The stack.
+    pub stack: SectionStack,
+    /// Contours closed by the reader: CSV and JSON contours whose last point is not their
+    /// first, and open DXF polylines closed by [`ContourOptions::close`].
+    pub closed_implicitly: usize,
+}
+
 /// Reads a contour stack, by extension: `.csv`, `.json` or `.dxf`.
 pub fn read_contours(path: &Path) -> Result<SectionStack, IoError> {
+    read_contours_with(path, &ContourOptions::default()).map(|r| r.stack)
+}
+
+/// [`read_contours`] with options, telling how many contours were closed implicitly.
+///
+/// ```
+/// use std::path::Path;
+/// // The square's last point does not repeat its first: the closing side is implied.
+/// let csv = "section,z,contour,x,y\na,0,s,0,0\na,0,s,1,0\na,0,s,1,1\na,0,s,0,1\n";
+/// let dir = tempfile::tempdir().unwrap();
+/// let path = dir.path().join("square.csv");
+/// std::fs::write(&path, csv).unwrap();
+/// let read = isocube_io::read_contours_with(&path, &Default::default()).unwrap();
+/// assert_eq!((read.closed_implicitly, read.stack.sections()[0].contours()[0].points().len()), (1, 4));
+/// ```
+pub fn read_contours_with(path: &Path, options: &ContourOptions) -> Result<ContourRead, IoError> {
     let bytes = std::fs::read(path).map_err(|source| IoError::Os {
         path: path.to_path_buf(),
         source,
     })?;
-    read_contours_bytes(&bytes, path)
+    read_contours_bytes_with(&bytes, path, options)
 }
 
 /// [`read_contours`] on a file's content already in memory; `name`'s extension chooses the
@@ -58,6 +103,15 @@ pub fn read_contours(path: &Path) -> Result<SectionStack, IoError> {
 /// # Ok::<(), isocube_io::IoError>(())
 /// ```
 pub fn read_contours_bytes(bytes: &[u8], name: &Path) -> Result<SectionStack, IoError> {
+    read_contours_bytes_with(bytes, name, &ContourOptions::default()).map(|r| r.stack)
+}
+
+/// [`read_contours_bytes`] with options, telling how many contours were closed implicitly.
+pub fn read_contours_bytes_with(
+    bytes: &[u8],
+    name: &Path,
+    options: &ContourOptions,
+) -> Result<ContourRead, IoError> {
     let path = name;
     let ext = path
         .extension()
@@ -69,9 +123,9 @@ pub fn read_contours_bytes(bytes: &[u8], name: &Path) -> Result<SectionStack, Io
         reason: "not UTF-8 text".into(),
     })?;
     match ext.as_deref() {
-        Some("csv") => parse_contours_csv(text, path),
-        Some("json") => parse_contours_json(text, path),
-        Some("dxf") => parse_contours_dxf(text, path),
+        Some("csv") => csv_contours(text, path),
+        Some("json") => json_contours(text, path),
+        Some("dxf") => dxf_contours(text, path, options),
         _ => Err(IoError::Unsupported {
             path: path.to_path_buf(),
             position: Position::File,
@@ -94,7 +148,7 @@ fn build(
     mut sections: Vec<RawSection>,
     path: &Path,
     where_is: &dyn Fn(&RawSection, Option<usize>) -> Position,
-) -> Result<SectionStack, IoError> {
+) -> Result<ContourRead, IoError> {
     let format = |position: Position, reason: String| IoError::Format {
         path: path.to_path_buf(),
         position,
@@ -115,34 +169,33 @@ fn build(
             ));
         }
     }
-    // Closure first: an open contour is the likeliest mistake and the clearest message.
+    // A contour whose last point is not its first is closed by the segment back to it.
+    let mut closed_implicitly = 0;
     for s in &sections {
-        for (c, (label, _, _, points)) in s.contours.iter().enumerate() {
-            let (first, last) = (points[0], points[points.len() - 1]);
-            if points.len() < 2 || first != last {
-                let gap = ((first[0] - last[0]).powi(2) + (first[1] - last[1]).powi(2)).sqrt();
-                let e = ContourError::Open {
-                    section: 0,
-                    contour: 0,
-                    gap,
-                };
-                return Err(format(
-                    where_is(s, Some(c)),
-                    format!(
-                        "section '{}' (z = {}), contour '{label}': {}",
-                        s.label,
-                        s.z,
-                        detail(&e)
-                    ),
-                ));
-            }
+        if let Some(c) = s.contours.iter().position(|c| c.3.len() < 2) {
+            return Err(format(
+                where_is(s, Some(c)),
+                format!(
+                    "section '{}' (z = {}), contour '{}': a single point, not a curve",
+                    s.label, s.z, s.contours[c].0
+                ),
+            ));
+        }
+    }
+    for points in sections
+        .iter_mut()
+        .flat_map(|s| s.contours.iter_mut().map(|c| &mut c.3))
+    {
+        if points.first() != points.last() {
+            points.push(points[0]);
+            closed_implicitly += 1;
         }
     }
     let input: Vec<(f64, Vec<Vec<Point2>>)> = sections
         .iter()
         .map(|s| (s.z, s.contours.iter().map(|c| c.3.clone()).collect()))
         .collect();
-    SectionStack::from_points(input).map_err(|e| {
+    let stack = SectionStack::from_points(input).map_err(|e| {
         let (s, c) = e.location();
         let sec = &sections[s.unwrap_or(0)];
         let reason = match (&e, c) {
@@ -157,6 +210,10 @@ fn build(
             where_is(sec, c),
             format!("section '{}' (z = {}), {reason}", sec.label, sec.z),
         )
+    })?;
+    Ok(ContourRead {
+        stack,
+        closed_implicitly,
     })
 }
 
@@ -171,6 +228,10 @@ fn detail(e: &ContourError) -> String {
 
 /// Parses the CSV form (see the module documentation). `path` is only used in errors.
 pub fn parse_contours_csv(text: &str, path: &Path) -> Result<SectionStack, IoError> {
+    csv_contours(text, path).map(|r| r.stack)
+}
+
+fn csv_contours(text: &str, path: &Path) -> Result<ContourRead, IoError> {
     let format = |line: usize, reason: String| IoError::Format {
         path: path.to_path_buf(),
         position: Position::Line(line),
@@ -276,8 +337,13 @@ pub fn parse_contours_csv(text: &str, path: &Path) -> Result<SectionStack, IoErr
     })
 }
 
-/// Parses the DXF form (see the module documentation). `path` is only used in errors.
+/// Parses the DXF form (see the module documentation); open polylines are refused. `path` is
+/// only used in errors.
 pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoError> {
+    dxf_contours(text, path, &ContourOptions::default()).map(|r| r.stack)
+}
+
+fn dxf_contours(text: &str, path: &Path, options: &ContourOptions) -> Result<ContourRead, IoError> {
     let format = |line: usize, reason: String| IoError::Format {
         path: path.to_path_buf(),
         position: Position::Line(line),
@@ -400,6 +466,7 @@ pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoErr
         });
     }
     let mut sections: Vec<RawSection> = Vec::new();
+    let mut closed_by_option = 0;
     for p in polylines {
         if p.points.is_empty() {
             return Err(format(
@@ -408,9 +475,10 @@ pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoErr
             ));
         }
         let mut points = p.points;
-        if p.closed {
+        if p.closed || options.close {
             if points.first() != points.last() {
                 points.push(points[0]);
+                closed_by_option += usize::from(!p.closed);
             }
         } else if points.first() != points.last() {
             let (a, b) = (points[0], points[points.len() - 1]);
@@ -418,7 +486,8 @@ pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoErr
             return Err(format(
                 p.line,
                 format!(
-                    "polyline {} is open (flag 70 bit 1 not set; the ends are {gap} apart)",
+                    "polyline {} is open (flag 70 bit 1 not set; the ends are {gap} apart): \
+                     `--close` (Python: `close=True`) closes it",
                     p.name
                 ),
             ));
@@ -437,13 +506,19 @@ pub fn parse_contours_dxf(text: &str, path: &Path) -> Result<SectionStack, IoErr
         };
         sections[s].contours.push((p.name, p.line, p.line, points));
     }
-    build(sections, path, &|s, c| {
+    let mut read = build(sections, path, &|s, c| {
         Position::Line(s.contours.get(c.unwrap_or(0)).map_or(0, |c| c.1))
-    })
+    })?;
+    read.closed_implicitly += closed_by_option;
+    Ok(read)
 }
 
 /// Parses the JSON form (see the module documentation). `path` is only used in errors.
 pub fn parse_contours_json(text: &str, path: &Path) -> Result<SectionStack, IoError> {
+    json_contours(text, path).map(|r| r.stack)
+}
+
+fn json_contours(text: &str, path: &Path) -> Result<ContourRead, IoError> {
     let format = |position: Position, reason: String| IoError::Format {
         path: path.to_path_buf(),
         position,
@@ -558,17 +633,42 @@ mod tests {
     }
 
     #[test]
+    fn csv_and_json_contours_are_closed_whether_or_not_they_repeat_their_first_point() {
+        let explicit = format!(
+            "section,z,contour,x,y\n{}{}",
+            csv_section("a", 0.0, "o", "0,0\n4,0\n4,4\n0,4\n0,0"),
+            csv_section("b", 2.0, "o", "1,1\n3,1\n3,3\n1,3\n1,1")
+        );
+        let implicit = format!(
+            "section,z,contour,x,y\n{}{}",
+            csv_section("a", 0.0, "o", "0,0\n4,0\n4,4\n0,4"),
+            csv_section("b", 2.0, "o", "1,1\n3,1\n3,3\n1,3\n1,1")
+        );
+        let read = |text: &str, name: &str| {
+            read_contours_bytes_with(text.as_bytes(), Path::new(name), &ContourOptions::default())
+                .unwrap()
+        };
+        let (e, i) = (read(&explicit, "e.csv"), read(&implicit, "i.csv"));
+        assert_eq!((e.closed_implicitly, i.closed_implicitly), (0, 1));
+        assert_eq!(e.stack, i.stack);
+        let json = r#"{"sections": [{"z": 0, "contours": [[[0,0],[4,0],[4,4],[0,4]]]},
+                                     {"z": 2, "contours": [[[1,1],[3,1],[3,3],[1,3],[1,1]]]}]}"#;
+        let j = read(json, "j.json");
+        assert_eq!((j.closed_implicitly, &j.stack), (1, &e.stack));
+    }
+
+    #[test]
     fn csv_errors_name_line_section_and_contour() {
         let message = |text: &str| csv(text).unwrap_err().to_string();
         let m = message(&format!(
             "section,z,contour,x,y\n{}",
-            csv_section("s1", 0.0, "c1", "0,0\n1,0\n1,1")
+            csv_section("s1", 0.0, "c1", "0,0")
         ));
         assert!(
             m.contains("line 2")
                 && m.contains("section 's1'")
                 && m.contains("contour 'c1'")
-                && m.contains("open"),
+                && m.contains("a single point"),
             "{m}"
         );
         let m = message(&format!(
@@ -645,9 +745,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("line 5") && e.contains("polyline 'C7' is open"),
+            e.contains("line 5") && e.contains("polyline 'C7' is open") && e.contains("--close"),
             "{e}"
         );
+        // Closed when asked: the stack of the same polyline flagged closed, one closed so.
+        let closing = ContourOptions::default().with_close(true);
+        let read =
+            read_contours_bytes_with(open.as_bytes(), Path::new("in.dxf"), &closing).unwrap();
+        let flagged = format!(
+            "0\nSECTION\n2\nENTITIES\n{}0\nENDSEC\n",
+            lw("C7", 0.0, &square, 1)
+        );
+        assert_eq!(
+            read.stack,
+            parse_contours_dxf(&flagged, Path::new("in.dxf")).unwrap()
+        );
+        assert_eq!(read.closed_implicitly, 1);
         let e = parse_contours_dxf("0\nSECTION\nx\n1\n", Path::new("in.dxf"))
             .unwrap_err()
             .to_string();
@@ -673,8 +786,7 @@ mod tests {
                 .to_string()
         };
         assert!(bad("{\"sections\": [").contains("line 1"));
-        assert!(bad(r#"[{"z": 0, "contours": [[[0,0],[1,0],[1,1]]]}]"#)
-            .contains("sections[0].contours[0]"));
+        assert!(bad(r#"[{"z": 0, "contours": [[[0,0]]]}]"#).contains("sections[0].contours[0]"));
         assert!(
             bad(r#"[{"z": 0, "contours": [[[0,0],[1,0],["a",1],[0,0]]]}]"#)
                 .contains("sections[0].contours[0][2]")

@@ -77,7 +77,10 @@ use thiserror::Error;
 
 use isocube::field::{Grid, GridError, Orientation};
 
-pub use contours::{parse_contours_csv, parse_contours_json, read_contours, read_contours_bytes};
+pub use contours::{
+    parse_contours_csv, parse_contours_dxf, parse_contours_json, read_contours,
+    read_contours_bytes, read_contours_bytes_with, read_contours_with, ContourOptions, ContourRead,
+};
 #[cfg(feature = "dicom")]
 #[cfg_attr(docsrs, doc(cfg(feature = "dicom")))]
 pub use dicom::read_dicom_series;

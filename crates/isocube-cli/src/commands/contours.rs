@@ -9,7 +9,7 @@ use isocube::contours::{
 };
 use isocube::extract::ExtractError;
 use isocube::quality::Strategy;
-use isocube_io::{read_contours, write_mesh};
+use isocube_io::{read_contours_with, write_mesh, ContourOptions};
 
 use crate::volume::{parse_memory, MemoryLimit};
 use crate::Failure;
@@ -60,6 +60,11 @@ pub(crate) struct StackArgs {
     /// contours in their planes (holes kept open); `none` leaves them open (surfaces only).
     #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIST"], default_values = ["extend"], allow_negative_numbers = true)]
     cap: Vec<String>,
+    /// Contour stacks: close open DXF polylines (the segment back to the first vertex
+    /// implied) instead of refusing them. (CSV and JSON contours are always closed curves,
+    /// whether or not the last point repeats the first.)
+    #[arg(long)]
+    close: bool,
 }
 
 /// Whether a command's input names a contour stack rather than a volume.
@@ -71,14 +76,30 @@ pub(crate) fn is_stack(input: &str) -> bool {
             .is_some_and(|e| ["csv", "json", "dxf"].contains(&e.to_ascii_lowercase().as_str()))
 }
 
-/// Reads the stack `input` names (refusing to write over it).
-pub(crate) fn load_stack(input: &str, output: &Path) -> Result<SectionStack, Failure> {
+/// Reads the stack `input` names (refusing to write over it), noting the contours the reader
+/// closed unless `quiet`.
+pub(crate) fn load_stack(
+    input: &str,
+    output: &Path,
+    stack: &StackArgs,
+    quiet: bool,
+) -> Result<SectionStack, Failure> {
     if input == "sample:orebody" {
         return Ok(SectionStack::sample_orebody());
     }
     let input = Path::new(input);
     crate::refuse_overwrite(output, &[(input, "input")])?;
-    read_contours(input).map_err(|e| crate::io_failure(e, true))
+    let options = ContourOptions::default().with_close(stack.close);
+    let read = read_contours_with(input, &options).map_err(|e| crate::io_failure(e, true))?;
+    if read.closed_implicitly > 0 && !quiet {
+        let n = read.closed_implicitly;
+        eprintln!(
+            "note: {n} contour{} closed by the segment back to {} first point",
+            if n == 1 { "" } else { "s" },
+            if n == 1 { "its" } else { "their" }
+        );
+    }
+    Ok(read.stack)
 }
 
 impl StackArgs {
@@ -91,6 +112,8 @@ impl StackArgs {
             Some("--cell")
         } else if self.cap != ["extend"] {
             Some("--cap")
+        } else if self.close {
+            Some("--close")
         } else {
             None
         }
@@ -158,7 +181,7 @@ fn parse_grid(s: &str) -> Result<[usize; 2], String> {
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
-    let stack = load_stack(&args.input, &args.output)?;
+    let stack = load_stack(&args.input, &args.output, &args.stack, quiet)?;
     let plane = args.stack.plane(&stack)?;
     let cap = args.stack.cap(&stack)?;
     let started = Instant::now();

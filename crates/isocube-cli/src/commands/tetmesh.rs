@@ -203,7 +203,7 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
              --grid set the plane grid)"
         )));
     }
-    let stack = super::contours::load_stack(&args.volume.volume, &args.output)?;
+    let stack = super::contours::load_stack(&args.volume.volume, &args.output, &args.stack, quiet)?;
     let plane = args.stack.plane(&stack)?;
     let cap = args.stack.cap(&stack)?;
     let layer_spacing = match args.layer_spacing.as_deref() {
