@@ -916,6 +916,83 @@ fn triangulation_strategies_and_relaxation() {
 /// `isocube contours`: the built-in ore body closes into one surface of genus 1; a CSV stack
 /// reconstructs; an open contour is bad input naming the line, section and contour, with no
 /// output written.
+/// A level that no cell crosses is an error naming the value range (nothing written, in memory
+/// or streamed) unless --allow-empty; `--level auto` and `--level P%` pick one from the data and
+/// the summary gives it.
+#[test]
+fn levels_outside_the_data_are_named_and_levels_from_the_data() {
+    let dir = tempfile::tempdir().unwrap();
+    // 8-bit data of two classes (a bright ball on a dim background), as scanners write.
+    let n = 24;
+    let mut data = Vec::with_capacity(n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let r2 = [i, j, k]
+                    .iter()
+                    .map(|&c| (c as f64 - 11.5).powi(2))
+                    .sum::<f64>();
+                data.push(if r2 < 64.0 {
+                    180 + (i % 5) as u8
+                } else {
+                    30 + (j % 4) as u8
+                });
+            }
+        }
+    }
+    let volume = common::npy("|u1", &format!("({n}, {n}, {n})"), &data);
+    std::fs::write(dir.path().join("two.npy"), volume).unwrap();
+    for extra in [&[][..], &["--stream"][..]] {
+        let mut args = vec!["extract", "two.npy", "-o", "none.ply"];
+        args.extend_from_slice(extra);
+        let out = isocube(dir.path(), &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(
+            err.contains("no cell crosses the level 0: its values range from 30 to 184")
+                && err.contains("--level auto")
+                && err.contains("--allow-empty"),
+            "{err}"
+        );
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "{extra:?}: only the input is left");
+    }
+    let out = isocube(
+        dir.path(),
+        &["extract", "two.npy", "-o", "e.ply", "--allow-empty"],
+    );
+    assert!(out.status.success());
+    assert_eq!(info(dir.path(), "e.ply")["triangles"], 0);
+    // Otsu's threshold lies between the classes: the ball's surface, closed.
+    for (level, name) in [("auto", "a.ply"), ("50%", "m.ply")] {
+        let out = isocube(
+            dir.path(),
+            &["extract", "two.npy", "-o", name, "--level", level],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        let used: f64 = err
+            .split("level ")
+            .nth(1)
+            .and_then(|t| t.split(',').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("no level in the summary: {err}"));
+        assert!(used > 34.0 && used <= 180.0, "{level}: {used}");
+        let r = info(dir.path(), name);
+        assert_eq!(
+            (r["watertight"].clone(), r["components"].clone()),
+            (true.into(), 1.into())
+        );
+    }
+    // The same level given as a number gives the same file as `50%` (min 30, max 184).
+    ok(
+        dir.path(),
+        &["extract", "two.npy", "-o", "n.ply", "--level", "107"],
+    );
+    let read = |name: &str| std::fs::read(dir.path().join(name)).unwrap();
+    assert_eq!(read("n.ply"), read("m.ply"));
+}
+
 /// Contours whose last point does not repeat their first are closed curves all the same (CSV,
 /// JSON): the mesh is the explicitly closed file's, byte for byte, with a note. An open DXF
 /// polyline is refused naming `--close`, and meshed with it.

@@ -11,7 +11,7 @@ use isocube::extract::{
     LabelOptions, LabelSelection, Method, SnapPosition, Snapping, StreamError,
 };
 use isocube::field::SampleSpec;
-use isocube::field::{Grid, Orientation, PlaneSource};
+use isocube::field::{Grid, Level, Orientation, PlaneSource, ValueSummary};
 use isocube::mesh::Mesh;
 use isocube::quality::{Field, Strategy, Trilinear};
 use isocube_io::{
@@ -31,9 +31,15 @@ pub(crate) struct Args {
     /// .vtk (VTK PolyData) or .msh (Gmsh 4.1).
     #[arg(long, short)]
     output: PathBuf,
-    /// The iso-value. Values equal to it count as above.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    level: f32,
+    /// The iso-value (values equal to it count as above): a number, `auto` (Otsu's threshold
+    /// of the values' histogram) or a percentage of the value range (`40%`: min + 0.4 ×
+    /// (max − min)). The summary gives the level used.
+    #[arg(long, default_value = "0", allow_negative_numbers = true)]
+    level: Level,
+    /// Write the mesh even when no cell crosses the level (by default that is an error naming
+    /// the volume's value range).
+    #[arg(long)]
+    allow_empty: bool,
     /// Orient normals and winding toward decreasing values (default: toward increasing).
     #[arg(long)]
     flip: bool,
@@ -195,7 +201,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     // The mesh may use what the volume leaves of --max-memory (the machine's memory by default).
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
         .map(|limit| limit.saturating_sub(std::mem::size_of_val(view.values()) as u64));
-    let options = options(args).with_max_memory(room);
+    let level = resolve_level(args, || ValueSummary::of(view.values()))?;
+    let options = options(args, level).with_max_memory(room);
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
@@ -245,15 +252,19 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         });
         return Err(non_finite_failure(args, &stats, &at));
     }
+    if mesh.triangles.is_empty() && !args.allow_empty {
+        return Err(empty_failure(args, level, ValueSummary::of(view.values())));
+    }
     // The input's pages count in the process's memory while it is mapped; the mesh is made,
     // so unmapping it before the writer runs keeps the peak to the larger of the two phases.
     drop((mapped, loaded));
-    write_and_report(args, &mesh, &stats, started.elapsed(), quiet)
+    write_and_report(args, level, &mesh, &stats, started.elapsed(), quiet)
 }
 
 /// Writes the mesh (with `--values` when asked) and prints the summary.
 fn write_and_report(
     args: &Args,
+    level: f32,
     mesh: &Mesh,
     stats: &ExtractStats,
     elapsed: std::time::Duration,
@@ -290,8 +301,8 @@ fn write_and_report(
                 format!("{} boundary edges", r.boundary_edges)
             },
             elapsed.as_secs_f64() * 1e3,
-            cell_summary(stats),
-            if let Method::Ternary(_) = options(args).method {
+            cell_summary(level, stats),
+            if let Method::Ternary(_) = options(args, level).method {
                 format!(
                     ", {} points snapped, {} kept off to keep the topology",
                     stats.snapped_points, stats.refused_points
@@ -372,10 +383,11 @@ fn input_checked(args: &Args, volume: &impl SlabInput) -> Result<Option<String>,
 /// memory and written in any format. The mesh is the one extraction of the whole grid gives,
 /// without that grid.
 fn run_slabs_in_memory(args: &Args, volume: impl SlabInput, quiet: bool) -> Result<(), Failure> {
+    let level = resolve_level(args, || ValueSummary::of_source(&volume))?;
     let started = Instant::now();
     let mut mesh = Mesh::new();
     let mut progress = Progress::new("extracting", quiet);
-    let stats = extract_streamed(&volume, &options(args), &mut mesh, &mut |d, t| {
+    let stats = extract_streamed(&volume, &options(args, level), &mut mesh, &mut |d, t| {
         progress.update(d, t)
     })
     .map_err(|e| match e {
@@ -390,9 +402,12 @@ fn run_slabs_in_memory(args: &Args, volume: impl SlabInput, quiet: bool) -> Resu
     if let (Some(caveat), false) = (caveat, quiet) {
         eprintln!("note: {caveat}");
     }
+    if mesh.triangles.is_empty() && !args.allow_empty {
+        return Err(empty_failure(args, level, ValueSummary::of_source(&volume)));
+    }
     // As in `run`: the input is unmapped before the mesh is written.
     drop(volume);
-    write_and_report(args, &mesh, &stats, started.elapsed(), quiet)
+    write_and_report(args, level, &mesh, &stats, started.elapsed(), quiet)
 }
 
 /// The volume as meshed: in index space (spacing 1, origin 0, no direction) with
@@ -583,7 +598,7 @@ fn streamable<'a, V: PlaneSource>(
             "--stream cannot be used here: {why}"
         ))),
         (stream, None, Some(volume)) => {
-            let by_default = streams_by_default(PlaneSource::dims(volume), &options(args));
+            let by_default = streams_by_default(PlaneSource::dims(volume), &options(args, 0.0));
             Ok((stream || by_default).then_some(volume))
         }
         _ => Ok(None),
@@ -591,7 +606,8 @@ fn streamable<'a, V: PlaneSource>(
 }
 
 fn run_streamed(args: &Args, volume: &impl SlabInput, quiet: bool) -> Result<(), Failure> {
-    let options = options(args);
+    let level = resolve_level(args, || ValueSummary::of_source(volume))?;
+    let options = options(args, level);
     let started = Instant::now();
     let mut ply = PlyWriter::create(&args.output, !args.no_normals)
         .map_err(|e| crate::io_failure(e, false))?;
@@ -613,6 +629,10 @@ fn run_streamed(args: &Args, volume: &impl SlabInput, quiet: bool) -> Result<(),
         eprintln!("note: {caveat}");
     }
     let (vertices, triangles) = (ply.vertex_count(), ply.triangle_count());
+    if triangles == 0 && !args.allow_empty {
+        // Dropping the writer removes its temporary file: nothing is written.
+        return Err(empty_failure(args, level, ValueSummary::of_source(volume)));
+    }
     ply.finish().map_err(|e| crate::io_failure(e, false))?;
     if !quiet {
         eprintln!(
@@ -620,7 +640,7 @@ fn run_streamed(args: &Args, volume: &impl SlabInput, quiet: bool) -> Result<(),
             args.output.display(),
             started.elapsed().as_secs_f64() * 1e3,
             volume.path().display(),
-            cell_summary(&stats),
+            cell_summary(level, &stats),
         );
     }
     Ok(())
@@ -635,10 +655,10 @@ fn non_finite_failure(args: &Args, stats: &ExtractStats, at: &str) -> Failure {
     ))
 }
 
-/// "N of M cells active, T tunnels[, S skipped for NaN/Inf values]".
-fn cell_summary(stats: &ExtractStats) -> String {
+/// "level L, N of M cells active, T tunnels[, S skipped for NaN/Inf values]".
+fn cell_summary(level: f32, stats: &ExtractStats) -> String {
     let mut text = format!(
-        "{} of {} cells active, {} tunnels",
+        "level {level}, {} of {} cells active, {} tunnels",
         stats.active_cells, stats.cells, stats.tunnels
     );
     if stats.skipped_cells > 0 {
@@ -647,10 +667,43 @@ fn cell_summary(stats: &ExtractStats) -> String {
     text
 }
 
-/// The library's options from the arguments.
-fn options(args: &Args) -> ExtractOptions {
+/// The level `--level` asks for: its number, or one from the volume's values (`summary`,
+/// computed only then).
+fn resolve_level(
+    args: &Args,
+    summary: impl FnOnce() -> Option<ValueSummary>,
+) -> Result<f32, Failure> {
+    if let Level::Value(v) = args.level {
+        return Ok(v);
+    }
+    match summary() {
+        Some(s) => Ok(args.level.resolve(&s)),
+        None => Err(Failure::input(anyhow::anyhow!(
+            "{}: --level {}: the volume has no finite value",
+            args.volume.volume,
+            args.level
+        ))),
+    }
+}
+
+/// No cell crosses the level: the error names the volume's value range.
+fn empty_failure(args: &Args, level: f32, summary: Option<ValueSummary>) -> Failure {
+    let range = match summary {
+        Some(s) => format!("its values range from {} to {}", s.min, s.max),
+        None => "it has no finite value".to_string(),
+    };
+    Failure::input(anyhow::anyhow!(
+        "{}: no cell crosses the level {level}: {range}; give a level inside (`--level auto` \
+         picks Otsu's threshold, `--level 50%` the middle of the range), or --allow-empty to \
+         write the empty mesh; nothing written",
+        args.volume.volume
+    ))
+}
+
+/// The library's options from the arguments, at `level`.
+fn options(args: &Args, level: f32) -> ExtractOptions {
     ExtractOptions::default()
-        .with_level(args.level)
+        .with_level(level)
         .with_flip(args.flip)
         .with_normals(!args.no_normals)
         .with_topology(args.topology)

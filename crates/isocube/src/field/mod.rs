@@ -6,12 +6,14 @@
 //! command line's `sample:NAME:N[:SEED]`.
 
 mod grid;
+mod level;
 mod orientation;
 mod samples;
 mod source;
 mod view;
 
 pub use grid::{Grid, GridError};
+pub use level::{Level, ValueSummary};
 pub use orientation::Orientation;
 pub use samples::{sphere_packing, Ball, Sample, SampleSpec};
 pub use source::PlaneSource;
