@@ -262,3 +262,21 @@ fn parse_triple(s: &str) -> Result<[f64; 3], String> {
             .ok_or_else(|| format!("'{t}' is not a finite number"))
     })
 }
+
+/// The number `level` stands for in the volume `input`: itself, or one from the volume's
+/// values (`summary`, computed only then).
+pub(crate) fn resolve_level(
+    level: isocube::field::Level,
+    input: &str,
+    summary: impl FnOnce() -> Option<isocube::field::ValueSummary>,
+) -> Result<f32, Failure> {
+    if let isocube::field::Level::Value(v) = level {
+        return Ok(v);
+    }
+    match summary() {
+        Some(s) => Ok(level.resolve(&s)),
+        None => Err(Failure::input(anyhow::anyhow!(
+            "{input}: --level {level}: the volume has no finite value"
+        ))),
+    }
+}

@@ -991,6 +991,16 @@ fn levels_outside_the_data_are_named_and_levels_from_the_data() {
     );
     let read = |name: &str| std::fs::read(dir.path().join(name)).unwrap();
     assert_eq!(read("n.ply"), read("m.ply"));
+    // tetmesh takes the same levels; `50%` is `107` there too.
+    ok(
+        dir.path(),
+        &["tetmesh", "two.npy", "-o", "a.msh", "--level", "50%"],
+    );
+    ok(
+        dir.path(),
+        &["tetmesh", "two.npy", "-o", "b.msh", "--level", "107"],
+    );
+    assert_eq!(read("a.msh"), read("b.msh"));
 }
 
 /// Contours whose last point does not repeat their first are closed curves all the same (CSV,

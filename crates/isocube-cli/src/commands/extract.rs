@@ -673,17 +673,7 @@ fn resolve_level(
     args: &Args,
     summary: impl FnOnce() -> Option<ValueSummary>,
 ) -> Result<f32, Failure> {
-    if let Level::Value(v) = args.level {
-        return Ok(v);
-    }
-    match summary() {
-        Some(s) => Ok(args.level.resolve(&s)),
-        None => Err(Failure::input(anyhow::anyhow!(
-            "{}: --level {}: the volume has no finite value",
-            args.volume.volume,
-            args.level
-        ))),
-    }
+    crate::volume::resolve_level(args.level, &args.volume.volume, summary)
 }
 
 /// No cell crosses the level: the error names the volume's value range.

@@ -9,7 +9,7 @@ use isocube::cube::Topology;
 use isocube::extract::{
     ExtractOptions, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
 };
-use isocube::field::{Grid, Orientation, PlaneSource, SampleSpec};
+use isocube::field::{Grid, Level, Orientation, PlaneSource, SampleSpec, ValueSummary};
 use isocube::quality::Strategy;
 use isocube::volume::{tetmesh, tetmesh_labels, TetError};
 use isocube_io::{write_tet_mesh_as, TetFormat};
@@ -37,9 +37,11 @@ pub(crate) struct Args {
     /// (INTERFACE_A_B).
     #[arg(long, short)]
     output: PathBuf,
-    /// The iso-value. The region is the values below it (values equal to it are outside).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    level: f32,
+    /// The iso-value: a number, `auto` (Otsu's threshold of the values' histogram) or a
+    /// percentage of the value range (`40%`). The region is the values below it (values equal
+    /// to it are outside).
+    #[arg(long, default_value = "0", allow_negative_numbers = true)]
+    level: Level,
     /// Mesh the other side: the values at or above the level.
     #[arg(long)]
     flip: bool,
@@ -163,7 +165,13 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     };
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
         .map(|limit| limit.saturating_sub(std::mem::size_of_val(view.values()) as u64));
-    let options = extract_options(args, room);
+    let level = match args.labels {
+        Some(_) => 0.0,
+        None => crate::volume::resolve_level(args.level, &args.volume.volume, || {
+            ValueSummary::of(view.values())
+        })?,
+    };
+    let options = extract_options(args, room, level);
     let loaded = started.elapsed();
     let meshed = match &args.labels {
         Some(selection) => tetmesh_labels(
@@ -219,7 +227,13 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
         },
     };
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory);
-    let options = extract_options(args, room);
+    let Level::Value(level) = args.level else {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--level {}: contour stacks are meshed at their contours (level 0)",
+            args.level
+        )));
+    };
+    let options = extract_options(args, room, level);
     let loaded = started.elapsed();
     let meshed = isocube::contours::tetmesh(&stack, &plane, cap, layer_spacing, &options);
     finish(args, quiet, meshed, started, loaded)?;
@@ -265,9 +279,9 @@ fn converted(
 }
 
 /// The volume mesher's options from the command line.
-fn extract_options(args: &Args, room: Option<u64>) -> ExtractOptions {
+fn extract_options(args: &Args, room: Option<u64>, level: f32) -> ExtractOptions {
     ExtractOptions::default()
-        .with_level(args.level)
+        .with_level(level)
         .with_flip(args.flip)
         .with_normals(false)
         .with_topology(args.topology)
