@@ -33,10 +33,11 @@ pub(crate) struct FlatTouch {
     area: [f64; 3],
 }
 
-/// What the layout of a join needs of one chunk mesh: its box, its counts, where its rows end,
-/// and the vertices on faces it shares with other boxes (with, where the field was flat there,
-/// the triangles around them). Small beside the chunk: for a 128³ box of cells of a gyroid,
-/// about 1 % of its mesh's bytes.
+/// What the layout of a join needs of one chunk mesh: its box, its counts, where its runs of
+/// rows end (one run per row, per layer for a box spanning the grid's `x`, one for a box
+/// spanning `x` and `y`), and the vertices on faces it shares with other boxes (with, where the
+/// field was flat there, the triangles around them). Small beside the chunk when its runs are
+/// long: for bands of 128³ chunks of a 512³ gyroid that span `x`, 0.5 % of the mesh's PLY.
 ///
 /// ```
 /// use isocube::extract::{CellBox, ChunkOutline, ExtractOptions, Extractor};
