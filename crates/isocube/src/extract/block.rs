@@ -258,18 +258,7 @@ impl ChunkMesh {
         }
         let [nv, nn, nt, ng, nr] = [word()?, word()?, word()?, word()?, word()?];
         let nf = r.u64().ok_or_else(bad)?;
-        let floats = |r: &mut Reader, n: usize| -> Option<Vec<[f32; 3]>> {
-            let raw = r.take(n.checked_mul(12)?)?;
-            Some(
-                raw.chunks_exact(12)
-                    .map(|c| {
-                        std::array::from_fn(|i| {
-                            f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())
-                        })
-                    })
-                    .collect(),
-            )
-        };
+        let floats = |r: &mut Reader, n: usize| r.float_triples(n);
         let u32s = |r: &mut Reader, n: usize| -> Option<Vec<u32>> {
             let raw = r.take(n.checked_mul(4)?)?;
             Some(
@@ -371,6 +360,26 @@ impl<'a> Reader<'a> {
     pub(super) fn u32(&mut self) -> Option<u32> {
         self.take(4)
             .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+    }
+
+    /// `n` triples of `u32`s.
+    pub(super) fn triples(&mut self, n: usize) -> Option<Vec<[u32; 3]>> {
+        let raw = self.take(n.checked_mul(12)?)?;
+        Some(
+            raw.chunks_exact(12)
+                .map(|c| {
+                    std::array::from_fn(|i| {
+                        u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())
+                    })
+                })
+                .collect(),
+        )
+    }
+
+    /// `n` triples of `f32`s.
+    pub(super) fn float_triples(&mut self, n: usize) -> Option<Vec<[f32; 3]>> {
+        let t = self.triples(n)?;
+        Some(t.into_iter().map(|w| w.map(f32::from_bits)).collect())
     }
 
     /// A `u64` that must fit a `usize`.

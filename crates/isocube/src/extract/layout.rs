@@ -678,22 +678,9 @@ impl PlacedPiece {
             if nn != 0 && nn != nv {
                 return Err(bad());
             }
-            let mut triple = |n: usize| -> Option<Vec<[u32; 3]>> {
-                let raw = r.take(n.checked_mul(12)?)?;
-                Some(
-                    raw.chunks_exact(12)
-                        .map(|c| {
-                            std::array::from_fn(|i| {
-                                u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())
-                            })
-                        })
-                        .collect(),
-                )
-            };
-            let floats = |v: Vec<[u32; 3]>| v.into_iter().map(|w| w.map(f32::from_bits)).collect();
-            let positions = floats(triple(nv).ok_or_else(bad)?);
-            let normals = floats(triple(nn).ok_or_else(bad)?);
-            let triangles = triple(nt).ok_or_else(bad)?;
+            let positions = r.float_triples(nv).ok_or_else(bad)?;
+            let normals = r.float_triples(nn).ok_or_else(bad)?;
+            let triangles = r.triples(nt).ok_or_else(bad)?;
             pieces.push(PlacedPiece {
                 first_vertex,
                 positions,
