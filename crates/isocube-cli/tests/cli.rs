@@ -1345,10 +1345,13 @@ fn oriented_volumes_give_meshes_in_world_coordinates() {
     for (name, file) in expected["files"].as_object().unwrap() {
         let input = data.join(name);
         let input = input.to_str().unwrap();
+        // The level where the stored values are 712 (a doubled CT's 400 HU, a dose's 1.78 Gy).
+        let level = file["scale"].as_f64().unwrap() * 712.0 + file["offset"].as_f64().unwrap();
+        let level = &level.to_string();
         ok(
             dir.path(),
             &[
-                "extract", input, "--level", "400", "-o", "w.ply", "--ascii", "--quiet",
+                "extract", input, "--level", level, "-o", "w.ply", "--ascii", "--quiet",
             ],
         );
         ok(
@@ -1357,7 +1360,7 @@ fn oriented_volumes_give_meshes_in_world_coordinates() {
                 "extract",
                 input,
                 "--level",
-                "400",
+                level,
                 "-o",
                 "i.ply",
                 "--ascii",
@@ -1369,7 +1372,7 @@ fn oriented_volumes_give_meshes_in_world_coordinates() {
         let q: serde_json::Value = serde_json::from_str(&ok(
             dir.path(),
             &[
-                "quality", "w.ply", "--field", input, "--level", "400", "--json",
+                "quality", "w.ply", "--field", input, "--level", level, "--json",
             ],
         ))
         .unwrap();

@@ -378,7 +378,7 @@ pub fn read_volume_oriented(
     let budget = Budget::new(options.max_memory);
     let read = match VolumeFormat::of(path, options)? {
         VolumeFormat::Zarr => read_zarr_volume(path, options, budget)?,
-        VolumeFormat::DicomSeries => read_dicom_volume(path, budget)?,
+        VolumeFormat::Dicom => read_dicom_volume(path, budget)?,
         VolumeFormat::Npy => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
         VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget)?,
         VolumeFormat::MetaImage => metaimage::read_metaimage_within(path, budget)?,
@@ -426,13 +426,14 @@ pub fn read_volume_bytes(
                 "a Zarr store is a folder of files: read it with read_volume_oriented",
             ))
         }
-        VolumeFormat::DicomSeries => {
+        VolumeFormat::Dicom if name.is_dir() => {
             return Err(IoError::unsupported(
                 name,
                 Position::File,
                 "a DICOM series is a folder of files: read it with read_volume_oriented",
             ))
         }
+        VolumeFormat::Dicom => read_dicom_bytes(name, bytes, budget)?,
         VolumeFormat::Npy => identity(npy::read_npy_bytes(name, bytes, options.npy_axes, budget)?),
         VolumeFormat::Nrrd => nrrd::read_nrrd_bytes(name, bytes, budget)?,
         VolumeFormat::MetaImage => metaimage::read_metaimage_bytes(name, bytes, budget)?,
@@ -477,7 +478,7 @@ pub fn read_volume_from<R: std::io::Read + std::io::Seek>(
 /// Which reader a volume's name (or a folder) calls for.
 enum VolumeFormat<'a> {
     Zarr,
-    DicomSeries,
+    Dicom,
     Npy,
     Nrrd,
     MetaImage,
@@ -501,25 +502,37 @@ impl<'a> VolumeFormat<'a> {
             .unwrap_or_default();
         Ok(match ext.as_str() {
             _ if is_zarr_store(path) => VolumeFormat::Zarr,
-            _ if path.is_dir() => VolumeFormat::DicomSeries,
+            _ if path.is_dir() => VolumeFormat::Dicom,
             "npy" => VolumeFormat::Npy,
             "nrrd" | "nhdr" => VolumeFormat::Nrrd,
             "mha" | "mhd" => VolumeFormat::MetaImage,
             "vti" => VolumeFormat::Vti,
             _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => VolumeFormat::Nifti,
             "tif" | "tiff" => VolumeFormat::Tiff,
+            "dcm" | "dicom" | "ima" => VolumeFormat::Dicom,
+            // DICOM files often have no extension at all: they carry a marker.
+            _ if options.raw.is_none() && has_dicom_marker(path) => VolumeFormat::Dicom,
             _ => match &options.raw {
                 Some(raw) => VolumeFormat::Raw(raw),
                 None => {
                     return Err(IoError::unsupported(
                         path,
                         Position::File,
-                        "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .vti, .tif or .tiff",
+                        "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .vti, .tif, .tiff, .dcm (or a DICOM folder) or a Zarr store",
                     ))
                 }
             },
         })
     }
+}
+
+/// Whether a file has DICOM's "DICM" after its 128-byte preamble.
+fn has_dicom_marker(path: &Path) -> bool {
+    let mut magic = [0u8; 132];
+    std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+        .is_ok()
+        && &magic[128..] == b"DICM"
 }
 
 /// The read volume with the spacing and origin the options override.
@@ -578,12 +591,26 @@ fn read_dicom_volume(path: &Path, budget: Budget) -> Result<(Grid, Orientation),
     dicom::read_dicom_within(path, budget)
 }
 
+#[cfg(feature = "dicom")]
+fn read_dicom_bytes(
+    name: &Path,
+    bytes: &[u8],
+    budget: Budget,
+) -> Result<(Grid, Orientation), IoError> {
+    dicom::read_dicom_bytes(name, bytes, budget)
+}
+
+#[cfg(not(feature = "dicom"))]
+fn read_dicom_bytes(name: &Path, _: &[u8], budget: Budget) -> Result<(Grid, Orientation), IoError> {
+    read_dicom_volume(name, budget)
+}
+
 #[cfg(not(feature = "dicom"))]
 fn read_dicom_volume(path: &Path, _: Budget) -> Result<(Grid, Orientation), IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,
-        "a folder is read as a DICOM series, which needs isocube built with the `dicom` feature",
+        "DICOM files and folders need isocube built with the `dicom` feature",
     ))
 }
 

@@ -1,0 +1,352 @@
+//! Pixel data to stored values, frame by frame: native pixel data in either byte order (1, 8,
+//! 16 or 32 bits allocated), and encapsulated frames decoded by well-kept crates — JPEG
+//! (baseline, lossless) by `jpeg-decoder`, JPEG-LS by `pure_jpegls`, JPEG 2000 by `jpeg2k` on
+//! `openjp2` (OpenJPEG ported to Rust) — or, for RLE Lossless, here: the one crate adapter
+//! (dicom-rs's) stops at 16 bits and RT doses are 32-bit. Values are masked to Bits Stored
+//! and sign-extended when Pixel Representation says signed, as every DICOM viewer shows them.
+
+use std::ops::Range;
+use std::path::Path;
+
+use super::elements::{Compression, DataSet, Node};
+use crate::{IoError, Position};
+
+/// What the image pixel module says about the pixel data.
+#[derive(Clone, Debug)]
+pub(super) struct PixelFormat {
+    pub rows: usize,
+    pub cols: usize,
+    pub bits_allocated: usize,
+    pub bits_stored: usize,
+    pub signed: bool,
+    pub frames: usize,
+}
+
+impl PixelFormat {
+    pub(super) fn pixels(&self) -> usize {
+        self.rows * self.cols
+    }
+
+    /// A stored value as the image means it: its low `bits_stored` bits, signed or not.
+    fn value(&self, raw: u32) -> f64 {
+        let bits = self.bits_stored.min(32);
+        let masked = if bits >= 32 {
+            raw
+        } else {
+            raw & ((1u32 << bits) - 1)
+        };
+        if self.signed && bits > 0 && masked >> (bits - 1) & 1 == 1 {
+            f64::from(masked) - 2f64.powi(bits as i32)
+        } else {
+            f64::from(masked)
+        }
+    }
+}
+
+/// The stored values of frame `k` (row by row), `fmt.pixels()` of them.
+pub(super) fn frame(
+    path: &Path,
+    set: &DataSet,
+    pixel: &Node,
+    fmt: &PixelFormat,
+    k: usize,
+) -> Result<Vec<f64>, IoError> {
+    let field = || Position::Field("PixelData".into());
+    match (&pixel.fragments, set.compression) {
+        (None, Compression::None) => native(path, set, pixel, fmt, k),
+        (Some(fragments), c) if c != Compression::None => {
+            let bytes = frame_bytes(path, &set.data, fragments, fmt.frames, k)?;
+            let decoded = match c {
+                Compression::Rle => rle(&bytes, fmt),
+                Compression::Jpeg => jpeg(&bytes, fmt),
+                Compression::JpegLs => jpeg_ls(&bytes, fmt),
+                _ => jpeg2000(&bytes, fmt),
+            };
+            decoded.map_err(|reason| {
+                IoError::format(
+                    path,
+                    field(),
+                    format!("frame {} of {}: {reason}", k + 1, set.syntax),
+                )
+            })
+        }
+        (None, _) => Err(IoError::format(
+            path,
+            field(),
+            format!("native pixel data in a file of transfer syntax {} (compressed data is encapsulated)", set.syntax),
+        )),
+        (Some(_), _) => Err(IoError::format(
+            path,
+            field(),
+            format!("encapsulated pixel data in a file of transfer syntax {} (uncompressed data is native)", set.syntax),
+        )),
+    }
+}
+
+fn native(
+    path: &Path,
+    set: &DataSet,
+    pixel: &Node,
+    fmt: &PixelFormat,
+    k: usize,
+) -> Result<Vec<f64>, IoError> {
+    let data = &set.data[pixel.value.clone()];
+    let n = fmt.pixels();
+    let bits = fmt.bits_allocated;
+    // Frames of 1-bit data (segmentations) are packed without padding between them.
+    let first_bit = k * n * bits;
+    let last_bit = first_bit + n * bits;
+    if last_bit.div_ceil(8) > data.len() {
+        return Err(IoError::format(
+            path,
+            Position::Field("PixelData".into()),
+            format!(
+                "{} bytes for {} frames of {}×{} pixels of {bits} bits ({} needed)",
+                data.len(),
+                fmt.frames,
+                fmt.rows,
+                fmt.cols,
+                (fmt.frames * n * bits).div_ceil(8)
+            ),
+        ));
+    }
+    let enc = set.encoding;
+    Ok(match bits {
+        1 => (first_bit..last_bit)
+            .map(|b| fmt.value(u32::from(data[b / 8] >> (b % 8) & 1)))
+            .collect(),
+        8 => data[first_bit / 8..last_bit / 8]
+            .iter()
+            .map(|&v| fmt.value(u32::from(v)))
+            .collect(),
+        16 => data[first_bit / 8..last_bit / 8]
+            .chunks_exact(2)
+            .map(|b| fmt.value(u32::from(enc.u16(b))))
+            .collect(),
+        _ => data[first_bit / 8..last_bit / 8]
+            .chunks_exact(4)
+            .map(|b| fmt.value(enc.u32(b)))
+            .collect(),
+    })
+}
+
+/// The bytes of frame `k` of encapsulated pixel data: one fragment per frame, all fragments
+/// for a single frame, or the fragments the basic offset table assigns to it.
+fn frame_bytes(
+    path: &Path,
+    data: &[u8],
+    fragments: &[Range<usize>],
+    frames: usize,
+    k: usize,
+) -> Result<Vec<u8>, IoError> {
+    let error = |reason: String| IoError::format(path, Position::Field("PixelData".into()), reason);
+    let (table, pieces) = fragments
+        .split_first()
+        .ok_or_else(|| error("encapsulated pixel data without its basic offset table".into()))?;
+    if pieces.len() == frames {
+        return Ok(data[pieces[k].clone()].to_vec());
+    }
+    if frames == 1 {
+        return Ok(pieces
+            .iter()
+            .flat_map(|r| &data[r.clone()])
+            .copied()
+            .collect());
+    }
+    // The offsets count from the first fragment's item header (8 bytes each).
+    let offsets: Vec<usize> = data[table.clone()]
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+        .collect();
+    if offsets.len() != frames {
+        return Err(error(format!(
+            "{} fragments for {frames} frames and a basic offset table of {} entries: which fragments make a frame is unknown",
+            pieces.len(),
+            offsets.len()
+        )));
+    }
+    let (start, end) = (
+        offsets[k],
+        offsets.get(k + 1).copied().unwrap_or(usize::MAX),
+    );
+    let mut at = 0usize;
+    let mut bytes = Vec::new();
+    for r in pieces {
+        if at >= start && at < end {
+            bytes.extend_from_slice(&data[r.clone()]);
+        }
+        at += 8 + r.len();
+    }
+    if bytes.is_empty() {
+        return Err(error(format!(
+            "the basic offset table's entry {} ({start}) starts no fragment",
+            k + 1
+        )));
+    }
+    Ok(bytes)
+}
+
+/// RLE Lossless (PS3.5 annex G): a 64-byte header of segment offsets, one PackBits segment per
+/// byte of a sample, most significant first.
+fn rle(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let width = fmt.bits_allocated / 8;
+    if !(1..=4).contains(&width) || fmt.bits_allocated % 8 != 0 {
+        return Err(format!("{} bits allocated", fmt.bits_allocated));
+    }
+    let header = bytes
+        .get(..64)
+        .ok_or("shorter than the 64-byte RLE header")?;
+    let word = |i: usize| {
+        u32::from_le_bytes([
+            header[4 * i],
+            header[4 * i + 1],
+            header[4 * i + 2],
+            header[4 * i + 3],
+        ]) as usize
+    };
+    let segments = word(0);
+    if segments != width {
+        return Err(format!("{segments} RLE segments for {width}-byte samples"));
+    }
+    let n = fmt.pixels();
+    let mut raw = vec![0u32; n];
+    for s in 0..segments {
+        let start = word(1 + s);
+        let end = if s + 1 < segments {
+            word(2 + s)
+        } else {
+            bytes.len()
+        };
+        let segment = (start >= 64 && start <= end)
+            .then(|| bytes.get(start..end))
+            .flatten()
+            .ok_or_else(|| {
+                format!(
+                    "RLE segment {} at {start}..{end} of {} bytes",
+                    s + 1,
+                    bytes.len()
+                )
+            })?;
+        let shift = 8 * (width - 1 - s);
+        let mut out = 0usize;
+        let mut i = 0usize;
+        let mut put = |v: u8, out: &mut usize| {
+            if *out < n {
+                raw[*out] |= u32::from(v) << shift;
+            }
+            *out += 1;
+        };
+        while out < n {
+            let Some(&h) = segment.get(i) else {
+                return Err(format!(
+                    "RLE segment {} ends after {out} of {n} bytes",
+                    s + 1
+                ));
+            };
+            i += 1;
+            let h = h as i8;
+            if h >= 0 {
+                let run = segment
+                    .get(i..i + h as usize + 1)
+                    .ok_or_else(|| format!("RLE segment {} ends inside a literal run", s + 1))?;
+                for &v in run {
+                    put(v, &mut out);
+                }
+                i += run.len();
+            } else if h != -128 {
+                let &v = segment
+                    .get(i)
+                    .ok_or_else(|| format!("RLE segment {} ends inside a repeat", s + 1))?;
+                i += 1;
+                for _ in 0..(1 - i32::from(h)) {
+                    put(v, &mut out);
+                }
+            }
+        }
+    }
+    Ok(raw.into_iter().map(|v| fmt.value(v)).collect())
+}
+
+/// Checks a decoder's image size against the data set's.
+fn check_size(fmt: &PixelFormat, width: usize, height: usize) -> Result<(), String> {
+    if (width, height) != (fmt.cols, fmt.rows) {
+        return Err(format!(
+            "the codestream holds {width}×{height} pixels where Columns × Rows say {}×{}",
+            fmt.cols, fmt.rows
+        ));
+    }
+    Ok(())
+}
+
+fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let mut decoder = jpeg_decoder::Decoder::new(bytes);
+    let pixels = decoder.decode().map_err(|e| match e {
+        // jpeg-decoder (the one maintained Rust decoder with lossless JPEG) reads lossy JPEG of
+        // 8 bits only.
+        jpeg_decoder::Error::Unsupported(jpeg_decoder::UnsupportedFeature::SamplePrecision(p)) => {
+            format!(
+                "lossy JPEG of {p}-bit samples (process 4) is not read; decompress it first \
+                 (gdcmconv --raw, dcmdjpeg)"
+            )
+        }
+        e => format!("JPEG: {e}"),
+    })?;
+    let info = decoder.info().ok_or("JPEG: no frame header")?;
+    check_size(fmt, usize::from(info.width), usize::from(info.height))?;
+    Ok(match info.pixel_format {
+        jpeg_decoder::PixelFormat::L8 => pixels.iter().map(|&v| fmt.value(u32::from(v))).collect(),
+        // jpeg-decoder gives 16-bit samples in native byte order.
+        jpeg_decoder::PixelFormat::L16 => pixels
+            .chunks_exact(2)
+            .map(|b| fmt.value(u32::from(u16::from_ne_bytes([b[0], b[1]]))))
+            .collect(),
+        other => {
+            return Err(format!(
+                "JPEG of {other:?}: isocube reads one sample per pixel"
+            ))
+        }
+    })
+}
+
+fn jpeg_ls(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let (samples, width, height) = jpegls::decode(bytes, fmt.cols as u32, fmt.rows as u32)
+        .map_err(|e| format!("JPEG-LS: {e}"))?;
+    check_size(fmt, width as usize, height as usize)?;
+    if samples.len() != fmt.pixels() {
+        return Err(format!(
+            "JPEG-LS: {} samples for {} pixels",
+            samples.len(),
+            fmt.pixels()
+        ));
+    }
+    Ok(samples
+        .into_iter()
+        .map(|v| fmt.value(u32::from(v)))
+        .collect())
+}
+
+fn jpeg2000(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let image = jpeg2k::Image::from_bytes(bytes).map_err(|e| format!("JPEG 2000: {e}"))?;
+    let [component] = image.components() else {
+        return Err(format!(
+            "JPEG 2000 of {} components: isocube reads one sample per pixel",
+            image.components().len()
+        ));
+    };
+    check_size(fmt, component.width() as usize, component.height() as usize)?;
+    let data = component.data();
+    if data.len() != fmt.pixels() {
+        return Err(format!(
+            "JPEG 2000: {} samples for {} pixels",
+            data.len(),
+            fmt.pixels()
+        ));
+    }
+    // A codestream that says signed holds the values themselves; otherwise the bits are read
+    // as the data set says (Pixel Representation wins, as in pydicom and GDCM).
+    Ok(if component.is_signed() {
+        data.iter().map(|&v| f64::from(v)).collect()
+    } else {
+        data.iter().map(|&v| fmt.value(v as u32)).collect()
+    })
+}

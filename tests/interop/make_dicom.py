@@ -1,0 +1,225 @@
+"""Writes the DICOM variants of the reader fixtures into tests/data/volumes/, from the checked-in
+`dicom` series (make_volumes.py), with programs that share no code with isocube: pydicom and
+its encoders (RLE in pydicom, JPEG-LS by CharLS through pyjpegls, JPEG 2000 by OpenJPEG through
+imagecodecs, lossless JPEG by libjpeg-turbo through imagecodecs), and records each in
+expected.json beside the others.
+
+    pip install -r tests/interop/requirements-volumes.txt
+    python tests/interop/make_dicom.py [OUTDIR]
+
+What each variant exercises in isocube's reader:
+- dicom-bigendian, dicom-deflate: explicit VR big endian; a deflated data set.
+- dicom-rle, dicom-jpegls, dicom-j2k, dicom-jpeg-lossless: one compressed slice per file, with
+  negative stored values (a rescale intercept brings them back), so sign extension shows.
+- enhanced.dcm: an enhanced CT, one multi-frame file whose frames are out of order, placed by
+  per-frame Plane Position, with shared Pixel Measures, Plane Orientation and value transform.
+- enhanced-jpegls.dcm: the same with its frames JPEG-LS compressed (one fragment per frame).
+- rtdose.dcm, rtdose-rle.dcm: an RT Dose grid, 32-bit unsigned, frames placed by the Grid Frame
+  Offset Vector, values scaled by Dose Grid Scaling; and the same in RLE.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pydicom
+from pydicom.dataset import Dataset, FileDataset, FileMetaDataset
+from pydicom.encaps import encapsulate
+from pydicom.sequence import Sequence
+from pydicom.uid import (
+    DeflatedExplicitVRLittleEndian,
+    ExplicitVRBigEndian,
+    ExplicitVRLittleEndian,
+    JPEG2000Lossless,
+    JPEGLosslessSV1,
+    JPEGLSLossless,
+    RLELossless,
+    generate_uid,
+)
+
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[1] / "data" / "volumes"
+expected_path = out / "expected.json"
+expected = json.loads(expected_path.read_text())
+base = expected["files"]["dicom"]
+slices = sorted(
+    (pydicom.dcmread(p) for p in (out / "dicom").glob("*.dcm")),
+    key=lambda ds: float(np.dot(ds.ImagePositionPatient, np.cross(ds.ImageOrientationPatient[:3], ds.ImageOrientationPatient[3:]))),
+)
+NZ = len(slices)
+frames = np.stack([ds.pixel_array for ds in slices])  # [z, y, x], int16
+linear = np.array(base["linear"])
+origin = np.array(base["origin"])
+normal = linear[:, 2] / np.linalg.norm(linear[:, 2])
+step = float(np.linalg.norm(linear[:, 2]))
+
+
+def record(name, scale=2.0, offset=-1024.0):
+    expected["files"][name] = {**base, "scale": scale, "offset": offset}
+
+
+def fresh(folder):
+    folder.mkdir(exist_ok=True)
+    for old in folder.glob("*.dcm"):
+        old.unlink()
+    return folder
+
+
+# Byte order and deflate: the same slices re-encoded by pydicom.
+for name, syntax in [("dicom-bigendian", ExplicitVRBigEndian), ("dicom-deflate", DeflatedExplicitVRLittleEndian)]:
+    folder = fresh(out / name)
+    for ds in slices:
+        source = pydicom.dcmread(ds.filename)
+        ds = FileDataset(source.filename, {}, file_meta=source.file_meta, preamble=b"\0" * 128)
+        # Elements as values (not the raw little-endian bytes), so pydicom encodes them anew.
+        for tag in source.keys():
+            if tag != 0x7FE00010:
+                ds[tag] = source[tag]
+        ds.file_meta.TransferSyntaxUID = syntax
+        # Pixel data held anew in little endian: pydicom swaps OW values for big endian.
+        ds.PixelData = source.pixel_array.astype("<i2").tobytes()
+        ds["PixelData"].VR = "OW"
+        if syntax == ExplicitVRBigEndian:
+            pydicom.dcmwrite(folder / Path(ds.filename).name, ds, little_endian=False, implicit_vr=False, enforce_file_format=True)
+        else:
+            ds.save_as(folder / Path(ds.filename).name, enforce_file_format=True)
+        back = pydicom.dcmread(folder / Path(ds.filename).name)
+        assert np.array_equal(back.pixel_array, pydicom.dcmread(ds.filename).pixel_array), name
+    record(name)
+
+
+# Compressed slices; stored values shifted down by 600 (some negative), the intercept up by
+# 2 × 600, so the rescaled values are the series' own.
+SHIFT = 600
+
+
+def encode(frame, syntax):
+    if syntax == JPEGLosslessSV1:
+        import imagecodecs
+
+        return imagecodecs.jpeg8_encode(frame.astype(np.uint16), lossless=True, predictor=1, bitspersample=16)
+    if syntax == JPEG2000Lossless:
+        import imagecodecs
+
+        # Two resolution levels: OpenJPEG's default of six needs images of 32 pixels or more.
+        return imagecodecs.jpeg2k_encode(frame, level=0, codecformat="J2K", reversible=True, resolutions=2)
+    raise ValueError(syntax)
+
+
+for name, syntax in [
+    ("dicom-rle", RLELossless),
+    ("dicom-jpegls", JPEGLSLossless),
+    ("dicom-j2k", JPEG2000Lossless),
+    ("dicom-jpeg-lossless", JPEGLosslessSV1),
+]:
+    folder = fresh(out / name)
+    for ds in slices:
+        ds = pydicom.dcmread(ds.filename)
+        shifted = (ds.pixel_array.astype(np.int32) - SHIFT).astype(np.int16)
+        ds.RescaleIntercept = -1024 + 2 * SHIFT
+        if syntax in (JPEGLosslessSV1, JPEG2000Lossless):
+            ds.PixelData = encapsulate([encode(shifted, syntax)])
+            ds["PixelData"].VR = "OB"
+            ds.file_meta.TransferSyntaxUID = syntax
+        else:
+            ds.compress(syntax, shifted)
+        target = folder / Path(ds.filename).name
+        ds.save_as(target, enforce_file_format=True)
+        back = pydicom.dcmread(target)
+        assert back.file_meta.TransferSyntaxUID == syntax
+        assert np.array_equal(back.pixel_array.astype(np.int16), shifted), name
+    record(name)
+
+
+def new_file(name, sop_class, syntax=ExplicitVRLittleEndian):
+    meta = FileMetaDataset()
+    meta.MediaStorageSOPClassUID = sop_class
+    meta.MediaStorageSOPInstanceUID = generate_uid()
+    meta.TransferSyntaxUID = syntax
+    ds = FileDataset(str(name), {}, file_meta=meta, preamble=b"\0" * 128)
+    ds.SOPClassUID = sop_class
+    ds.SOPInstanceUID = meta.MediaStorageSOPInstanceUID
+    ds.SeriesInstanceUID = generate_uid()
+    ds.StudyInstanceUID = slices[0].StudyInstanceUID
+    ds.Rows, ds.Columns = slices[0].Rows, slices[0].Columns
+    ds.SamplesPerPixel = 1
+    ds.PhotometricInterpretation = "MONOCHROME2"
+    ds.NumberOfFrames = NZ
+    return ds
+
+
+def item(**elements):
+    d = Dataset()
+    for k, v in elements.items():
+        setattr(d, k, v)
+    return d
+
+
+# Enhanced CT: frames stored in the order 3, 0, 6, 1, 4, 7, 2, 5 of the slices.
+order = [(3 * k) % NZ for k in range(NZ)]
+for name, syntax in [("enhanced.dcm", ExplicitVRLittleEndian), ("enhanced-jpegls.dcm", JPEGLSLossless)]:
+    ds = new_file(out / name, "1.2.840.10008.5.1.4.1.1.2.1", syntax)
+    ds.Modality = "CT"
+    ds.BitsAllocated, ds.BitsStored, ds.HighBit = 16, 16, 15
+    ds.PixelRepresentation = 1
+    ds.SharedFunctionalGroupsSequence = Sequence(
+        [
+            item(
+                PixelMeasuresSequence=Sequence([item(PixelSpacing=list(slices[0].PixelSpacing), SliceThickness=step)]),
+                PlaneOrientationSequence=Sequence([item(ImageOrientationPatient=list(slices[0].ImageOrientationPatient))]),
+                PixelValueTransformationSequence=Sequence(
+                    [item(RescaleSlope=2, RescaleIntercept=-1024 + 2 * SHIFT, RescaleType="HU")]
+                ),
+            )
+        ]
+    )
+    ds.PerFrameFunctionalGroupsSequence = Sequence(
+        [
+            item(PlanePositionSequence=Sequence([item(ImagePositionPatient=list(slices[z].ImagePositionPatient))]))
+            for z in order
+        ]
+    )
+    stack = (frames[order].astype(np.int32) - SHIFT).astype(np.int16)
+    if syntax == ExplicitVRLittleEndian:
+        ds.PixelData = stack.astype("<i2").tobytes()
+    else:
+        ds.compress(syntax, stack)
+    ds.save_as(out / name, enforce_file_format=True)
+    back = pydicom.dcmread(out / name)
+    assert np.array_equal(back.pixel_array.astype(np.int16), stack), name
+    record(name)
+
+
+# RT Dose: 32-bit unsigned doses, frames at the Grid Frame Offset Vector's offsets along the
+# normal (relative: the first is 0), Gy = stored × Dose Grid Scaling.
+SCALE = 2.5e-3
+# PS3.5 8.2.2 allows RLE of 32-bit samples, as RT Dose grids are; pydicom's encoder handles any
+# sample width but its table of profiles stops at 16 bits.
+from pydicom.pixels.encoders.base import ENCODING_PROFILES
+
+ENCODING_PROFILES[RLELossless].append(("MONOCHROME2", 1, (0, 1), (32,), range(1, 33)))
+for name, syntax in [("rtdose.dcm", ExplicitVRLittleEndian), ("rtdose-rle.dcm", RLELossless)]:
+    ds = new_file(out / name, "1.2.840.10008.5.1.4.1.1.481.2", syntax)
+    ds.Modality = "RTDOSE"
+    ds.BitsAllocated, ds.BitsStored, ds.HighBit = 32, 32, 31
+    ds.PixelRepresentation = 0
+    ds.ImagePositionPatient = list(slices[0].ImagePositionPatient)
+    ds.ImageOrientationPatient = list(slices[0].ImageOrientationPatient)
+    ds.PixelSpacing = list(slices[0].PixelSpacing)
+    ds.FrameIncrementPointer = 0x3004000C
+    ds.GridFrameOffsetVector = [step * k for k in range(NZ)]
+    ds.DoseUnits, ds.DoseType, ds.DoseSummationType = "GY", "PHYSICAL", "PLAN"
+    ds.DoseGridScaling = SCALE
+    # The fixture's values themselves (100 + i + 10 j + 100 k), as unsigned 32-bit doses.
+    doses = frames.astype(np.uint32)
+    if syntax == ExplicitVRLittleEndian:
+        ds.PixelData = doses.astype("<u4").tobytes()
+    else:
+        ds.compress(syntax, doses)
+    ds.save_as(out / name, enforce_file_format=True)
+    back = pydicom.dcmread(out / name)
+    assert np.array_equal(back.pixel_array, doses), name
+    record(name, SCALE, 0.0)
+
+expected_path.write_text(json.dumps(expected, indent=1) + "\n")
+print("wrote the DICOM variants to", out)
