@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 use isocube_io::{self as io, VolumeOptions};
 
 /// Every fuzz target: its name (the file under `fuzz_targets/` and the corpus folder) and the
-/// extension its input is given. `dicom` is a folder holding the input as its one slice.
+/// extension its input is given. `dicom` is a folder holding the input as its one slice; the
+/// `dicom_*` targets fuzz one pixel data decoder each: the input is a small image's size and
+/// a compressed frame, wrapped into a two-frame DICOM file by [`encapsulated_dicom`].
 pub const TARGETS: &[(&str, &str)] = &[
     ("npy", "npy"),
     ("nrrd", "nrrd"),
@@ -22,6 +24,10 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("nifti_gz", "nii.gz"),
     ("tiff", "tif"),
     ("dicom", "dcm"),
+    ("dicom_rle", "dcm"),
+    ("dicom_jpeg", "dcm"),
+    ("dicom_jpegls", "dcm"),
+    ("dicom_j2k", "dcm"),
     ("ply", "ply"),
     ("obj", "obj"),
     ("stl", "stl"),
@@ -58,6 +64,14 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
         series.join("slice.dcm")
     } else {
         dir.join(format!("input.{ext}"))
+    };
+    let wrapped;
+    let data = match name.strip_prefix("dicom_") {
+        Some(codec) => {
+            wrapped = encapsulated_dicom(codec, data);
+            &wrapped[..]
+        }
+        None => data,
     };
     std::fs::write(&path, data).unwrap();
     let read = if name == "dicom" {
@@ -151,6 +165,72 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
             }
         }
     }
+}
+
+/// A DICOM file of two frames, both `data[3..]` as one fragment, in the transfer syntax of
+/// `codec` (`rle`, `jpeg` lossless, `jpegls`, `j2k`), of `1 + data[0] % 32` rows and
+/// `1 + data[1] % 32` columns, 8, 16 or 32 bits as `data[2] % 3` says, signed when
+/// `data[2] >= 128`.
+pub fn encapsulated_dicom(codec: &str, data: &[u8]) -> Vec<u8> {
+    let syntax: &[u8] = match codec {
+        "rle" => b"1.2.840.10008.1.2.5\0",
+        "jpeg" => b"1.2.840.10008.1.2.4.70",
+        "jpegls" => b"1.2.840.10008.1.2.4.80",
+        _ => b"1.2.840.10008.1.2.4.90",
+    };
+    let &[rows, cols, kind, ..] = data else {
+        return Vec::new();
+    };
+    let mut file = vec![0u8; 128];
+    file.extend(b"DICM");
+    let short = |out: &mut Vec<u8>, tag: (u16, u16), vr: &[u8], value: &[u8]| {
+        out.extend(tag.0.to_le_bytes());
+        out.extend(tag.1.to_le_bytes());
+        out.extend(vr);
+        out.extend((value.len() as u16).to_le_bytes());
+        out.extend(value);
+    };
+    let mut meta = Vec::new();
+    short(&mut meta, (2, 0x10), b"UI", syntax);
+    short(&mut file, (2, 0), b"UL", &(meta.len() as u32).to_le_bytes());
+    file.extend(meta);
+    let us = |v: u16| v.to_le_bytes();
+    short(&mut file, (0x28, 0x02), b"US", &us(1));
+    short(&mut file, (0x28, 0x08), b"IS", b"2 ");
+    short(
+        &mut file,
+        (0x28, 0x10),
+        b"US",
+        &us(1 + u16::from(rows % 32)),
+    );
+    short(
+        &mut file,
+        (0x28, 0x11),
+        b"US",
+        &us(1 + u16::from(cols % 32)),
+    );
+    let bits = [8u16, 16, 32][usize::from(kind % 3)];
+    short(&mut file, (0x28, 0x100), b"US", &us(bits));
+    short(&mut file, (0x28, 0x101), b"US", &us(bits));
+    short(&mut file, (0x28, 0x103), b"US", &us(u16::from(kind >> 7)));
+    // Pixel Data, undefined length: an empty basic offset table, the fragment twice.
+    file.extend([
+        0xE0, 0x7F, 0x10, 0x00, b'O', b'B', 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+    ]);
+    let mut fragment = data[3..].to_vec();
+    if fragment.len() % 2 == 1 {
+        fragment.push(0);
+    }
+    let item = |out: &mut Vec<u8>, value: &[u8]| {
+        out.extend([0xFE, 0xFF, 0x00, 0xE0]);
+        out.extend((value.len() as u32).to_le_bytes());
+        out.extend(value);
+    };
+    item(&mut file, &[]);
+    item(&mut file, &fragment);
+    item(&mut file, &fragment);
+    file.extend([0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+    file
 }
 
 /// [`run_in`] with a folder of this process's own under the system's temporary directory

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Writes meshes in every format isocube writes and loads each back with an independent reader
-# (trimesh, meshio, VTK, gmsh), checking counts, positions, normals and vertex values; and a
-# finite element solver (scikit-fem) uses the volume meshes.
+# (trimesh, meshio, VTK, gmsh), checking counts, positions, normals and vertex values; a finite
+# element solver (scikit-fem) uses the volume meshes; and pydicom's own DICOM files (every
+# transfer syntax isocube reads, RT Dose) mesh as the arrays pydicom decodes.
 #
 #   tests/interop/run.sh [WORKDIR]
 #
@@ -89,3 +90,7 @@ done
 # The same with ternary extraction snapped onto crossings (the surface keeps its accuracy).
 "$venv/bin/python" "$here/fem_poisson.py" "$isocube" "$work/fem-ternary" -- \
   --method ternary --snap 0.5 --snap-position crossing
+
+# DICOM files as pydicom ships them (CT, MR in seven encodings, NM JPEG 2000, RT Dose plain and
+# RLE): meshed from the file, and from the array pydicom decodes placed in patient coordinates.
+"$venv/bin/python" "$here/check_dicom.py" "$isocube" "$work/dicom"
