@@ -152,3 +152,30 @@ run = subprocess.run(
 )
 assert run.returncode == 2 and "12-bit" in run.stderr and not (work / "x.ply").exists(), run.stderr
 print("JPGExtended.dcm (12-bit lossy JPEG): refused, naming it")
+
+# pydicom's RT Structure Set (a bare data set, without the Part 10 header): the 'patient' ROI's
+# three CLOSED_PLANAR contours become a closed surface through every contour vertex, in patient
+# coordinates; the two POINT ROIs are listed as skipped.
+plan = get_testdata_file("rtstruct.dcm")
+run = subprocess.run(
+    [isocube, "contours", plan, "-o", str(work / "plan.ply"), "--cap", "flat"], capture_output=True, text=True
+)
+assert run.returncode == 0, run.stderr
+assert "skipped (no CLOSED_PLANAR contours): 2 'Isocenter 1' (1 POINT), 3 'Isocenter 2' (1 POINT)" in run.stderr, run.stderr
+surface = trimesh.load(work / "plan-patient.ply", process=False)
+assert surface.is_watertight
+ds = pydicom.dcmread(plan, force=True)
+contours = ds.ROIContourSequence[0].ContourSequence
+assert len(contours) == 3
+vertices = np.asarray(surface.vertices, float)
+diagonal = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+far = max(
+    float(np.min(np.linalg.norm(vertices - p, axis=1)))
+    for c in contours
+    for p in np.array(c.ContourData, float).reshape(-1, 3)
+)
+assert far <= 1e-6 * diagonal, far
+print(
+    f"rtstruct.dcm: ROI 'patient' {len(surface.faces)} triangles, watertight, every contour vertex "
+    f"within {far:.1e} (diagonal {diagonal:.1f} mm); POINT ROIs skipped"
+)

@@ -223,3 +223,50 @@ for name, syntax in [("rtdose.dcm", ExplicitVRLittleEndian), ("rtdose-rle.dcm", 
 
 expected_path.write_text(json.dumps(expected, indent=1) + "\n")
 print("wrote the DICOM variants to", out)
+
+
+# An RT Structure Set: ROI 1 'ring' drawn as a key-hole polygon (an outline reached to its hole
+# by a zero-width channel) on three axial planes, 5 mm apart; ROI 7 'marker' a POINT.
+ds = new_file(out / "rtstruct.dcm", "1.2.840.10008.5.1.4.1.1.481.3")
+for tag in ("Rows", "Columns", "SamplesPerPixel", "PhotometricInterpretation", "NumberOfFrames"):
+    delattr(ds, tag)
+ds.Modality = "RTSTRUCT"
+ds.StructureSetLabel = "fixture"
+ds.StructureSetROISequence = Sequence(
+    [item(ROINumber=1, ROIName="ring", ROIGenerationAlgorithm="MANUAL"), item(ROINumber=7, ROIName="marker")]
+)
+ds.RTROIObservationsSequence = Sequence(
+    [
+        item(ObservationNumber=1, ReferencedROINumber=1, RTROIInterpretedType="ORGAN"),
+        item(ObservationNumber=2, ReferencedROINumber=7, RTROIInterpretedType="MARKER"),
+    ]
+)
+
+
+def keyhole(z, outer, inner):
+    """A square of half-width `outer` with a square hole of half-width `inner`, one polygon."""
+    o, i = outer, inner
+    xy = [(-o, -o), (o, -o), (o, o), (-o, o), (-o, 0), (-i, 0), (-i, i), (i, i), (i, -i), (-i, -i), (-i, 0), (-o, 0)]
+    return item(
+        ContourGeometricType="CLOSED_PLANAR",
+        NumberOfContourPoints=len(xy),
+        ContourData=[float(c) for x, y in xy for c in (x + 10.0, y - 20.0, z)],
+    )
+
+
+ds.ROIContourSequence = Sequence(
+    [
+        item(
+            ReferencedROINumber=1,
+            ContourSequence=Sequence([keyhole(z, 30.0 - k, 12.0 + k) for k, z in enumerate([-5.0, 0.0, 5.0])]),
+        ),
+        item(
+            ReferencedROINumber=7,
+            ContourSequence=Sequence(
+                [item(ContourGeometricType="POINT", NumberOfContourPoints=1, ContourData=[10.0, -20.0, 0.0])]
+            ),
+        ),
+    ]
+)
+ds.save_as(out / "rtstruct.dcm", enforce_file_format=True)
+print("wrote rtstruct.dcm")

@@ -1962,3 +1962,95 @@ fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
         );
     }
 }
+
+/// An RT Structure Set (pydicom, `tests/interop/make_dicom.py`): the key-hole ring ROI becomes a
+/// closed surface of genus 1 through every contour vertex (in patient coordinates), written to
+/// `NAME-ring.ply`; the POINT ROI is listed as skipped; `--roi` picks by name or number and an
+/// unknown one is refused with the ROIs listed.
+#[test]
+fn rt_structure_sets_mesh_each_roi() {
+    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes/rtstruct.dcm");
+    let plan = plan.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = isocube(
+        dir.path(),
+        &[
+            "contours", plan, "-o", "plan.ply", "--cap", "flat", "--ascii",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("ROI 1 'ring'") && err.contains("watertight, genus 1"),
+        "{err}"
+    );
+    assert!(
+        err.contains("skipped (no CLOSED_PLANAR contours): 7 'marker' (1 POINT)"),
+        "{err}"
+    );
+    assert!(!dir.path().join("plan-marker.ply").exists());
+    let (positions, _) = ascii_ply(&dir.path().join("plan-ring.ply"));
+    // The contour vertices (make_dicom.py's key-hole squares about (10, -20)).
+    for (k, z) in [-5.0, 0.0, 5.0].into_iter().enumerate() {
+        let (o, i) = (30.0 - k as f64, 12.0 + k as f64);
+        for (x, y) in [
+            (-o, -o),
+            (o, -o),
+            (o, o),
+            (-o, o),
+            (-i, i),
+            (i, i),
+            (i, -i),
+            (-i, -i),
+        ] {
+            let p = [x + 10.0, y - 20.0, z];
+            let near = positions
+                .iter()
+                .map(|q| (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>().sqrt())
+                .fold(f64::INFINITY, f64::min);
+            // ASCII PLY's printed floats: well inside 1e-6 of the 85 mm diagonal.
+            assert!(near < 1e-5, "{p:?}: {near}");
+        }
+    }
+    let first = std::fs::read(dir.path().join("plan-ring.ply")).unwrap();
+    for pick in ["ring", "1", "RING"] {
+        ok(
+            dir.path(),
+            &[
+                "contours",
+                plan,
+                "-o",
+                "again.ply",
+                "--cap",
+                "flat",
+                "--ascii",
+                "--roi",
+                pick,
+            ],
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("again-ring.ply")).unwrap(),
+            first
+        );
+    }
+    let out = isocube(
+        dir.path(),
+        &["contours", plan, "-o", "x.ply", "--roi", "liver"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--roi liver") && err.contains("1 'ring', 7 'marker'"),
+        "{err}"
+    );
+    let out = isocube(
+        dir.path(),
+        &["contours", plan, "-o", "x.ply", "--roi", "marker"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no region of interest with CLOSED_PLANAR contours"),
+        "{err}"
+    );
+}

@@ -83,7 +83,7 @@ pub use contours::{
 };
 #[cfg(feature = "dicom")]
 #[cfg_attr(docsrs, doc(cfg(feature = "dicom")))]
-pub use dicom::read_dicom_series;
+pub use dicom::{read_dicom_series, read_rt_structure_set, read_rt_structure_set_bytes, RtRoi};
 pub use export::VertexValues;
 #[cfg(feature = "nifti")]
 pub use inflating::InflatingVolume;

@@ -17,11 +17,18 @@ use crate::Failure;
 #[derive(Debug, ClapArgs)]
 pub(crate) struct Args {
     /// A contour file (.csv with columns section,z,contour,x,y; .json; or .dxf with closed
-    /// LWPOLYLINE/POLYLINE entities, elevation as z), or `sample:orebody`.
+    /// LWPOLYLINE/POLYLINE entities, elevation as z), a DICOM RT Structure Set (.dcm: each
+    /// region of interest's CLOSED_PLANAR contours, in patient coordinates), or
+    /// `sample:orebody`.
     input: String,
-    /// Output mesh: .ply, .obj or .stl.
+    /// Output mesh: .ply, .obj or .stl. An RT Structure Set writes one mesh per region of
+    /// interest, named after it: `-o plan.ply` gives `plan-patient.ply`, …
     #[arg(long, short)]
     output: PathBuf,
+    /// RT Structure Sets: mesh only these regions of interest, by name or ROI number
+    /// (repeatable; default: every region with CLOSED_PLANAR contours).
+    #[arg(long, value_name = "NAME|NUMBER")]
+    roi: Vec<String>,
     #[command(flatten)]
     stack: StackArgs,
     /// The section-data paper's plain approach: crossings interpolated from the distances and no
@@ -181,9 +188,157 @@ fn parse_grid(s: &str) -> Result<[usize; 2], String> {
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
+    if is_dicom(&args.input) {
+        return run_structure_set(args, quiet);
+    }
+    if !args.roi.is_empty() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--roi picks regions of a DICOM RT Structure Set; {} is not one",
+            args.input
+        )));
+    }
     let stack = load_stack(&args.input, &args.output, &args.stack, quiet)?;
-    let plane = args.stack.plane(&stack)?;
-    let cap = args.stack.cap(&stack)?;
+    mesh_stack(args, &stack, &args.output, "", quiet)
+}
+
+/// Whether the input is a DICOM file (by extension, or by its marker).
+fn is_dicom(input: &str) -> bool {
+    let path = Path::new(input);
+    let by_name = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["dcm", "dicom"].contains(&e.to_ascii_lowercase().as_str()));
+    let mut magic = [0u8; 132];
+    by_name
+        || (path.is_file()
+            && std::fs::File::open(path)
+                .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+                .is_ok()
+            && &magic[128..] == b"DICM")
+}
+
+/// Each region of interest of an RT Structure Set (or those `--roi` names) to its own mesh.
+fn run_structure_set(args: &Args, quiet: bool) -> Result<(), Failure> {
+    let input = Path::new(&args.input);
+    let rois = isocube_io::read_rt_structure_set(input).map_err(|e| crate::io_failure(e, true))?;
+    let listing = || {
+        rois.iter()
+            .map(|r| format!("{} '{}'", r.number, r.name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut chosen = Vec::new();
+    for pick in &args.roi {
+        let found = rois.iter().position(|r| {
+            r.name.eq_ignore_ascii_case(pick) || pick.parse::<i64>().is_ok_and(|n| n == r.number)
+        });
+        match found {
+            Some(i) if !chosen.contains(&i) => chosen.push(i),
+            Some(_) => {}
+            None => {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "--roi {pick}: {} has no such region of interest (it has {})",
+                    args.input,
+                    listing()
+                )))
+            }
+        }
+    }
+    if chosen.is_empty() {
+        chosen = (0..rois.len()).collect();
+    }
+    let mut skipped = Vec::new();
+    let mut outputs = Vec::new();
+    for &i in &chosen {
+        let roi = &rois[i];
+        if roi.stack.is_none() {
+            let what = roi
+                .other
+                .iter()
+                .map(|(kind, n)| format!("{n} {kind}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            let what = if what.is_empty() {
+                "no contours".to_string()
+            } else {
+                what
+            };
+            skipped.push(format!("{} '{}' ({what})", roi.number, roi.name));
+            continue;
+        }
+        let output = roi_output(&args.output, roi);
+        crate::refuse_overwrite(&output, &[(input, "input")])?;
+        if outputs.contains(&output) {
+            return Err(Failure::input(anyhow::anyhow!(
+                "two regions of interest would both be written to {}",
+                output.display()
+            )));
+        }
+        outputs.push(output);
+    }
+    if outputs.is_empty() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "{}: no region of interest with CLOSED_PLANAR contours among {}",
+            args.input,
+            skipped.join(", ")
+        )));
+    }
+    let meshed = chosen.iter().filter(|&&i| rois[i].stack.is_some());
+    for (&i, output) in meshed.zip(&outputs) {
+        let roi = &rois[i];
+        let stack = roi.stack.as_ref().expect("chosen with contours");
+        mesh_stack(
+            args,
+            stack,
+            output,
+            &format!("ROI {} '{}': ", roi.number, roi.name),
+            quiet,
+        )?;
+    }
+    if !skipped.is_empty() && !quiet {
+        eprintln!(
+            "skipped (no CLOSED_PLANAR contours): {}",
+            skipped.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// `plan.ply` and ROI 'GTV 1' → `plan-GTV_1.ply` (the number when the name is empty).
+fn roi_output(output: &Path, roi: &isocube_io::RtRoi) -> PathBuf {
+    let name: String = roi
+        .name
+        .trim()
+        .chars()
+        .map(|c| {
+            if c.is_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let name = if name.is_empty() {
+        roi.number.to_string()
+    } else {
+        name
+    };
+    let stem = output.file_stem().and_then(|s| s.to_str()).unwrap_or("roi");
+    let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("ply");
+    output.with_file_name(format!("{stem}-{name}.{ext}"))
+}
+
+/// Reconstructs a stack's surface and writes it to `output`, with a summary line (after
+/// `label`) unless `quiet`.
+fn mesh_stack(
+    args: &Args,
+    stack: &SectionStack,
+    output: &Path,
+    label: &str,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let plane = args.stack.plane(stack)?;
+    let cap = args.stack.cap(stack)?;
     let started = Instant::now();
     let fidelity = if args.plain {
         Fidelity::Plain
@@ -196,24 +351,20 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     if let Some(limit) = MemoryLimit::or_default(args.max_memory) {
         options = options.with_max_memory(limit);
     }
-    let r = reconstruct_with(&stack, &plane, &options).map_err(|e| match e {
+    let r = reconstruct_with(stack, &plane, &options).map_err(|e| match e {
         ExtractError::MemoryLimit { .. } => Failure::input(anyhow::anyhow!(
             "{e}; use a coarser --grid or a larger --cell (or raise --max-memory)"
         )),
         e => Failure::input(e),
     })?;
     let elapsed = started.elapsed();
-    write_mesh(
-        &args.output,
-        &r.mesh,
-        &crate::write_options(args.ascii, true),
-    )
-    .map_err(|e| crate::io_failure(e, false))?;
+    write_mesh(output, &r.mesh, &crate::write_options(args.ascii, true))
+        .map_err(|e| crate::io_failure(e, false))?;
     if !quiet {
         let rep = r.mesh.report();
         eprintln!(
-            "{}: {} vertices, {} triangles, {} in {:.1} ms ({} sections, {}×{} plane grid, distance evaluated at {} of {} points){}",
-            args.output.display(),
+            "{label}{}: {} vertices, {} triangles, {} in {:.1} ms ({} sections, {}×{} plane grid, distance evaluated at {} of {} points){}",
+            output.display(),
             rep.vertices,
             rep.triangles,
             if rep.watertight && rep.oriented {

@@ -116,7 +116,36 @@ const MAX_DEPTH: usize = 24;
 /// transfer syntax by name. `limit` caps what a deflated data set may unpack to.
 pub(super) fn parse(path: &Path, bytes: &[u8], limit: u64) -> Result<DataSet, IoError> {
     if bytes.len() < 132 || &bytes[128..132] != b"DICM" {
-        return Err(IoError::format(path, Position::Byte(128), "no DICM marker"));
+        // Without the Part 10 header (preamble, marker, meta group) a file may still be a bare
+        // data set, as older systems and some planning exports write them: in the default
+        // transfer syntax, implicit VR little endian, or explicit. It opens with group 0008.
+        if bytes.len() >= 8 && bytes[..2] == [8, 0] {
+            let explicit = VRS.chunks(2).any(|v| v == &bytes[4..6]);
+            let (encoding, syntax) = if explicit {
+                (Encoding::EXPLICIT_LE, "1.2.840.10008.1.2.1")
+            } else {
+                (Encoding::IMPLICIT_LE, "1.2.840.10008.1.2")
+            };
+            let walker = Walker {
+                path,
+                data: bytes,
+                base: 0,
+            };
+            let mut pos = 0;
+            let nodes = walker.nodes(&mut pos, End::Eof, encoding, 0)?;
+            return Ok(DataSet {
+                data: bytes.to_vec(),
+                encoding,
+                syntax: syntax.to_string(),
+                compression: Compression::None,
+                nodes,
+            });
+        }
+        return Err(IoError::format(
+            path,
+            Position::Byte(128),
+            "no DICM marker (and not a bare data set opening with group 0008)",
+        ));
     }
     // The file meta group (0002) is always explicit VR little endian, and opens with its length
     // (UL), which says where the data set starts: it must be exact.

@@ -16,6 +16,9 @@
 
 mod elements;
 mod pixels;
+mod rtstruct;
+
+pub use rtstruct::{read_rt_structure_set, read_rt_structure_set_bytes, RtRoi};
 
 use std::path::{Path, PathBuf};
 

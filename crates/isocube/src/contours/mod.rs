@@ -571,6 +571,62 @@ fn cross(a: Point2, b: Point2) -> f64 {
     a[0] * b[1] - a[1] * b[0]
 }
 
+/// Splits a key-hole contour into the simple loops it traces. Planning systems (and scanners'
+/// region tools) draw a region with a hole as one polygon that runs in to the hole along a
+/// zero-width channel and back out along the same segment; [`Contour::new`] refuses that as
+/// self-touching. Each pair of segments that are the same two points in opposite directions is
+/// the channel: removing it leaves two loops (the outline and the hole), split further until
+/// no pair is left. Loops of fewer than three points (a channel's dead end) are dropped;
+/// consecutive repeated points are merged first. Holes are then found by even–odd, as for any
+/// section.
+///
+/// ```
+/// use isocube::contours::split_keyholes;
+/// // A 4 × 4 square with a 2 × 2 hole, reached by a channel from (0, 2) to (1, 2).
+/// let keyhole = vec![
+///     [0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0], [0.0, 2.0],
+///     [1.0, 2.0], [1.0, 3.0], [3.0, 3.0], [3.0, 1.0], [1.0, 1.0], [1.0, 2.0],
+///     [0.0, 2.0],
+/// ];
+/// let loops = split_keyholes(keyhole);
+/// assert_eq!(loops.len(), 2);
+/// // The outline (with the channel's end on its side) and the hole: 5 points each.
+/// assert_eq!(loops.iter().map(Vec::len).collect::<Vec<_>>(), [5, 5]);
+/// ```
+pub fn split_keyholes(points: Vec<Point2>) -> Vec<Vec<Point2>> {
+    let key = |p: Point2| (p[0].to_bits(), p[1].to_bits());
+    let mut todo = vec![points];
+    let mut loops = Vec::new();
+    while let Some(mut p) = todo.pop() {
+        p.dedup();
+        while p.len() > 1 && p.first() == p.last() {
+            p.pop();
+        }
+        let n = p.len();
+        if n < 3 {
+            continue;
+        }
+        // Each directed segment by its two ends; a segment whose reverse is there is a channel.
+        let segments: std::collections::HashMap<_, usize> = (0..n)
+            .map(|i| ((key(p[i]), key(p[(i + 1) % n])), i))
+            .collect();
+        let channel = (0..n).find_map(|i| {
+            let j = *segments.get(&(key(p[(i + 1) % n]), key(p[i])))?;
+            (j != i).then_some((i.min(j), i.max(j)))
+        });
+        match channel {
+            None => loops.push(p),
+            Some((i, j)) => {
+                // Without segments i and j: the points from i + 1 to j, and from j + 1 round to
+                // i (each closing on itself).
+                todo.push(p[i + 1..=j].to_vec());
+                todo.push(p[j + 1..].iter().chain(&p[..=i]).copied().collect());
+            }
+        }
+    }
+    loops
+}
+
 /// Distance from `p` to the segment `a–b`.
 pub fn segment_distance(p: Point2, a: Point2, b: Point2) -> f64 {
     let ab = sub(b, a);
