@@ -28,6 +28,7 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("dicom_jpeg", "dcm"),
     ("dicom_jpegls", "dcm"),
     ("dicom_j2k", "dcm"),
+    ("rtstruct", "dcm"),
     ("ply", "ply"),
     ("obj", "obj"),
     ("stl", "stl"),
@@ -90,6 +91,20 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
             }
         }
         "chunk_join" => join_parts(data),
+        // An RT Structure Set: read, or refused; what is read is finite and ordered.
+        "rtstruct" => {
+            let rois = io::read_rt_structure_set(read);
+            same_outcome(&rois, &io::read_rt_structure_set_bytes(data, read));
+            for roi in rois.iter().flatten() {
+                for section in roi.stack.iter().flat_map(|s| s.sections()) {
+                    assert!(section.z().is_finite());
+                    for c in section.contours() {
+                        assert!(c.points().len() >= 3);
+                        assert!(c.points().iter().flatten().all(|v| v.is_finite()));
+                    }
+                }
+            }
+        }
         "ply" | "obj" | "stl" | "off" => {
             let mesh = io::read_mesh(read);
             same_outcome(&mesh, &io::read_mesh_bytes(data, read));

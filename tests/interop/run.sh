@@ -94,3 +94,7 @@ done
 # DICOM files as pydicom ships them (CT, MR in seven encodings, NM JPEG 2000, RT Dose plain and
 # RLE): meshed from the file, and from the array pydicom decodes placed in patient coordinates.
 "$venv/bin/python" "$here/check_dicom.py" "$isocube" "$work/dicom"
+
+# NIfTI-2 and 4-d NIfTI as nibabel ships them: every frame (--frame) meshed from the file and
+# from the frame nibabel decodes, placed by the affine nibabel reads.
+"$venv/bin/python" "$here/check_nifti.py" "$isocube" "$work/nifti"

@@ -274,6 +274,57 @@ pub struct VolumeOptions {
     pub max_memory: Option<u64>,
 }
 
+/// Which 3-d volume of a file holding several (frames over time, channels): the options'
+/// `frame` and `channel`.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Pick {
+    pub frame: Option<usize>,
+    pub channel: Option<usize>,
+}
+
+impl Pick {
+    pub(crate) fn of(options: &VolumeOptions) -> Pick {
+        Pick {
+            frame: options.frame,
+            channel: options.channel,
+        }
+    }
+
+    /// The index along an axis of `n` entries (`--frame` or `--channel`, as `flag` says),
+    /// refusing a choice out of range, or none where there are several.
+    pub(crate) fn index(
+        path: &Path,
+        position: Position,
+        chosen: Option<usize>,
+        n: usize,
+        flag: &str,
+        what: &str,
+    ) -> Result<usize, IoError> {
+        match chosen {
+            Some(i) if i < n => Ok(i),
+            Some(i) if n <= 1 => Err(IoError::format(
+                path,
+                position,
+                format!("{flag} {i}: the file holds a single volume, with no {what}"),
+            )),
+            Some(i) => Err(IoError::format(
+                path,
+                position,
+                format!(
+                    "{flag} {i}: the file has {n} {what} (0 to {})",
+                    n.max(1) - 1
+                ),
+            )),
+            None if n <= 1 => Ok(0),
+            None => Err(IoError::unsupported(
+                path,
+                position,
+                format!("{n} {what}: choose one with {flag} (0 to {})", n - 1),
+            )),
+        }
+    }
+}
+
 /// The memory a volume reader may take, checked before each large allocation.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Budget {
@@ -383,7 +434,7 @@ pub fn read_volume_oriented(
         VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget)?,
         VolumeFormat::MetaImage => metaimage::read_metaimage_within(path, budget)?,
         VolumeFormat::Vti => vti::read_vti_within(path, budget)?,
-        VolumeFormat::Nifti => read_nifti_volume(path, budget)?,
+        VolumeFormat::Nifti => read_nifti_volume(path, budget, Pick::of(options))?,
         VolumeFormat::Tiff => identity(read_tiff_volume(path, budget)?),
         VolumeFormat::Raw(raw) => identity(raw::read_raw_within(path, raw, budget)?),
     };
@@ -438,7 +489,7 @@ pub fn read_volume_bytes(
         VolumeFormat::Nrrd => nrrd::read_nrrd_bytes(name, bytes, budget)?,
         VolumeFormat::MetaImage => metaimage::read_metaimage_bytes(name, bytes, budget)?,
         VolumeFormat::Vti => vti::read_vti_bytes(name, bytes, budget)?,
-        VolumeFormat::Nifti => read_nifti_bytes(name, bytes, budget)?,
+        VolumeFormat::Nifti => read_nifti_bytes(name, bytes, budget, Pick::of(options))?,
         VolumeFormat::Tiff => identity(read_tiff_bytes(name, bytes, budget)?),
         VolumeFormat::Raw(raw) => identity(raw::read_raw_bytes(name, bytes, raw, budget)?),
     };
@@ -633,13 +684,19 @@ fn read_nifti_bytes(
     path: &Path,
     bytes: &[u8],
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
-    nifti::read_nifti_bytes(path, bytes, budget)
+    nifti::read_nifti_bytes(path, bytes, budget, pick)
 }
 
 #[cfg(not(feature = "nifti"))]
-fn read_nifti_bytes(path: &Path, _: &[u8], budget: Budget) -> Result<(Grid, Orientation), IoError> {
-    read_nifti_volume(path, budget)
+fn read_nifti_bytes(
+    path: &Path,
+    _: &[u8],
+    budget: Budget,
+    pick: Pick,
+) -> Result<(Grid, Orientation), IoError> {
+    read_nifti_volume(path, budget, pick)
 }
 
 #[cfg(feature = "tiff")]
@@ -658,12 +715,16 @@ fn read_tiff_bytes(path: &Path, _: &[u8], budget: Budget) -> Result<Grid, IoErro
 }
 
 #[cfg(feature = "nifti")]
-fn read_nifti_volume(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
-    nifti::read_nifti_within(path, budget)
+fn read_nifti_volume(
+    path: &Path,
+    budget: Budget,
+    pick: Pick,
+) -> Result<(Grid, Orientation), IoError> {
+    nifti::read_nifti_within(path, budget, pick)
 }
 
 #[cfg(not(feature = "nifti"))]
-fn read_nifti_volume(path: &Path, _: Budget) -> Result<(Grid, Orientation), IoError> {
+fn read_nifti_volume(path: &Path, _: Budget, _: Pick) -> Result<(Grid, Orientation), IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,
@@ -850,6 +911,55 @@ mod tests {
                 let _ = read_volume_oriented(&series, &VolumeOptions::default());
             }
         }
+    }
+
+    /// 4-d and 5-d NIfTI (`tests/interop/make_nifti.py`): `frame` and `channel` pick one 3-d
+    /// volume, from the file, its bytes and a gzip file alike; without a choice the error names
+    /// `--frame` (or `--channel`) and the range, and a choice out of range is refused.
+    #[test]
+    #[cfg(feature = "nifti")]
+    fn nifti_frames_and_channels_are_picked() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+        let at = |g: &Grid, i: usize, j: usize, k: usize| g.values()[g.index(i, j, k)];
+        let pick = |frame: Option<usize>, channel: Option<usize>| VolumeOptions {
+            frame,
+            channel,
+            ..VolumeOptions::default()
+        };
+        let frames = dir.join("frames.nii");
+        let bytes = std::fs::read(&frames).unwrap();
+        for t in 0..3 {
+            let (g, _) = read_volume_oriented(&frames, &pick(Some(t), None)).unwrap();
+            assert_eq!(g.dims(), [12, 10, 8]);
+            assert_eq!(g.spacing(), [1.0, 2.0, 3.0]);
+            assert_eq!(at(&g, 3, 2, 1), (100 + 3 + 20 + 100 + 1000 * t) as f32);
+            let (b, _) = read_volume_bytes(&bytes, &frames, &pick(Some(t), None)).unwrap();
+            assert_eq!(b, g);
+        }
+        let e = read_volume_oriented(&frames, &pick(None, None))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("3 frames (dim[4]): choose one with --frame (0 to 2)"),
+            "{e}"
+        );
+        let e = read_volume_oriented(&frames, &pick(Some(3), None))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--frame 3: the file has 3 frames"), "{e}");
+        let channels = dir.join("channels.nii.gz");
+        for (t, c) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (g, _) = read_volume_oriented(&channels, &pick(Some(t), Some(c))).unwrap();
+            let want = 100 + 11 + 10 * 9 + 100 * 7 + 1000 * t + 10000 * c;
+            assert_eq!(at(&g, 11, 9, 7), want as f32, "{t} {c}");
+        }
+        let e = read_volume_oriented(&channels, &pick(Some(0), None))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("2 channels (dim[5]): choose one with --channel (0 to 1)"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -1,8 +1,11 @@
-//! NIfTI-1 volumes (`.nii`, `.nii.gz`, and `.hdr`/`.img` pairs) through the `nifti` crate, with
-//! the file's index-to-world map: the `sform` when its code is set, else the `qform`
-//! (quaternion, `qfac`, voxel sizes and offset), else the voxel sizes alone (NIfTI's "method
-//! 1"). World coordinates are the file's (RAS+ by the format's convention). Values go through
-//! `scl_slope` and `scl_inter` when the slope is not zero.
+//! NIfTI-1 volumes (`.nii`, `.nii.gz`, and `.hdr`/`.img` pairs) through the `nifti` crate, and
+//! single-file NIfTI-2 (`.nii`, `.nii.gz`: 540-byte header, 64-bit sizes, double-precision
+//! geometry), which that crate does not read, by hand. The file's index-to-world map: the
+//! `sform` when its code is set, else the `qform` (quaternion, `qfac`, voxel sizes and offset),
+//! else the voxel sizes alone (NIfTI's "method 1"). World coordinates are the file's (RAS+ by
+//! the format's convention). Values go through `scl_slope` and `scl_inter` when the slope is
+//! not zero. Of a 4-d or 5-d file one 3-d volume is read: the frame (`dim[4]`, time) and
+//! channel (`dim[5]`, vector components) the caller picks.
 
 use std::io::Read;
 use std::path::Path;
@@ -11,13 +14,13 @@ use nifti::{InMemNiftiObject, IntoNdArray, NiftiHeader, NiftiObject, ReaderOptio
 
 use super::mapped::Placement;
 use super::raw::{decode_into, Endian, ScalarType};
-use super::{Budget, IoError, Position};
+use super::{Budget, IoError, Pick, Position};
 use isocube::field::{Grid, Orientation};
 
 /// Reads a NIfTI-1 volume and its orientation. The grid's spacing and origin are the lengths of
 /// the index-to-world map's columns and its translation; the orientation is the rest.
 pub fn read_nifti(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    read_nifti_within(path, Budget::UNLIMITED)
+    read_nifti_within(path, Budget::UNLIMITED, Pick::default())
 }
 
 /// Reads the header on its own (from a `.nii.gz`, only the bytes it takes are unpacked) and
@@ -54,6 +57,12 @@ fn check_stream(
     } else {
         Box::new(reader)
     };
+    let mut first = [0u8; 4];
+    if reader.read_exact(&mut first).is_ok() && is_nifti2(first) {
+        // NIfTI-2's reader makes its own checks as it reads the header.
+        return Ok(());
+    }
+    let mut reader = std::io::Cursor::new(first).chain(reader);
     let header = NiftiHeader::from_reader(&mut reader).map_err(|e| match e {
         nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
             IoError::format(path, Position::File, "the file ends inside its header")
@@ -196,16 +205,37 @@ fn check_extensions(
 pub(super) fn read_nifti_within(
     path: &Path,
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
-    check_size(path, budget)?;
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
-    if let Some(read) = read_stored(path, std::io::BufReader::with_capacity(1 << 20, file))? {
-        return Ok(read);
+    let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
+    let mut stream = stored(path, std::io::BufReader::with_capacity(1 << 20, file));
+    let mut first = [0u8; 4];
+    stream
+        .read_exact(&mut first)
+        .map_err(|e| stream_error(path, e))?;
+    if is_nifti2(first) {
+        let known = (!gzipped(path)).then_some(len);
+        return read_nifti2(
+            path,
+            std::io::Cursor::new(first).chain(stream),
+            known,
+            budget,
+            pick,
+        );
+    }
+    drop(stream);
+    check_size(path, budget)?;
+    if pick.frame.unwrap_or(0) == 0 && pick.channel.unwrap_or(0) == 0 {
+        let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
+        if let Some(read) = read_stored(path, std::io::BufReader::with_capacity(1 << 20, file))? {
+            return Ok(read);
+        }
     }
     let object = ReaderOptions::new()
         .read_file(path)
         .map_err(|e| nifti_error(path, e))?;
-    finish(path, object)
+    finish(path, object, pick)
 }
 
 /// [`read_nifti_within`] on a single-file NIfTI (`.nii`, or `.nii.gz` when `path` ends so)
@@ -214,10 +244,28 @@ pub(super) fn read_nifti_bytes(
     path: &Path,
     bytes: &[u8],
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
+    let mut stream = stored(path, bytes);
+    let mut first = [0u8; 4];
+    stream
+        .read_exact(&mut first)
+        .map_err(|e| stream_error(path, e))?;
+    if is_nifti2(first) {
+        let known = (!gzipped(path)).then_some(bytes.len() as u64);
+        return read_nifti2(
+            path,
+            std::io::Cursor::new(first).chain(stream),
+            known,
+            budget,
+            pick,
+        );
+    }
     check_header(path, bytes, bytes.len() as u64, budget)?;
-    if let Some(read) = read_stored(path, bytes)? {
-        return Ok(read);
+    if pick.frame.unwrap_or(0) == 0 && pick.channel.unwrap_or(0) == 0 {
+        if let Some(read) = read_stored(path, bytes)? {
+            return Ok(read);
+        }
     }
     let object = if gzipped(path) {
         InMemNiftiObject::from_reader(flate2::read::MultiGzDecoder::new(bytes))
@@ -225,7 +273,265 @@ pub(super) fn read_nifti_bytes(
         InMemNiftiObject::from_reader(bytes)
     }
     .map_err(|e| nifti_error(path, e))?;
-    finish(path, object)
+    finish(path, object, pick)
+}
+
+/// A file's bytes as stored, inflated on the way when `path` names a gzip file.
+fn stored<'a>(path: &Path, reader: impl Read + 'a) -> Box<dyn Read + 'a> {
+    if gzipped(path) {
+        Box::new(flate2::read::MultiGzDecoder::new(reader))
+    } else {
+        Box::new(reader)
+    }
+}
+
+/// Whether a header's first four bytes (`sizeof_hdr`) say NIfTI-2, in either byte order.
+fn is_nifti2(first: [u8; 4]) -> bool {
+    i32::from_le_bytes(first) == 540 || i32::from_be_bytes(first) == 540
+}
+
+/// The 3-d volume `pick` chooses among the frames (`dim[4]`) and channels (`dim[5]`) that
+/// follow the spatial axes (`extra`: `dim[4..=rank]`): its index in the file's order of
+/// volumes (frames fastest).
+fn volume_index(path: &Path, extra: &[u64], pick: Pick) -> Result<u64, IoError> {
+    let dim = || Position::Field("dim".into());
+    let n = |a: usize| extra.get(a).copied().unwrap_or(1).max(1);
+    if let Some(a) = (2..extra.len()).find(|&a| n(a) > 1) {
+        return Err(IoError::unsupported(
+            path,
+            dim(),
+            format!(
+                "dim[{}] = {}: isocube picks a volume by frame (dim[4]) and channel (dim[5]) only",
+                a + 4,
+                n(a)
+            ),
+        ));
+    }
+    let to = |x: u64| usize::try_from(x).unwrap_or(usize::MAX);
+    let frame = Pick::index(
+        path,
+        dim(),
+        pick.frame,
+        to(n(0)),
+        "--frame",
+        "frames (dim[4])",
+    )?;
+    let channel = Pick::index(
+        path,
+        dim(),
+        pick.channel,
+        to(n(1)),
+        "--channel",
+        "channels (dim[5])",
+    )?;
+    Ok(frame as u64 + n(0) * channel as u64)
+}
+
+/// A single-file NIfTI-2 volume from its stream (inflating when gzip): header, extensions
+/// skipped to `vox_offset`, the picked volume's values. `len` is the file's length when known
+/// (not compressed), to refuse data the file cannot hold before reading.
+fn read_nifti2(
+    path: &Path,
+    mut stream: impl Read,
+    len: Option<u64>,
+    budget: Budget,
+    pick: Pick,
+) -> Result<(Grid, Orientation), IoError> {
+    let field = |name: &str| Position::Field(name.into());
+    let mut h = [0u8; 540];
+    stream
+        .read_exact(&mut h)
+        .map_err(|e| stream_error(path, e))?;
+    let big = i32::from_be_bytes([h[0], h[1], h[2], h[3]]) == 540;
+    let endian = if big { Endian::Big } else { Endian::Little };
+    let b8 = |at: usize| -> [u8; 8] { std::array::from_fn(|i| h[at + i]) };
+    let i64_at = |at: usize| {
+        if big {
+            i64::from_be_bytes(b8(at))
+        } else {
+            i64::from_le_bytes(b8(at))
+        }
+    };
+    let f64_at = |at: usize| {
+        if big {
+            f64::from_be_bytes(b8(at))
+        } else {
+            f64::from_le_bytes(b8(at))
+        }
+    };
+    let i16_at = |at: usize| {
+        let b = [h[at], h[at + 1]];
+        if big {
+            i16::from_be_bytes(b)
+        } else {
+            i16::from_le_bytes(b)
+        }
+    };
+    let i32_at = |at: usize| {
+        let b = [h[at], h[at + 1], h[at + 2], h[at + 3]];
+        if big {
+            i32::from_be_bytes(b)
+        } else {
+            i32::from_le_bytes(b)
+        }
+    };
+    match &h[4..12] {
+        b"n+2\0\r\n\x1a\n" => {}
+        b"ni2\0\r\n\x1a\n" => return Err(IoError::unsupported(
+            path,
+            field("magic"),
+            "a NIfTI-2 header with its data in a separate .img: isocube reads single-file NIfTI-2",
+        )),
+        other => {
+            return Err(IoError::format(
+                path,
+                field("magic"),
+                format!("{other:?}: not NIfTI-2's \"n+2\\0\\r\\n\\x1a\\n\""),
+            ))
+        }
+    }
+    let dim: [i64; 8] = std::array::from_fn(|i| i64_at(16 + 8 * i));
+    let rank = dim[0];
+    if !(1..=7).contains(&rank) {
+        return Err(IoError::format(
+            path,
+            field("dim"),
+            format!("dim[0] = {rank}: the rank must be 1 to 7"),
+        ));
+    }
+    let rank = rank as usize;
+    if dim[1..=rank].iter().any(|&d| d < 1) {
+        return Err(IoError::format(
+            path,
+            field("dim"),
+            format!(
+                "{:?}: every axis up to dim[0] needs at least one point",
+                &dim[1..=rank]
+            ),
+        ));
+    }
+    let (datatype, bitpix) = (i16_at(12), i16_at(14));
+    let scalar = match datatype {
+        2 => ScalarType::U8,
+        256 => ScalarType::I8,
+        4 => ScalarType::I16,
+        512 => ScalarType::U16,
+        8 => ScalarType::I32,
+        768 => ScalarType::U32,
+        1024 => ScalarType::I64,
+        1280 => ScalarType::U64,
+        16 => ScalarType::F32,
+        64 => ScalarType::F64,
+        other => {
+            return Err(IoError::unsupported(
+                path,
+                field("datatype"),
+                format!("datatype {other}: isocube reads one integer or real scalar per voxel"),
+            ))
+        }
+    };
+    if bitpix as usize != 8 * scalar.size() {
+        return Err(IoError::format(
+            path,
+            field("bitpix"),
+            format!(
+                "{bitpix} bits, datatype {datatype} has {}",
+                8 * scalar.size()
+            ),
+        ));
+    }
+    let axis = |a: usize| if a <= rank { dim[a] as u64 } else { 1 };
+    let extra: Vec<u64> = (4..=rank).map(|a| dim[a] as u64).collect();
+    let index = volume_index(path, &extra, pick)?;
+    let count = (1..=3).try_fold(1u64, |n, a| n.checked_mul(axis(a)));
+    let volumes = extra.iter().try_fold(1u64, |n, &d| n.checked_mul(d));
+    let too_big = || IoError::format(path, field("dim"), "the volume's size overflows");
+    let count = count.ok_or_else(too_big)?;
+    let volume_bytes = count
+        .checked_mul(scalar.size() as u64)
+        .ok_or_else(too_big)?;
+    let all_bytes = volumes
+        .and_then(|v| v.checked_mul(volume_bytes))
+        .ok_or_else(too_big)?;
+    let vox_offset = i64_at(168);
+    if vox_offset < 544 {
+        return Err(IoError::format(
+            path,
+            field("vox_offset"),
+            format!("{vox_offset}: NIfTI-2 data start at byte 544 or later"),
+        ));
+    }
+    let vox_offset = vox_offset as u64;
+    if let Some(len) = len {
+        if vox_offset.saturating_add(all_bytes) > len {
+            return Err(IoError::format(
+                path,
+                field("dim"),
+                format!(
+                    "{:?} voxels of {bitpix} bits need {all_bytes} bytes from byte {vox_offset}, the file has {len}",
+                    &dim[1..=rank]
+                ),
+            ));
+        }
+    }
+    budget.check(
+        path,
+        field("dim"),
+        volume_bytes.saturating_add(count.saturating_mul(4)),
+    )?;
+    let dims = [1, 2, 3].map(|a| axis(a) as usize);
+    let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
+    let geometry = Geometry {
+        sform_code: i32_at(348),
+        qform_code: i32_at(344),
+        srow: std::array::from_fn(|r| std::array::from_fn(|c| f64_at(400 + 32 * r + 8 * c))),
+        quatern: [f64_at(352), f64_at(360), f64_at(368)],
+        qoffset: [f64_at(376), f64_at(384), f64_at(392)],
+        pixdim: std::array::from_fn(|i| f64_at(104 + 8 * i)),
+    };
+    let (slope, intercept) = (f64_at(176), f64_at(184));
+    let skip = vox_offset - 540 + index * volume_bytes;
+    let skipped = std::io::copy(&mut (&mut stream).take(skip), &mut std::io::sink())
+        .map_err(|e| stream_error(path, e))?;
+    if skipped < skip {
+        return Err(IoError::format(
+            path,
+            Position::File,
+            "the file ends before its data",
+        ));
+    }
+    let mut raw = vec![0u8; count * scalar.size()];
+    stream
+        .read_exact(&mut raw)
+        .map_err(|e| stream_error(path, e))?;
+    let mut values = vec![0.0f32; count];
+    decode_into(&raw, scalar, endian, &mut values);
+    if slope != 0.0
+        && slope.is_finite()
+        && intercept.is_finite()
+        && (slope != 1.0 || intercept != 0.0)
+    {
+        values
+            .iter_mut()
+            .for_each(|v| *v = (f64::from(*v) * slope + intercept) as f32);
+    }
+    let (linear, origin) = geometry.index_to_world();
+    let (spacing, orientation) = Orientation::from_linear(linear).ok_or_else(|| {
+        IoError::format(
+            path,
+            field(if geometry.sform_code > 0 {
+                "srow"
+            } else {
+                "pixdim"
+            }),
+            "the index-to-world map is singular or not finite",
+        )
+    })?;
+    let grid = Grid::new(dims, values)
+        .and_then(|g| g.with_spacing(spacing))
+        .and_then(|g| g.with_origin(origin))
+        .map_err(|e| IoError::grid(path, e))?;
+    Ok((grid, orientation))
 }
 
 fn nifti_error(path: &Path, e: nifti::NiftiError) -> IoError {
@@ -254,6 +560,10 @@ pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, 
 
 /// [`placement`] from the header's bytes (up to `vox_offset`) of a file holding `len` bytes.
 fn placement_within(path: &Path, bytes: &[u8], len: u64) -> Result<Option<Placement>, IoError> {
+    // NIfTI-2 is read whole (its reader picks the volume on the way).
+    if bytes.len() >= 4 && is_nifti2([bytes[0], bytes[1], bytes[2], bytes[3]]) {
+        return Ok(None);
+    }
     check_stream(path, false, bytes, len, Budget::UNLIMITED)?;
     let header = NiftiHeader::from_reader(bytes).map_err(|e| nifti_error(path, e))?;
     let dim = header.dim;
@@ -300,7 +610,7 @@ fn placement_within(path: &Path, bytes: &[u8], len: u64) -> Result<Option<Placem
         endian,
         dims,
         spacing,
-        origin: index_to_world(&header).1,
+        origin: Geometry::of(&header).index_to_world().1,
         orientation,
         scale,
     }))
@@ -373,6 +683,9 @@ pub(super) fn read_head(path: &Path, stream: &mut impl Read) -> Result<Option<Pl
     let corrupt = |e| stream_error(path, e);
     let mut head = vec![0u8; 348];
     stream.read_exact(&mut head).map_err(corrupt)?;
+    if is_nifti2([head[0], head[1], head[2], head[3]]) {
+        return Ok(None);
+    }
     let vox_offset = f32::from_le_bytes([head[108], head[109], head[110], head[111]]);
     let swapped = f32::from_be_bytes([head[108], head[109], head[110], head[111]]);
     // The header's byte order is not known yet: take the offset that makes sense.
@@ -388,7 +701,7 @@ pub(super) fn read_head(path: &Path, stream: &mut impl Read) -> Result<Option<Pl
 
 /// Spacing and orientation from the index-to-world map.
 fn world(path: &Path, header: &NiftiHeader) -> Result<([f64; 3], Orientation), IoError> {
-    let (linear, _) = index_to_world(header);
+    let (linear, _) = Geometry::of(header).index_to_world();
     Orientation::from_linear(linear).ok_or_else(|| {
         IoError::format(
             path,
@@ -405,8 +718,13 @@ fn world(path: &Path, header: &NiftiHeader) -> Result<([f64; 3], Orientation), I
     })
 }
 
-/// The grid and orientation of a NIfTI object the checks above let through.
-fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), IoError> {
+/// The grid and orientation of a NIfTI object the checks above let through: its one 3-d
+/// volume, or the one `pick` chooses of a 4-d or 5-d file.
+fn finish(
+    path: &Path,
+    object: InMemNiftiObject,
+    pick: Pick,
+) -> Result<(Grid, Orientation), IoError> {
     let fail = |reason: String| IoError::format(path, Position::File, reason);
     let header = object.header().clone();
     let dim = header.dim;
@@ -418,17 +736,8 @@ fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), 
             format!("dim[0] = {rank}: the rank must be 1 to 7"),
         ));
     }
-    let extra: usize = dim[4..=rank.max(3)]
-        .iter()
-        .map(|&d| usize::from(d.max(1)))
-        .product();
-    if rank > 3 && extra != 1 {
-        return Err(IoError::unsupported(
-            path,
-            Position::Field("dim".into()),
-            format!("a {rank}-d volume with {extra} frames: isocube meshes one 3-d volume"),
-        ));
-    }
+    let extra: Vec<u64> = (4..=rank).map(|a| u64::from(dim[a].max(1))).collect();
+    let index = volume_index(path, &extra, pick)?;
     let dims: [usize; 3] = std::array::from_fn(|a| {
         if a < rank {
             usize::from(dim[a + 1]).max(1)
@@ -441,9 +750,19 @@ fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), 
         .into_ndarray::<f32>()
         .map_err(|e| fail(format!("cannot decode the voxels: {e}")))?;
     // The array's axes are the file's (x fastest on disk); walking the transposed view visits
-    // k, then j, then i, whatever the memory order.
-    let values: Vec<f32> = array.t().iter().copied().collect();
-    let origin = index_to_world(&header).1;
+    // the volumes in turn (frames fastest, then channels), each k, then j, then i, whatever the
+    // memory order.
+    let count = dims[0] * dims[1] * dims[2];
+    let volume: Vec<f32> = array
+        .t()
+        .iter()
+        .skip(index as usize * count)
+        .take(count)
+        .copied()
+        .collect();
+    let values: Vec<f32> = volume;
+    let geometry = Geometry::of(&header);
+    let origin = geometry.index_to_world().1;
     let (spacing, orientation) = world(path, &header)?;
     let grid = Grid::new(dims, values)
         .and_then(|g| g.with_spacing(spacing))
@@ -452,58 +771,80 @@ fn finish(path: &Path, object: InMemNiftiObject) -> Result<(Grid, Orientation), 
     Ok((grid, orientation))
 }
 
-/// The index-to-world map: rows of its 3 × 3 part, and its translation.
-fn index_to_world(h: &nifti::NiftiHeader) -> ([[f64; 3]; 3], [f64; 3]) {
-    let f = f64::from;
-    if h.sform_code > 0 {
-        let rows = [h.srow_x, h.srow_y, h.srow_z];
-        return (
-            rows.map(|r| [f(r[0]), f(r[1]), f(r[2])]),
-            rows.map(|r| f(r[3])),
-        );
-    }
-    let pixdim = h.pixdim.map(f);
-    if h.qform_code > 0 {
-        let (b, c, d) = (f(h.quatern_b), f(h.quatern_c), f(h.quatern_d));
-        let a = (1.0 - b * b - c * c - d * d).max(0.0).sqrt();
-        let r = [
-            [
-                a * a + b * b - c * c - d * d,
-                2.0 * (b * c - a * d),
-                2.0 * (b * d + a * c),
-            ],
-            [
-                2.0 * (b * c + a * d),
-                a * a + c * c - b * b - d * d,
-                2.0 * (c * d - a * b),
-            ],
-            [
-                2.0 * (b * d - a * c),
-                2.0 * (c * d + a * b),
-                a * a + d * d - b * b - c * c,
-            ],
-        ];
-        let qfac = if pixdim[0] < 0.0 { -1.0 } else { 1.0 };
-        let scale = [pixdim[1], pixdim[2], qfac * pixdim[3]];
-        return (
-            r.map(|row| std::array::from_fn(|col| row[col] * scale[col])),
-            [f(h.quatern_x), f(h.quatern_y), f(h.quatern_z)],
-        );
-    }
-    // Voxel sizes alone; a size left at zero (as some writers do) counts as 1.
-    let size = |x: f64| {
-        if x.is_finite() && x != 0.0 {
-            x.abs()
-        } else {
-            1.0
+/// A header's geometry fields (NIfTI-1's in `f32`, NIfTI-2's in `f64`).
+struct Geometry {
+    sform_code: i32,
+    qform_code: i32,
+    srow: [[f64; 4]; 3],
+    quatern: [f64; 3],
+    qoffset: [f64; 3],
+    pixdim: [f64; 8],
+}
+
+impl Geometry {
+    fn of(h: &NiftiHeader) -> Geometry {
+        let f = f64::from;
+        Geometry {
+            sform_code: i32::from(h.sform_code),
+            qform_code: i32::from(h.qform_code),
+            srow: [h.srow_x, h.srow_y, h.srow_z].map(|r| r.map(f)),
+            quatern: [f(h.quatern_b), f(h.quatern_c), f(h.quatern_d)],
+            qoffset: [f(h.quatern_x), f(h.quatern_y), f(h.quatern_z)],
+            pixdim: h.pixdim.map(f),
         }
-    };
-    (
-        [
-            [size(pixdim[1]), 0.0, 0.0],
-            [0.0, size(pixdim[2]), 0.0],
-            [0.0, 0.0, size(pixdim[3])],
-        ],
-        [0.0; 3],
-    )
+    }
+
+    /// The index-to-world map: rows of its 3 × 3 part, and its translation.
+    fn index_to_world(&self) -> ([[f64; 3]; 3], [f64; 3]) {
+        if self.sform_code > 0 {
+            return (
+                self.srow.map(|r| [r[0], r[1], r[2]]),
+                self.srow.map(|r| r[3]),
+            );
+        }
+        let pixdim = self.pixdim;
+        if self.qform_code > 0 {
+            let [b, c, d] = self.quatern;
+            let a = (1.0 - b * b - c * c - d * d).max(0.0).sqrt();
+            let r = [
+                [
+                    a * a + b * b - c * c - d * d,
+                    2.0 * (b * c - a * d),
+                    2.0 * (b * d + a * c),
+                ],
+                [
+                    2.0 * (b * c + a * d),
+                    a * a + c * c - b * b - d * d,
+                    2.0 * (c * d - a * b),
+                ],
+                [
+                    2.0 * (b * d - a * c),
+                    2.0 * (c * d + a * b),
+                    a * a + d * d - b * b - c * c,
+                ],
+            ];
+            let qfac = if pixdim[0] < 0.0 { -1.0 } else { 1.0 };
+            let scale = [pixdim[1], pixdim[2], qfac * pixdim[3]];
+            return (
+                r.map(|row| std::array::from_fn(|col| row[col] * scale[col])),
+                self.qoffset,
+            );
+        }
+        // Voxel sizes alone; a size left at zero (as some writers do) counts as 1.
+        let size = |x: f64| {
+            if x.is_finite() && x != 0.0 {
+                x.abs()
+            } else {
+                1.0
+            }
+        };
+        (
+            [
+                [size(pixdim[1]), 0.0, 0.0],
+                [0.0, size(pixdim[2]), 0.0],
+                [0.0, 0.0, size(pixdim[3])],
+            ],
+            [0.0; 3],
+        )
+    }
 }

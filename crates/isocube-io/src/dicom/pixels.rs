@@ -278,7 +278,66 @@ fn check_size(fmt: &PixelFormat, width: usize, height: usize) -> Result<(), Stri
     Ok(())
 }
 
+/// The image size a JPEG or JPEG-LS stream's frame header declares (width, height), read
+/// before any decoder sees the stream: decoders reserve what the header says, so a frame
+/// header that disagrees with Rows and Columns is refused first.
+fn jpeg_frame_size(bytes: &[u8]) -> Result<(usize, usize), String> {
+    if bytes.get(..2) != Some(&[0xFF, 0xD8]) {
+        return Err("the stream does not open with a JPEG start of image".into());
+    }
+    let mut at = 2;
+    loop {
+        // Markers may be preceded by fill bytes (0xFF).
+        while bytes.get(at) == Some(&0xFF) && bytes.get(at + 1) == Some(&0xFF) {
+            at += 1;
+        }
+        let (Some(&0xFF), Some(&marker)) = (bytes.get(at), bytes.get(at + 1)) else {
+            return Err(format!("no frame header before byte {at}"));
+        };
+        let len = bytes
+            .get(at + 2..at + 4)
+            .map(|b| usize::from(u16::from_be_bytes([b[0], b[1]])))
+            .ok_or("the stream ends inside a marker segment")?;
+        let frame = matches!(marker, 0xC0..=0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF | 0xF7);
+        if frame {
+            let header = bytes
+                .get(at + 4..at + 9)
+                .ok_or("the stream ends inside its frame header")?;
+            let height = usize::from(u16::from_be_bytes([header[1], header[2]]));
+            let width = usize::from(u16::from_be_bytes([header[3], header[4]]));
+            return Ok((width, height));
+        }
+        if marker == 0xDA || marker == 0xD9 || len < 2 {
+            return Err("no frame header before the scan".into());
+        }
+        at += 2 + len;
+    }
+}
+
+/// The image size a JPEG 2000 codestream's SIZ segment declares, read before decoding (see
+/// [`jpeg_frame_size`]).
+fn j2k_size(bytes: &[u8]) -> Result<(usize, usize), String> {
+    let siz = match bytes.get(..4) {
+        Some([0xFF, 0x4F, 0xFF, 0x51]) => bytes.get(4..24),
+        _ => return Err("not a JPEG 2000 codestream (SOC, SIZ)".into()),
+    }
+    .ok_or("the codestream ends inside its SIZ segment")?;
+    let word = |i: usize| {
+        u64::from(u32::from_be_bytes([
+            siz[i],
+            siz[i + 1],
+            siz[i + 2],
+            siz[i + 3],
+        ]))
+    };
+    let (x, y, x0, y0) = (word(4), word(8), word(12), word(16));
+    let size = |a: u64, b: u64| usize::try_from(a.saturating_sub(b)).unwrap_or(usize::MAX);
+    Ok((size(x, x0), size(y, y0)))
+}
+
 fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let (width, height) = jpeg_frame_size(bytes).map_err(|e| format!("JPEG: {e}"))?;
+    check_size(fmt, width, height)?;
     let mut decoder = jpeg_decoder::Decoder::new(bytes);
     let pixels = decoder.decode().map_err(|e| match e {
         // jpeg-decoder (the one maintained Rust decoder with lossless JPEG) reads lossy JPEG of
@@ -309,6 +368,8 @@ fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
 }
 
 fn jpeg_ls(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let (width, height) = jpeg_frame_size(bytes).map_err(|e| format!("JPEG-LS: {e}"))?;
+    check_size(fmt, width, height)?;
     let (samples, width, height) = jpegls::decode(bytes, fmt.cols as u32, fmt.rows as u32)
         .map_err(|e| format!("JPEG-LS: {e}"))?;
     check_size(fmt, width as usize, height as usize)?;
@@ -326,6 +387,8 @@ fn jpeg_ls(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
 }
 
 fn jpeg2000(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
+    let (width, height) = j2k_size(bytes).map_err(|e| format!("JPEG 2000: {e}"))?;
+    check_size(fmt, width, height)?;
     let image = jpeg2k::Image::from_bytes(bytes).map_err(|e| format!("JPEG 2000: {e}"))?;
     let [component] = image.components() else {
         return Err(format!(
