@@ -179,3 +179,44 @@ print(
     f"rtstruct.dcm: ROI 'patient' {len(surface.faces)} triangles, watertight, every contour vertex "
     f"within {far:.1e} (diagonal {diagonal:.1f} mm); POINT ROIs skipped"
 )
+
+# pydicom's DICOM SEG (BINARY, 1 bit per pixel; a liver segment on 512 × 512 CT pixels), cut
+# down to one frame there: made a three-frame file (its functional groups already place three
+# frames 1 mm apart) by repeating the frame. `--labels` meshes segment 1, named, from the file;
+# the reference is the array pydicom decodes, as labels, placed by the frames' positions.
+liver = pydicom.dcmread(get_testdata_file("liver_1frame.dcm"))
+assert liver.SegmentationType == "BINARY" and len(liver.PerFrameFunctionalGroupsSequence) == 3
+liver.NumberOfFrames = 3
+liver.PixelData = liver.PixelData * 3
+liver.save_as(work / "liver3.dcm")
+seg = pydicom.dcmread(work / "liver3.dcm")
+masks = seg.pixel_array.astype(np.float32)  # [frame, row, column]
+groups = seg.PerFrameFunctionalGroupsSequence
+shared = seg.SharedFunctionalGroupsSequence[0] if "SharedFunctionalGroupsSequence" in seg else groups[0]
+iop = np.array(shared.PlaneOrientationSequence[0].ImageOrientationPatient, float)
+spacing = [float(s) for s in shared.PixelMeasuresSequence[0].PixelSpacing]
+positions = np.array([g.PlanePositionSequence[0].ImagePositionPatient for g in groups], float)
+normal = np.cross(iop[:3], iop[3:])
+order = np.argsort(positions @ normal)
+labels = masks[order].transpose(2, 1, 0)  # [x, y, z]; the frames' segment is 1
+np.save(work / "liver.npy", labels)
+linear = np.stack([iop[:3] * spacing[1], iop[3:] * spacing[0], positions[order[1]] - positions[order[0]]], axis=1)
+for smooth in ["0", "60"]:
+    run = subprocess.run(
+        [isocube, "extract", str(work / "liver3.dcm"), "--labels", "--smooth", smooth, "-o", str(work / "liver.ply")],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0 and "label 1 'Liver'" in run.stderr, run.stderr
+    subprocess.run(
+        [isocube, "extract", str(work / "liver.npy"), "--labels", "--smooth", smooth, "--index-space", "-q", "-o", str(work / "ref.ply")],
+        check=True,
+    )
+    mine = trimesh.load(work / "liver-1.ply", process=False)
+    ref = trimesh.load(work / "ref-1.ply", process=False)
+    placed = np.asarray(ref.vertices, float) @ linear.T + positions[order[0]]
+    voxel = min(spacing + [float(np.linalg.norm(linear[:, 2]))])
+    assert len(mine.faces) == len(ref.faces) > 0 and mine.is_watertight
+    far = float(np.abs(np.asarray(mine.vertices, float) - placed).max())
+    assert far <= 1e-4 * voxel, far
+    print(f"liver SEG (3 frames), --smooth {smooth}: segment 1 'Liver' {len(mine.faces)} triangles, watertight, vertices within {far:.1e}")

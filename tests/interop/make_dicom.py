@@ -270,3 +270,50 @@ ds.ROIContourSequence = Sequence(
 )
 ds.save_as(out / "rtstruct.dcm", enforce_file_format=True)
 print("wrote rtstruct.dcm")
+
+
+# A DICOM SEG (BINARY, 1 bit per pixel, frames packed without padding): segment 1 'low' where
+# the series' stored values are below 350, segment 2 'high' above 750; only frames holding
+# something are stored (slices 3 to 5 hold neither), in a shuffled order.
+from pydicom.pixels import pack_bits
+
+ds = new_file(out / "seg.dcm", "1.2.840.10008.5.1.4.1.1.66.4")
+ds.Modality = "SEG"
+ds.SegmentationType = "BINARY"
+ds.BitsAllocated, ds.BitsStored, ds.HighBit = 1, 1, 0
+ds.PixelRepresentation = 0
+ds.SegmentSequence = Sequence(
+    [item(SegmentNumber=1, SegmentLabel="low", SegmentAlgorithmType="MANUAL"),
+     item(SegmentNumber=2, SegmentLabel="high", SegmentAlgorithmType="MANUAL")]
+)
+ds.SharedFunctionalGroupsSequence = Sequence(
+    [
+        item(
+            PixelMeasuresSequence=Sequence(
+                [item(PixelSpacing=list(slices[0].PixelSpacing), SliceThickness=step, SpacingBetweenSlices=step)]
+            ),
+            PlaneOrientationSequence=Sequence([item(ImageOrientationPatient=list(slices[0].ImageOrientationPatient))]),
+        )
+    ]
+)
+masks = []
+groups = []
+for segment, inside in [(1, frames < 350), (2, frames > 750)]:
+    for z in range(NZ):
+        if inside[z].any():
+            masks.append(inside[z])
+            groups.append(
+                item(
+                    PlanePositionSequence=Sequence([item(ImagePositionPatient=list(slices[z].ImagePositionPatient))]),
+                    SegmentIdentificationSequence=Sequence([item(ReferencedSegmentNumber=segment)]),
+                )
+            )
+shuffle = [(3 * f) % len(masks) for f in range(len(masks))]
+assert sorted(shuffle) == list(range(len(masks)))
+ds.NumberOfFrames = len(masks)
+ds.PerFrameFunctionalGroupsSequence = Sequence([groups[f] for f in shuffle])
+ds.PixelData = pack_bits(np.stack([masks[f] for f in shuffle]).astype(np.uint8))
+ds.save_as(out / "seg.dcm", enforce_file_format=True)
+back = pydicom.dcmread(out / "seg.dcm")
+assert np.array_equal(back.pixel_array, np.stack([masks[f] for f in shuffle]))
+print("wrote seg.dcm:", len(masks), "frames")

@@ -2054,3 +2054,30 @@ fn rt_structure_sets_mesh_each_roi() {
         "{err}"
     );
 }
+
+/// A DICOM SEG meshed with `--labels`: a closed surface per segment, named in the summary; a
+/// label it does not hold is refused with the labels it does.
+#[test]
+fn dicom_segmentations_mesh_per_segment() {
+    let seg = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes/seg.dcm");
+    let seg = seg.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = isocube(dir.path(), &["extract", seg, "--labels", "-o", "seg.ply"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("seg-1.ply: label 1 'low'") && err.contains("seg-2.ply: label 2 'high'"),
+        "{err}"
+    );
+    for label in ["seg-1.ply", "seg-2.ply"] {
+        let r = info(dir.path(), label);
+        assert_eq!(r["watertight"], true, "{label}: {r}");
+    }
+    let out = isocube(
+        dir.path(),
+        &["extract", seg, "--labels", "5", "-o", "x.ply"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("it holds labels 1, 2"), "{err}");
+}

@@ -83,7 +83,10 @@ pub use contours::{
 };
 #[cfg(feature = "dicom")]
 #[cfg_attr(docsrs, doc(cfg(feature = "dicom")))]
-pub use dicom::{read_dicom_series, read_rt_structure_set, read_rt_structure_set_bytes, RtRoi};
+pub use dicom::{
+    read_dicom_segments, read_dicom_series, read_rt_structure_set, read_rt_structure_set_bytes,
+    RtRoi,
+};
 pub use export::VertexValues;
 #[cfg(feature = "nifti")]
 pub use inflating::InflatingVolume;
@@ -277,11 +280,13 @@ pub struct VolumeOptions {
 /// Which 3-d volume of a file holding several (frames over time, channels): the options'
 /// `frame` and `channel`.
 #[derive(Clone, Copy, Debug, Default)]
+#[cfg_attr(not(any(feature = "nifti", feature = "dicom")), allow(dead_code))]
 pub(crate) struct Pick {
     pub frame: Option<usize>,
     pub channel: Option<usize>,
 }
 
+#[cfg_attr(not(any(feature = "nifti", feature = "dicom")), allow(dead_code))]
 impl Pick {
     pub(crate) fn of(options: &VolumeOptions) -> Pick {
         Pick {
@@ -429,7 +434,7 @@ pub fn read_volume_oriented(
     let budget = Budget::new(options.max_memory);
     let read = match VolumeFormat::of(path, options)? {
         VolumeFormat::Zarr => read_zarr_volume(path, options, budget)?,
-        VolumeFormat::Dicom => read_dicom_volume(path, budget)?,
+        VolumeFormat::Dicom => read_dicom_volume(path, budget, Pick::of(options))?,
         VolumeFormat::Npy => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
         VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget)?,
         VolumeFormat::MetaImage => metaimage::read_metaimage_within(path, budget)?,
@@ -484,7 +489,7 @@ pub fn read_volume_bytes(
                 "a DICOM series is a folder of files: read it with read_volume_oriented",
             ))
         }
-        VolumeFormat::Dicom => read_dicom_bytes(name, bytes, budget)?,
+        VolumeFormat::Dicom => read_dicom_bytes(name, bytes, budget, Pick::of(options))?,
         VolumeFormat::Npy => identity(npy::read_npy_bytes(name, bytes, options.npy_axes, budget)?),
         VolumeFormat::Nrrd => nrrd::read_nrrd_bytes(name, bytes, budget)?,
         VolumeFormat::MetaImage => metaimage::read_metaimage_bytes(name, bytes, budget)?,
@@ -638,8 +643,12 @@ fn read_zarr_volume(
 }
 
 #[cfg(feature = "dicom")]
-fn read_dicom_volume(path: &Path, budget: Budget) -> Result<(Grid, Orientation), IoError> {
-    dicom::read_dicom_within(path, budget)
+fn read_dicom_volume(
+    path: &Path,
+    budget: Budget,
+    pick: Pick,
+) -> Result<(Grid, Orientation), IoError> {
+    dicom::read_dicom_within(path, budget, pick)
 }
 
 #[cfg(feature = "dicom")]
@@ -647,17 +656,23 @@ fn read_dicom_bytes(
     name: &Path,
     bytes: &[u8],
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
-    dicom::read_dicom_bytes(name, bytes, budget)
+    dicom::read_dicom_bytes(name, bytes, budget, pick)
 }
 
 #[cfg(not(feature = "dicom"))]
-fn read_dicom_bytes(name: &Path, _: &[u8], budget: Budget) -> Result<(Grid, Orientation), IoError> {
-    read_dicom_volume(name, budget)
+fn read_dicom_bytes(
+    name: &Path,
+    _: &[u8],
+    budget: Budget,
+    pick: Pick,
+) -> Result<(Grid, Orientation), IoError> {
+    read_dicom_volume(name, budget, pick)
 }
 
 #[cfg(not(feature = "dicom"))]
-fn read_dicom_volume(path: &Path, _: Budget) -> Result<(Grid, Orientation), IoError> {
+fn read_dicom_volume(path: &Path, _: Budget, _: Pick) -> Result<(Grid, Orientation), IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,
@@ -960,6 +975,50 @@ mod tests {
             e.contains("2 channels (dim[5]): choose one with --channel (0 to 1)"),
             "{e}"
         );
+    }
+
+    /// A DICOM SEG (`tests/interop/make_dicom.py`): five shuffled 1-bit frames of two segments
+    /// become one labelled volume on the series' grid, the three slices holding neither
+    /// segment put back as background; the segments' names come with it.
+    #[test]
+    #[cfg(feature = "dicom")]
+    fn dicom_segmentations_are_labelled_volumes() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+        let (seg, orientation) =
+            read_volume_oriented(&dir.join("seg.dcm"), &VolumeOptions::default()).unwrap();
+        let (series, series_orientation) =
+            read_volume_oriented(&dir.join("dicom"), &VolumeOptions::default()).unwrap();
+        assert_eq!(seg.dims(), series.dims());
+        assert_eq!(orientation, series_orientation);
+        for a in 0..3 {
+            assert!((seg.spacing()[a] - series.spacing()[a]).abs() < 1e-9);
+            assert!((seg.origin()[a] - series.origin()[a]).abs() < 1e-9);
+        }
+        let [nx, ny, nz] = seg.dims();
+        let mut counts = [0usize; 3];
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let stored = 100 + i + 10 * j + 100 * k;
+                    let want = if stored < 350 {
+                        1.0
+                    } else if stored > 750 {
+                        2.0
+                    } else {
+                        0.0
+                    };
+                    let got = seg.values()[seg.index(i, j, k)];
+                    assert_eq!(got, want, "{i} {j} {k}");
+                    counts[got as usize] += 1;
+                }
+            }
+        }
+        assert!(counts.iter().all(|&c| c > 50), "{counts:?}");
+        let names = read_dicom_segments(&dir.join("seg.dcm")).unwrap();
+        assert_eq!(names, [(1, "low".to_string()), (2, "high".to_string())]);
+        assert!(read_dicom_segments(&dir.join("rtdose.dcm"))
+            .unwrap()
+            .is_empty());
     }
 
     #[test]

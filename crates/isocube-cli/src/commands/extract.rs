@@ -470,8 +470,32 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
     }
     .map_err(Failure::input)?;
     if surfaces.is_empty() {
+        // The labels the volume holds, so the user sees what to ask for.
+        let mut present: Vec<i64> = Vec::new();
+        for &v in grid.values() {
+            let label = v.round() as i64;
+            if v.is_finite() && label != args.background && !present.contains(&label) {
+                present.push(label);
+                if present.len() > 20 {
+                    break;
+                }
+            }
+        }
+        present.sort_unstable();
+        let held = match present.len() {
+            0 => "it holds only the background".to_string(),
+            1..=20 => format!(
+                "it holds labels {}",
+                present
+                    .iter()
+                    .map(i64::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            _ => "it holds more than 20 labels".to_string(),
+        };
         return Err(Failure::input(anyhow::anyhow!(
-            "{}: no label to mesh (background {}{})",
+            "{}: no label to mesh (background {}{}): {held}",
             args.volume.volume,
             args.background,
             match selection {
@@ -490,11 +514,28 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
             )?;
         }
     }
+    // A DICOM segmentation names its segments: the names go in the summary.
+    let input = std::path::Path::new(&args.volume.volume);
+    let dicom_file = input.is_file()
+        && input
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| ["dcm", "dicom"].contains(&e.to_ascii_lowercase().as_str()));
+    let names = if dicom_file {
+        isocube_io::read_dicom_segments(input).unwrap_or_default()
+    } else {
+        Vec::new()
+    };
     for mut surface in surfaces {
         if args.no_normals {
             surface.mesh.normals.clear();
         }
         let path = label_path(&args.output, surface.label);
+        let name = names
+            .iter()
+            .find(|(n, _)| *n == surface.label)
+            .map(|(_, name)| format!(" '{name}'"))
+            .unwrap_or_default();
         write_mesh_with_values(
             &path,
             &surface.mesh,
@@ -505,7 +546,7 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         if !quiet {
             let r = surface.mesh.report();
             eprintln!(
-                "{}: label {}, {} vertices, {} triangles, {}, {} components, Euler characteristic {}",
+                "{}: label {}{name}, {} vertices, {} triangles, {}, {} components, Euler characteristic {}",
                 path.display(),
                 surface.label,
                 r.vertices,

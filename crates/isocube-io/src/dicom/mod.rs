@@ -22,7 +22,7 @@ pub use rtstruct::{read_rt_structure_set, read_rt_structure_set_bytes, RtRoi};
 
 use std::path::{Path, PathBuf};
 
-use super::{Budget, IoError, Position};
+use super::{Budget, IoError, Pick, Position};
 use elements::{find, DataSet, Node};
 use isocube::field::{Grid, Orientation};
 use isocube::mesh::{cross, dot, sub};
@@ -48,17 +48,21 @@ struct Layout {
     pixel: [f64; 2],
     /// Rows, columns.
     size: (usize, usize),
+    /// A segmentation (DICOM SEG): its segments' numbers and labels, and the spacing its frames
+    /// sit at (frames holding nothing are left out of SEG files).
+    segments: Option<(Vec<(i64, String)>, Option<f64>)>,
 }
 
 /// Reads a DICOM series (a folder; files that are not DICOM images are skipped) or one DICOM
 /// file, single- or multi-frame, as one volume.
 pub fn read_dicom_series(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    read_dicom_within(path, Budget::UNLIMITED)
+    read_dicom_within(path, Budget::UNLIMITED, Pick::default())
 }
 
 pub(super) fn read_dicom_within(
     path: &Path,
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let files = if path.is_dir() {
         let entries = std::fs::read_dir(path).map_err(|e| IoError::os(path, e))?;
@@ -96,7 +100,25 @@ pub(super) fn read_dicom_within(
         planes.append(&mut more);
         layouts.push(layout);
     }
-    finish(path, layouts, planes, budget, held)
+    finish(path, layouts, planes, budget, held, pick)
+}
+
+/// The segments of a DICOM SEG file (its Segment Number and Segment Label each), which
+/// [`read_dicom_series`] reads as a labelled volume (each voxel its segment's number, 0
+/// outside); empty for any other DICOM image.
+///
+/// ```no_run
+/// let path = std::path::Path::new("liver.dcm");
+/// for (number, label) in isocube_io::read_dicom_segments(path)? {
+///     println!("label {number}: {label}");
+/// }
+/// # Ok::<(), isocube_io::IoError>(())
+/// ```
+pub fn read_dicom_segments(path: &Path) -> Result<Vec<(i64, String)>, IoError> {
+    let bytes = super::read_file(path)?;
+    let set = elements::parse(path, &bytes, 64 * bytes.len() as u64 + (1 << 20))?;
+    let v = Values { path, set: &set };
+    Ok(segmentation(&v, &set.nodes)?.map_or_else(Vec::new, |s| s.names))
 }
 
 /// [`read_dicom_series`] of one file's content in memory; `name` names it in errors.
@@ -104,11 +126,12 @@ pub(super) fn read_dicom_bytes(
     name: &Path,
     bytes: &[u8],
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     budget.check(name, Position::File, 2 * bytes.len() as u64)?;
     let set = elements::parse(name, bytes, budget.limit())?;
     let (layout, planes) = read_image(name, &set, budget, bytes.len() as u64)?;
-    finish(name, vec![layout], planes, budget, bytes.len() as u64)
+    finish(name, vec![layout], planes, budget, bytes.len() as u64, pick)
 }
 
 /// Checks that the files agree and assembles their planes.
@@ -118,6 +141,7 @@ fn finish(
     planes: Vec<Plane>,
     budget: Budget,
     held: u64,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let Some(first) = layouts.first() else {
         return Err(IoError::format(
@@ -159,7 +183,100 @@ fn finish(
             ));
         }
     }
-    assemble(path, first, planes, budget, held)
+    let planes = match &first.segments {
+        Some((_, step)) => merge_segment_planes(path, first, planes, *step)?,
+        None => planes,
+    };
+    assemble(path, first, planes, budget, held, pick)
+}
+
+/// A segmentation's frames as planes of one labelled volume: frames at the same position (one
+/// per segment) merged, the larger segment number where segments overlap, and planes holding
+/// no segment (which SEG files leave out) put back as zeros at the frames' spacing — Spacing
+/// Between Slices when given, else the smallest gap between frames.
+fn merge_segment_planes(
+    path: &Path,
+    first: &Layout,
+    planes: Vec<Plane>,
+    step: Option<f64>,
+) -> Result<Vec<Plane>, IoError> {
+    let normal = cross(first.row, first.column);
+    let Some(p0) = planes.first() else {
+        return Ok(planes);
+    };
+    if let Some(p) = planes.iter().find(|p| p.position.is_none()) {
+        return Err(IoError::format(
+            &p.path,
+            Position::Field(format!("ImagePositionPatient (frame {})", p.frame)),
+            "missing: the frames of a segmentation cannot be placed without it",
+        ));
+    }
+    let origin = p0.position.unwrap_or([0.0; 3]);
+    let along = |p: &Plane| dot(sub(p.position.unwrap_or(origin), origin), normal);
+    let mut at: Vec<f64> = planes.iter().map(along).collect();
+    let low = at.iter().copied().fold(f64::INFINITY, f64::min);
+    at.iter_mut().for_each(|a| *a -= low);
+    let mut distinct = at.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup_by(|a, b| (*a - *b).abs() < 1e-4);
+    let step = step.filter(|s| *s > 0.0).or_else(|| {
+        distinct
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(None, |m: Option<f64>, g| Some(m.map_or(g, |m| m.min(g))))
+    });
+    let Some(step) = step else {
+        return Ok(planes);
+    };
+    let count = (distinct.last().copied().unwrap_or(0.0) / step).round() as usize + 1;
+    if count > 1 << 16 {
+        return Err(IoError::format(
+            path,
+            Position::Field("SpacingBetweenSlices".into()),
+            format!("{step}: the frames would span {count} planes"),
+        ));
+    }
+    let n = first.size.0 * first.size.1;
+    let mut merged: Vec<Option<Plane>> = (0..count).map(|_| None).collect();
+    let base = planes
+        .iter()
+        .zip(&at)
+        .find(|(_, a)| **a == 0.0)
+        .and_then(|(p, _)| p.position)
+        .unwrap_or(origin);
+    for (plane, a) in planes.into_iter().zip(at) {
+        let slot = a / step;
+        if (slot - slot.round()).abs() > 1e-3 {
+            return Err(IoError::format(
+                &plane.path,
+                Position::Field(format!("ImagePositionPatient (frame {})", plane.frame)),
+                format!("{a:.4} along the normal from the first frame: not a multiple of the frames' spacing {step:.4}"),
+            ));
+        }
+        let slot = slot.round() as usize;
+        match &mut merged[slot] {
+            Some(m) => m
+                .values
+                .iter_mut()
+                .zip(&plane.values)
+                .for_each(|(v, w)| *v = v.max(*w)),
+            empty => *empty = Some(plane),
+        }
+    }
+    Ok(merged
+        .into_iter()
+        .enumerate()
+        .map(|(k, m)| {
+            m.unwrap_or_else(|| Plane {
+                path: path.to_path_buf(),
+                frame: 0,
+                position: Some(std::array::from_fn(|i| {
+                    base[i] + k as f64 * step * normal[i]
+                })),
+                values: vec![0.0; n],
+            })
+        })
+        .collect())
 }
 
 /// Whether a file has "DICM" after its 128-byte preamble.
@@ -179,6 +296,7 @@ fn assemble(
     mut planes: Vec<Plane>,
     budget: Budget,
     held: u64,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let at = |p: &Plane, field: &str| {
         let frame = if p.frame > 0 {
@@ -201,7 +319,41 @@ fn assemble(
     let normal = cross(first.row, first.column);
     let position = |p: &Plane| p.position.unwrap_or([0.0; 3]);
     let along = |p: &Plane| dot(position(p), normal);
+    // A stable sort: planes at one position keep the order they were read in (files by name,
+    // frames by number), which is their order in time.
     planes.sort_by(|a, b| along(a).total_cmp(&along(b)));
+    // Several planes at every position: a series over time (cine, 4-D CT); one of them is
+    // meshed, the one `pick.frame` says.
+    let repeats = planes
+        .iter()
+        .take_while(|p| (along(p) - along(&planes[0])).abs() <= 1e-4)
+        .count();
+    if repeats > 1 && planes.len() % repeats == 0 {
+        let groups_even = planes
+            .chunks(repeats)
+            .all(|g| g.iter().all(|p| (along(p) - along(&g[0])).abs() <= 1e-4))
+            && planes
+                .chunks(repeats)
+                .collect::<Vec<_>>()
+                .windows(2)
+                .all(|w| along(&w[1][0]) - along(&w[0][0]) > 1e-4);
+        if groups_even {
+            let t = Pick::index(
+                path,
+                Position::Field("ImagePositionPatient".into()),
+                pick.frame,
+                repeats,
+                "--frame",
+                "frames at every slice position (a series over time)",
+            )?;
+            planes = planes
+                .into_iter()
+                .enumerate()
+                .filter(|(i, _)| i % repeats == t)
+                .map(|(_, p)| p)
+                .collect();
+        }
+    }
     let (nx, ny, nz) = (first.size.1, first.size.0, planes.len());
     let step = if nz > 1 {
         along(&planes[1]) - along(&planes[0])
@@ -386,6 +538,69 @@ fn in_groups<'a>(
         .or_else(|| shared.and_then(|item| inside(item)))
 }
 
+const SEGMENTS: (u16, u16) = (0x0062, 0x0002);
+const SEGMENTATION_TYPE: (u16, u16) = (0x0062, 0x0001);
+const SEGMENT_NUMBER: (u16, u16) = (0x0062, 0x0004);
+const SEGMENT_LABEL: (u16, u16) = (0x0062, 0x0005);
+const SEGMENT_IDENTIFICATION: (u16, u16) = (0x0062, 0x000A);
+const REFERENCED_SEGMENT: (u16, u16) = (0x0062, 0x000B);
+const MAXIMUM_FRACTIONAL: (u16, u16) = (0x0062, 0x000E);
+
+/// How a segmentation's frames hold its segments.
+enum SegKind {
+    /// One bit per pixel: in the frame's segment or not.
+    Binary,
+    /// A fraction up to this maximum; half or more counts as inside.
+    Fractional(f64),
+    /// The pixel's value is its segment number (one frame per plane).
+    Labelmap,
+}
+
+struct Segmentation {
+    kind: SegKind,
+    names: Vec<(i64, String)>,
+}
+
+/// A DICOM SEG's type and segment labels, or `None` for other images.
+fn segmentation(v: &Values, nodes: &[Node]) -> Result<Option<Segmentation>, IoError> {
+    let Some(segments) = find(nodes, SEGMENTS) else {
+        return Ok(None);
+    };
+    let field = |name: &str| Position::Field(name.into());
+    let kind = match find(nodes, SEGMENTATION_TYPE).map(|n| v.text(n)).as_deref() {
+        Some("BINARY") => SegKind::Binary,
+        Some("FRACTIONAL") => SegKind::Fractional(
+            v.optional(find(nodes, MAXIMUM_FRACTIONAL))
+                .filter(|m| *m > 0.0)
+                .ok_or_else(|| {
+                    IoError::format(
+                        v.path,
+                        field("MaximumFractionalValue"),
+                        "missing or not positive",
+                    )
+                })?,
+        ),
+        Some("LABELMAP") => SegKind::Labelmap,
+        other => {
+            return Err(IoError::unsupported(
+                v.path,
+                field("SegmentationType"),
+                format!("{other:?}: isocube reads BINARY, FRACTIONAL and LABELMAP segmentations"),
+            ))
+        }
+    };
+    let mut names = Vec::new();
+    for item in &segments.items {
+        if let Some(n) = find(item, SEGMENT_NUMBER) {
+            let label = find(item, SEGMENT_LABEL)
+                .map(|l| v.text(l))
+                .unwrap_or_default();
+            names.push((v.int(n, "SegmentNumber")?, label));
+        }
+    }
+    Ok(Some(Segmentation { kind, names }))
+}
+
 /// One file's layout and planes.
 fn read_image(
     path: &Path,
@@ -522,6 +737,7 @@ fn read_image(
         .filter(|&s| s > 0.0)
         .unwrap_or(1.0);
     let dose = v.optional(find(nodes, DOSE_GRID_SCALING)).unwrap_or(1.0);
+    let segmentation = segmentation(&v, nodes)?;
     let mut planes = Vec::with_capacity(frames);
     for k in 0..frames {
         let position = match in_groups(nodes, k, PLANE_POSITION, POSITION) {
@@ -549,10 +765,36 @@ fn read_image(
             .optional(element(k, VALUE_TRANSFORMATION, INTERCEPT))
             .unwrap_or(0.0);
         let raw = pixels::frame(path, set, pixel, &fmt, k)?;
-        let values = raw
-            .into_iter()
-            .map(|r| ((slope * r + intercept) * dose) as f32)
-            .collect();
+        let values = match &segmentation {
+            None => raw
+                .into_iter()
+                .map(|r| ((slope * r + intercept) * dose) as f32)
+                .collect(),
+            Some(seg) => {
+                let segment = match seg.kind {
+                    SegKind::Labelmap => 0.0,
+                    _ => {
+                        let n = in_groups(nodes, k, SEGMENT_IDENTIFICATION, REFERENCED_SEGMENT)
+                            .ok_or_else(|| {
+                                IoError::format(
+                                    path,
+                                    field(&format!("ReferencedSegmentNumber (frame {})", k + 1)),
+                                    "missing: which segment the frame shows is unknown",
+                                )
+                            })?;
+                        v.int(n, "ReferencedSegmentNumber")? as f32
+                    }
+                };
+                raw.into_iter()
+                    .map(|r| match seg.kind {
+                        SegKind::Labelmap => r as f32,
+                        SegKind::Binary if r > 0.0 => segment,
+                        SegKind::Fractional(max) if 2.0 * r >= max && r > 0.0 => segment,
+                        _ => 0.0,
+                    })
+                    .collect()
+            }
+        };
         planes.push(Plane {
             path: path.to_path_buf(),
             frame: if frames > 1 { k + 1 } else { 0 },
@@ -570,6 +812,10 @@ fn read_image(
         column,
         pixel: [pixel_spacing[0], pixel_spacing[1]],
         size: (rows, cols),
+        segments: segmentation.map(|seg| {
+            let step = v.optional(element(0, PIXEL_MEASURES, SPACING_BETWEEN_SLICES));
+            (seg.names, step)
+        }),
     };
     Ok((layout, planes))
 }
