@@ -48,10 +48,13 @@ struct Layout {
     pixel: [f64; 2],
     /// Rows, columns.
     size: (usize, usize),
-    /// A segmentation (DICOM SEG): its segments' numbers and labels, and the spacing its frames
-    /// sit at (frames holding nothing are left out of SEG files).
-    segments: Option<(Vec<(i64, String)>, Option<f64>)>,
+    /// A segmentation (DICOM SEG): the spacing its frames sit at, when given (frames holding
+    /// nothing are left out of SEG files).
+    segmentation: Option<SegmentSpacing>,
 }
+
+/// The Spacing Between Slices of a segmentation's frames, when the file gives it.
+struct SegmentSpacing(Option<f64>);
 
 /// Reads a DICOM series (a folder; files that are not DICOM images are skipped) or one DICOM
 /// file, single- or multi-frame, as one volume.
@@ -183,8 +186,8 @@ fn finish(
             ));
         }
     }
-    let planes = match &first.segments {
-        Some((_, step)) => merge_segment_planes(path, first, planes, *step)?,
+    let planes = match &first.segmentation {
+        Some(SegmentSpacing(step)) => merge_segment_planes(path, first, planes, *step)?,
         None => planes,
     };
     assemble(path, first, planes, budget, held, pick)
@@ -812,9 +815,8 @@ fn read_image(
         column,
         pixel: [pixel_spacing[0], pixel_spacing[1]],
         size: (rows, cols),
-        segments: segmentation.map(|seg| {
-            let step = v.optional(element(0, PIXEL_MEASURES, SPACING_BETWEEN_SLICES));
-            (seg.names, step)
+        segmentation: segmentation.map(|_| {
+            SegmentSpacing(v.optional(element(0, PIXEL_MEASURES, SPACING_BETWEEN_SLICES)))
         }),
     };
     Ok((layout, planes))
