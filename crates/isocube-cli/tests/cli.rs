@@ -654,12 +654,19 @@ fn readme_examples_run() {
     // The volumes in tests/data, at the same relative paths as in a clone.
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
     let copy = dir.path().join("tests/data/volumes");
-    std::fs::create_dir_all(copy.join("dicom")).unwrap();
-    for sub in ["", "dicom"] {
-        for entry in std::fs::read_dir(data.join(sub)).unwrap() {
+    let mut subs = vec![std::path::PathBuf::new()];
+    for entry in std::fs::read_dir(&data).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            subs.push(path.file_name().unwrap().into());
+        }
+    }
+    for sub in subs {
+        std::fs::create_dir_all(copy.join(&sub)).unwrap();
+        for entry in std::fs::read_dir(data.join(&sub)).unwrap() {
             let path = entry.unwrap().path();
             if path.is_file() {
-                std::fs::copy(&path, copy.join(sub).join(path.file_name().unwrap())).unwrap();
+                std::fs::copy(&path, copy.join(&sub).join(path.file_name().unwrap())).unwrap();
             }
         }
     }
