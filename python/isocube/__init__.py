@@ -29,6 +29,7 @@ from ._isocube import extract as _extract
 from ._isocube import label_surfaces as _label_surfaces
 from ._isocube import marching_cubes as _marching_cubes
 from ._isocube import read_volume as _read_volume
+from ._isocube import resolve_level as _resolve_level
 from ._mesh import Mesh
 from ._progress import _progress_bar
 from ._subdiv import PolyMesh, subdivide
@@ -58,7 +59,7 @@ __all__ = [
 
 def extract(
     volume: ArrayLike,
-    level: float = 0.0,
+    level: float | str = 0.0,
     *,
     spacing: ArrayLike = (1.0, 1.0, 1.0),
     origin: ArrayLike = (0.0, 0.0, 0.0),
@@ -84,8 +85,10 @@ def extract(
     volume : (M, N, P) array_like
         The field; ``float32`` arrays are read where they lie (C or Fortran order, views,
         ``np.memmap``), other dtypes are converted first.
-    level : float
-        The isovalue.
+    level : float or str
+        The isovalue, or one taken from the values as ``isocube extract --level`` takes it:
+        ``'auto'`` (Otsu's threshold of their 256-bin histogram) or ``'40%'`` (that fraction of
+        their range, from the smallest).
     spacing, origin : three floats
         Distance between neighbouring points along each array axis, and the position of
         ``volume[0, 0, 0]``.
@@ -144,8 +147,12 @@ def extract(
     >>> mesh = isocube.extract(r, 0.7, method="ternary", snap=0.3)
     >>> mesh.is_watertight()
     True
+    >>> isocube.extract(r, "auto").is_watertight()  # Otsu's threshold of the values
+    True
     """
     a = _volume(volume)
+    if isinstance(level, str):
+        level = _resolve_level(a, level)
     with _progress_bar(progress, "isocube.extract") as report:
         v, t, n, vals, stats = _extract(
             a,
@@ -209,7 +216,7 @@ class Volume:
     origin: tuple[float, float, float]
     direction: list[list[float]]
 
-    def extract(self, level: float = 0.0, **options: Any) -> Mesh:
+    def extract(self, level: float | str = 0.0, **options: Any) -> Mesh:
         """:func:`extract` with the volume's spacing, origin and direction."""
         return extract(
             self.values,
@@ -228,10 +235,13 @@ def read_volume(
     origin: ArrayLike | None = None,
     max_memory: int | None = None,
     npy_axes: str = "xyz",
+    frame: int | None = None,
+    channel: int | None = None,
 ) -> Volume:
     """Reads a volume file as ``isocube extract`` does: by extension ``.npy``, ``.nrrd`` /
-    ``.nhdr``, ``.nii`` / ``.nii.gz``, ``.mha`` / ``.mhd``, ``.tif`` / ``.tiff`` (a stack),
-    ``.vti``; a folder as a DICOM series (sorted along its normal, rescaled).
+    ``.nhdr``, ``.nii`` / ``.nii.gz`` (NIfTI-1 and NIfTI-2), ``.mha`` / ``.mhd``, ``.tif`` /
+    ``.tiff`` (a stack), ``.vti``, ``.dcm`` (one DICOM file: multi-frame, RT Dose, SEG as
+    labels); a folder as a DICOM series (sorted along its normal, rescaled) or a Zarr store.
 
     Parameters
     ----------
@@ -242,6 +252,10 @@ def read_volume(
         Refuse files whose reading would take more bytes (checked before allocating).
     npy_axes : {'xyz', 'zyx'}
         How a ``.npy`` array's axes map to x, y, z.
+    frame, channel : int, optional
+        Of a file holding several 3-d volumes (4-d or 5-d NIfTI, a DICOM series over time, an
+        OME-Zarr ``t``/``c`` axis), the one to read; where there are several and none is given,
+        :class:`FormatError` names the choice.
 
     Raises
     ------
@@ -260,6 +274,8 @@ def read_volume(
         origin=None if origin is None else _triple("origin", origin),
         max_memory=max_memory,
         npy_axes=npy_axes,
+        frame=frame,
+        channel=channel,
     )
     return Volume(values, (s[0], s[1], s[2]), (o[0], o[1], o[2]), [list(row) for row in d])
 

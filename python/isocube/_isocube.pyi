@@ -60,6 +60,7 @@ def save_mesh(
     values_name: str,
     ascii: bool,
 ) -> None: ...
+def resolve_level(volume: npt.NDArray[np.float32], spec: str) -> float: ...
 def read_volume(
     path: str,
     *,
@@ -67,6 +68,8 @@ def read_volume(
     origin: tuple[float, float, float] | None = None,
     max_memory: int | None = None,
     npy_axes: str = "xyz",
+    frame: int | None = None,
+    channel: int | None = None,
 ) -> tuple[
     npt.NDArray[np.float32],
     list[float],

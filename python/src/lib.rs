@@ -652,9 +652,11 @@ type ReadVolume<'py> = (
 );
 
 /// Reads a volume file as the command line does: by extension (`.npy`, `.nrrd`/`.nhdr`,
-/// `.nii`/`.nii.gz`, `.mha`/`.mhd`, `.tif`/`.tiff`, `.vti`), a folder as a DICOM series.
+/// `.nii`/`.nii.gz`, `.mha`/`.mhd`, `.tif`/`.tiff`, `.vti`, `.dcm`), a folder as a DICOM series
+/// or a Zarr store; `frame` and `channel` pick one volume of a 4-d or 5-d file.
 #[pyfunction]
-#[pyo3(signature = (path, *, spacing=None, origin=None, max_memory=None, npy_axes="xyz"))]
+#[pyo3(signature = (path, *, spacing=None, origin=None, max_memory=None, npy_axes="xyz", frame=None, channel=None))]
+#[allow(clippy::too_many_arguments)]
 fn read_volume<'py>(
     py: Python<'py>,
     path: std::path::PathBuf,
@@ -662,8 +664,12 @@ fn read_volume<'py>(
     origin: Option<[f64; 3]>,
     max_memory: Option<u64>,
     npy_axes: &str,
+    frame: Option<usize>,
+    channel: Option<usize>,
 ) -> PyResult<ReadVolume<'py>> {
     let mut options = isocube_io::VolumeOptions::default();
+    options.frame = frame;
+    options.channel = channel;
     options.spacing = spacing;
     options.origin = origin;
     options.max_memory = max_memory;
@@ -679,6 +685,32 @@ fn read_volume<'py>(
     let values = numpy::PyArray1::from_vec(py, grid.into_values())
         .reshape_with_order(dims, numpy::npyffi::NPY_ORDER::NPY_FORTRANORDER)?;
     Ok((values, spacing, origin, orientation.direction()))
+}
+
+/// The level `spec` names for `volume`'s values: a number, `auto` (Otsu's threshold of the
+/// histogram) or `P%` (that fraction of the value range), as `isocube extract --level` takes it.
+#[pyfunction]
+fn resolve_level(py: Python<'_>, volume: PyReadonlyArray3<'_, f32>, spec: &str) -> PyResult<f32> {
+    let level: isocube::field::Level = spec
+        .parse()
+        .map_err(|e: isocube::ParseError| InputError::new_err(e.to_string()))?;
+    if let isocube::field::Level::Value(v) = level {
+        return Ok(v);
+    }
+    let view = volume.as_array();
+    let owned;
+    let values = match view.as_slice_memory_order() {
+        Some(values) => values,
+        None => {
+            owned = view.iter().copied().collect::<Vec<f32>>();
+            &owned
+        }
+    };
+    let summary = py.detach(|| isocube::field::ValueSummary::of(values));
+    let summary = summary.ok_or_else(|| {
+        InputError::new_err("the volume holds no finite value to take a level from")
+    })?;
+    Ok(level.resolve(&summary))
 }
 
 /// One label's surface as `label_surfaces` hands it back: label, vertices, triangles, normals.
@@ -750,6 +782,7 @@ fn _isocube(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(marching_cubes, m)?)?;
     m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(read_volume, m)?)?;
+    m.add_function(wrap_pyfunction!(resolve_level, m)?)?;
     m.add_function(wrap_pyfunction!(label_surfaces, m)?)?;
     m.add_function(wrap_pyfunction!(tets::tetmesh, m)?)?;
     m.add_class::<tets::PyTetMesh>()?;

@@ -66,3 +66,48 @@ def test_a_missing_or_broken_file_is_a_format_error(tmp_path: Path) -> None:
         isocube.read_volume(broken)
     with pytest.raises(isocube.MemoryLimitError):
         isocube.read_volume(DATA / "plain.mhd", max_memory=100)
+
+
+def test_frames_and_channels_are_picked() -> None:
+    """A 4-d NIfTI: ``frame`` picks a volume (frame t holds the fixture's values + 1000 t);
+    without it the error names the choice."""
+    for t in range(3):
+        volume = isocube.read_volume(DATA / "frames.nii", frame=t)
+        assert volume.values.shape == (12, 10, 8)
+        assert volume.values[3, 2, 1] == 100 + 3 + 20 + 100 + 1000 * t
+    with pytest.raises(isocube.FormatError, match=r"choose one with --frame \(0 to 2\)"):
+        isocube.read_volume(DATA / "frames.nii")
+    both = isocube.read_volume(DATA / "channels.nii.gz", frame=1, channel=1)
+    assert both.values[11, 9, 7] == 100 + 11 + 90 + 700 + 1000 + 10000
+
+
+def test_levels_from_the_data(tmp_path: Path) -> None:
+    """``level='40%'`` is that fraction of the value range and ``'auto'`` Otsu's threshold, as
+    the command line takes them: the same surface as the number the command line prints."""
+    volume = isocube.read_volume(DATA / "rotated.nii.gz")
+    low, high = float(volume.values.min()), float(volume.values.max())
+    forty = volume.extract("40%")
+    assert (
+        forty.triangles.shape
+        == volume.extract(float(np.float32(low + 0.4 * (high - low)))).triangles.shape
+    )
+    run = subprocess.run(
+        [
+            cli(),
+            "extract",
+            str(DATA / "rotated.nii.gz"),
+            "--level",
+            "auto",
+            "-o",
+            str(tmp_path / "auto.ply"),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    printed = float(run.stderr.split("(level ")[1].split(",")[0])
+    auto = volume.extract("auto")
+    assert len(auto.triangles) > 0
+    assert np.array_equal(auto.triangles, volume.extract(printed).triangles)
+    with pytest.raises(isocube.InputError):
+        volume.extract("lots")
