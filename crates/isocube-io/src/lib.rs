@@ -280,13 +280,11 @@ pub struct VolumeOptions {
 /// Which 3-d volume of a file holding several (frames over time, channels): the options'
 /// `frame` and `channel`.
 #[derive(Clone, Copy, Debug, Default)]
-#[cfg_attr(not(any(feature = "nifti", feature = "dicom")), allow(dead_code))]
 pub(crate) struct Pick {
     pub frame: Option<usize>,
     pub channel: Option<usize>,
 }
 
-#[cfg_attr(not(any(feature = "nifti", feature = "dicom")), allow(dead_code))]
 impl Pick {
     pub(crate) fn of(options: &VolumeOptions) -> Pick {
         Pick {
@@ -436,8 +434,10 @@ pub fn read_volume_oriented(
         VolumeFormat::Zarr => read_zarr_volume(path, options, budget)?,
         VolumeFormat::Dicom => read_dicom_volume(path, budget, Pick::of(options))?,
         VolumeFormat::Npy => identity(npy::read_npy_within(path, options.npy_axes, budget)?),
-        VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget)?,
-        VolumeFormat::MetaImage => metaimage::read_metaimage_within(path, budget)?,
+        VolumeFormat::Nrrd => nrrd::read_nrrd_within(path, budget, Pick::of(options))?,
+        VolumeFormat::MetaImage => {
+            metaimage::read_metaimage_within(path, budget, Pick::of(options))?
+        }
         VolumeFormat::Vti => vti::read_vti_within(path, budget)?,
         VolumeFormat::Nifti => read_nifti_volume(path, budget, Pick::of(options))?,
         VolumeFormat::Tiff => identity(read_tiff_volume(path, budget)?),
@@ -491,8 +491,10 @@ pub fn read_volume_bytes(
         }
         VolumeFormat::Dicom => read_dicom_bytes(name, bytes, budget, Pick::of(options))?,
         VolumeFormat::Npy => identity(npy::read_npy_bytes(name, bytes, options.npy_axes, budget)?),
-        VolumeFormat::Nrrd => nrrd::read_nrrd_bytes(name, bytes, budget)?,
-        VolumeFormat::MetaImage => metaimage::read_metaimage_bytes(name, bytes, budget)?,
+        VolumeFormat::Nrrd => nrrd::read_nrrd_bytes(name, bytes, budget, Pick::of(options))?,
+        VolumeFormat::MetaImage => {
+            metaimage::read_metaimage_bytes(name, bytes, budget, Pick::of(options))?
+        }
         VolumeFormat::Vti => vti::read_vti_bytes(name, bytes, budget)?,
         VolumeFormat::Nifti => read_nifti_bytes(name, bytes, budget, Pick::of(options))?,
         VolumeFormat::Tiff => identity(read_tiff_bytes(name, bytes, budget)?),
@@ -977,6 +979,53 @@ mod tests {
         );
     }
 
+    /// 4-d MetaImage (SimpleITK: `NDims = 4`, zlib; `ElementNumberOfChannels = 2`) and NRRD
+    /// (pynrrd: a `list` axis last, gzip; a `vector` axis first, interleaved) from
+    /// `tests/interop/make_frames.py`: `frame` and `channel` pick the volume, the same from the
+    /// bytes; without a choice the error names it.
+    #[test]
+    fn metaimage_and_nrrd_frames_and_channels_are_picked() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+        let pick = |frame: Option<usize>, channel: Option<usize>| VolumeOptions {
+            frame,
+            channel,
+            ..VolumeOptions::default()
+        };
+        for (name, frames, step) in [
+            ("frames.mha", true, 1000),
+            ("frames.nrrd", true, 1000),
+            ("vectors.mha", false, 10000),
+            ("vectors.nrrd", false, 10000),
+        ] {
+            let path = dir.join(name);
+            let bytes = std::fs::read(&path).unwrap();
+            let n = if frames { 3 } else { 2 };
+            for t in 0..n {
+                let options = if frames {
+                    pick(Some(t), None)
+                } else {
+                    pick(None, Some(t))
+                };
+                let (g, _) = read_volume_oriented(&path, &options).unwrap();
+                assert_eq!(g.dims(), [12, 10, 8], "{name}");
+                for (i, j, k) in [(0, 0, 0), (11, 9, 7), (3, 2, 5)] {
+                    let want = 100 + i + 10 * j + 100 * k + step * t;
+                    assert_eq!(g.values()[g.index(i, j, k)], want as f32, "{name} {t}");
+                }
+                let (b, _) = read_volume_bytes(&bytes, &path, &options).unwrap();
+                assert_eq!(b, g, "{name}");
+            }
+            let e = read_volume_oriented(&path, &pick(None, None))
+                .unwrap_err()
+                .to_string();
+            let flag = if frames { "--frame" } else { "--channel" };
+            assert!(
+                e.contains(&format!("choose one with {flag} (0 to {})", n - 1)),
+                "{e}"
+            );
+        }
+    }
+
     /// A DICOM SEG (`tests/interop/make_dicom.py`): five shuffled 1-bit frames of two segments
     /// become one labelled volume on the series' grid, the three slices holding neither
     /// segment put back as background; the segments' names come with it.
@@ -1031,7 +1080,7 @@ mod tests {
         for (header, data, says) in [
             (good, &[7u8; 7][..], "need 8 bytes"),
             ("NDims = 3\nDimSize = 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n", &[0u8; 8][..], "line 2"),
-            ("NDims = 4\n", &[][..], "NDims 4"),
+            ("NDims = 5\n", &[][..], "NDims 5"),
             ("NDims = 3\nDimSize = 2 2 2\nElementType = MET_RGB\nElementDataFile = LOCAL\n", &[][..], "MET_RGB"),
             ("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n", &[][..], "without ElementDataFile"),
             ("NDims = 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n", &[][..], "DimSize"),

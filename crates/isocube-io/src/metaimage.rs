@@ -8,20 +8,21 @@ use std::path::Path;
 
 use super::mapped::Placement;
 use super::raw::{decode_all, Endian, ScalarType};
-use super::{Budget, IoError, Position};
+use super::{Budget, IoError, Pick, Position};
 use isocube::field::{Grid, Orientation};
 
 /// Reads a MetaImage volume and its orientation.
 pub fn read_metaimage(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    read_metaimage_within(path, Budget::UNLIMITED)
+    read_metaimage_within(path, Budget::UNLIMITED, Pick::default())
 }
 
 pub(super) fn read_metaimage_within(
     path: &Path,
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let bytes = budget.read_file(path)?;
-    read_metaimage_bytes(path, &bytes, budget)
+    read_metaimage_bytes(path, &bytes, budget, pick)
 }
 
 /// [`read_metaimage_within`] on a file's bytes already in memory (`path` names it in errors and, for a
@@ -30,8 +31,10 @@ pub(super) fn read_metaimage_bytes(
     path: &Path,
     bytes: &[u8],
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let header = Header::parse(path, bytes)?;
+    let volume = header.pick(path, pick)?;
     let count = header
         .dims
         .iter()
@@ -43,25 +46,37 @@ pub(super) fn read_metaimage_bytes(
             "dimensions overflow",
         )
     })?;
-    let need = count.checked_mul(header.scalar.size()).ok_or_else(|| {
-        IoError::format(
-            path,
-            Position::Field("DimSize".into()),
-            "dimensions overflow",
-        )
-    })?;
+    let need = count
+        .checked_mul(header.frames)
+        .and_then(|n| n.checked_mul(header.channels))
+        .and_then(|n| n.checked_mul(header.scalar.size()))
+        .ok_or_else(|| {
+            IoError::format(
+                path,
+                Position::Field("DimSize".into()),
+                "dimensions overflow",
+            )
+        })?;
     // The file, the unpacked data when compressed, and the values.
     let unpacked = if header.compressed { need as u64 } else { 0 };
     let held = bytes.len() as u64 + unpacked;
     let dim_size = Position::Field("DimSize".into());
     budget.check_values(path, dim_size.clone(), held, count)?;
     match &header.data_file {
-        None => finish(path, &header, path, &bytes[header.length..], count, need),
+        None => finish(
+            path,
+            &header,
+            path,
+            &bytes[header.length..],
+            count,
+            need,
+            volume,
+        ),
         Some(name) => {
             // `.mhd` + `.raw`: errors about the data name the data file.
             let file = path.parent().unwrap_or(Path::new(".")).join(name);
             let data = budget.read_file_holding(&file, held + 4 * count as u64)?;
-            finish(path, &header, &file, &data, count, need)
+            finish(path, &header, &file, &data, count, need, volume)
         }
     }
 }
@@ -70,7 +85,7 @@ pub(super) fn read_metaimage_bytes(
 /// mapped header file; `None` when they are zlib-compressed.
 pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
     let header = Header::parse(path, bytes)?;
-    if header.compressed {
+    if header.compressed || header.frames > 1 || header.channels > 1 {
         return Ok(None);
     }
     let need = header
@@ -135,6 +150,7 @@ fn finish(
     stored: &[u8],
     count: usize,
     need: usize,
+    (frame, channel): (usize, usize),
 ) -> Result<(Grid, Orientation), IoError> {
     let raw: std::borrow::Cow<[u8]> = if header.compressed {
         // Never trust the declared size for the allocation: read at most what the dims need,
@@ -171,7 +187,20 @@ fn finish(
             ),
         ));
     }
-    let values = decode_all(&raw, header.scalar, header.endian);
+    let size = header.scalar.size();
+    let values = if header.frames == 1 && header.channels == 1 {
+        decode_all(&raw, header.scalar, header.endian)
+    } else {
+        // The picked volume's elements: frames one after another, channels interleaved.
+        let first = frame * count * header.channels + channel;
+        let picked: Vec<u8> = (0..count)
+            .flat_map(|p| {
+                let at = (first + p * header.channels) * size;
+                raw[at..at + size].iter().copied()
+            })
+            .collect();
+        decode_all(&picked, header.scalar, header.endian)
+    };
     debug_assert_eq!(values.len(), count);
     let (spacing, orientation) = world(path, header)?;
     let grid = Grid::new(header.dims, values)
@@ -182,7 +211,12 @@ fn finish(
 }
 
 struct Header {
+    /// The spatial axes' points.
     dims: [usize; 3],
+    /// Volumes along a fourth axis (NDims = 4: time), 1 otherwise.
+    frames: usize,
+    /// Values per element (ElementNumberOfChannels), interleaved.
+    channels: usize,
     scalar: ScalarType,
     endian: Endian,
     spacing: [f64; 3],
@@ -198,9 +232,32 @@ struct Header {
 }
 
 impl Header {
+    /// The frame and channel `pick` chooses (each 0 where the file has one).
+    fn pick(&self, path: &Path, pick: Pick) -> Result<(usize, usize), IoError> {
+        let frame = Pick::index(
+            path,
+            Position::Field("DimSize".into()),
+            pick.frame,
+            self.frames,
+            "--frame",
+            "frames (a fourth axis)",
+        )?;
+        let channel = Pick::index(
+            path,
+            Position::Field("ElementNumberOfChannels".into()),
+            pick.channel,
+            self.channels,
+            "--channel",
+            "channels",
+        )?;
+        Ok((frame, channel))
+    }
+
     fn parse(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
         let mut h = Header {
             dims: [0; 3],
+            frames: 1,
+            channels: 1,
             scalar: ScalarType::U8,
             endian: Endian::Little,
             spacing: [1.0; 3],
@@ -267,11 +324,14 @@ impl Header {
                     ));
                 }
                 "NDims" => {
-                    if !matches!(value, "1" | "2" | "3") {
+                    if !matches!(value, "1" | "2" | "3" | "4") {
                         return Err(IoError::unsupported(
                             path,
                             pos(),
-                            format!("NDims {value}: isocube reads 1 to 3 dimensions"),
+                            format!(
+                                "NDims {value}: isocube reads 1 to 3 dimensions, and a fourth \
+                                 (time) picked by --frame"
+                            ),
                         ));
                     }
                     ndims = Some(value.to_string());
@@ -286,26 +346,33 @@ impl Header {
                                 format!("DimSize: {d} is not a size"),
                             ));
                         }
-                        h.dims[a] = d as usize;
+                        if a < 3 {
+                            h.dims[a] = d as usize;
+                        } else {
+                            h.frames = d as usize;
+                        }
                     }
                     for a in v.len()..3 {
                         h.dims[a] = 1;
                     }
                     seen_dims = true;
                 }
+                // Of a fourth (time) axis only the spatial three count.
                 "ElementSpacing" | "ElementSize" => {
                     let v = numbers(ndims_of(&ndims))?;
-                    h.spacing[..v.len()].copy_from_slice(&v);
+                    let n = v.len().min(3);
+                    h.spacing[..n].copy_from_slice(&v[..n]);
                 }
                 "Offset" | "Origin" | "Position" => {
                     let v = numbers(ndims_of(&ndims))?;
-                    h.offset[..v.len()].copy_from_slice(&v);
+                    let n = v.len().min(3);
+                    h.offset[..n].copy_from_slice(&v[..n]);
                 }
                 "TransformMatrix" | "Rotation" | "Orientation" => {
                     let n = ndims_of(&ndims);
                     let v = numbers(n * n)?;
-                    for a in 0..n {
-                        for r in 0..n {
+                    for a in 0..n.min(3) {
+                        for r in 0..n.min(3) {
                             h.direction[a][r] = v[a * n + r];
                         }
                     }
@@ -330,12 +397,20 @@ impl Header {
                         )
                     })?);
                 }
-                "ElementNumberOfChannels" if value != "1" => {
-                    return Err(IoError::unsupported(
-                        path,
-                        pos(),
-                        format!("{value} channels per element (isocube meshes one scalar)"),
-                    ));
+                "ElementNumberOfChannels" => {
+                    h.channels = value
+                        .parse::<usize>()
+                        .ok()
+                        .filter(|&c| (1..=1 << 16).contains(&c))
+                        .ok_or_else(|| {
+                            IoError::format(
+                                path,
+                                pos(),
+                                format!(
+                                    "ElementNumberOfChannels: '{value}' is not a channel count"
+                                ),
+                            )
+                        })?;
                 }
                 "ElementType" => {
                     h.scalar = match value {

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use super::mapped::Placement;
 use super::raw::{decode_all, Endian, ScalarType};
-use super::{Budget, IoError, Position};
+use super::{Budget, IoError, Pick, Position};
 use isocube::field::{Grid, Orientation};
 
 /// Reads an NRRD file (attached or detached header) in its grid frame (see
@@ -21,15 +21,16 @@ pub fn read_nrrd(path: &Path) -> Result<Grid, IoError> {
 
 /// Reads an NRRD file and the orientation of its `space directions`.
 pub fn read_nrrd_oriented(path: &Path) -> Result<(Grid, Orientation), IoError> {
-    read_nrrd_within(path, Budget::UNLIMITED)
+    read_nrrd_within(path, Budget::UNLIMITED, Pick::default())
 }
 
 pub(super) fn read_nrrd_within(
     path: &Path,
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let bytes = budget.read_file(path)?;
-    read_nrrd_bytes(path, &bytes, budget)
+    read_nrrd_bytes(path, &bytes, budget, pick)
 }
 
 /// [`read_nrrd_within`] on a file's bytes already in memory (`path` names it in errors and, for a
@@ -38,9 +39,11 @@ pub(super) fn read_nrrd_bytes(
     path: &Path,
     bytes: &[u8],
     budget: Budget,
+    pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
     let header = Header::parse(path, bytes)?;
-    let grid = read_data(path, bytes, &header, budget)?;
+    let index = header.pick(path, pick)?;
+    let grid = read_data(path, bytes, &header, budget, index)?;
     Ok((grid, header.orientation))
 }
 
@@ -49,7 +52,7 @@ pub(super) fn read_nrrd_bytes(
 /// `line skip`, which the reader handles.
 pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, IoError> {
     let header = Header::parse(path, bytes)?;
-    if header.encoding != Encoding::Raw || header.line_skip > 0 {
+    if header.encoding != Encoding::Raw || header.line_skip > 0 || header.extra.is_some() {
         return Ok(None);
     }
     let (data_file, start, len) = match &header.data_file {
@@ -88,10 +91,36 @@ pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, 
     }))
 }
 
-fn read_data(path: &Path, bytes: &[u8], header: &Header, budget: Budget) -> Result<Grid, IoError> {
+/// The picked volume's values out of all the elements' (`extra` entries each voxel, along the
+/// first axis — interleaved — or the last — one volume after another).
+fn pick_values(all: Vec<f32>, count: usize, extra: Option<Extra>, index: usize) -> Vec<f32> {
+    match extra {
+        None => all,
+        Some(e) if e.axis == 0 => all
+            .into_iter()
+            .skip(index)
+            .step_by(e.n)
+            .take(count)
+            .collect(),
+        Some(_) => all.into_iter().skip(index * count).take(count).collect(),
+    }
+}
+
+fn read_data(
+    path: &Path,
+    bytes: &[u8],
+    header: &Header,
+    budget: Budget,
+    index: usize,
+) -> Result<Grid, IoError> {
     let dims = header.dims;
-    let count = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
+    let voxels = Grid::point_count(dims).map_err(|e| IoError::grid(path, e))?;
     let sizes = Position::Field("sizes".into());
+    // Every element is read (and decoded), then the picked volume's kept.
+    let n = header.extra.map_or(1, |e| e.n);
+    let count = voxels
+        .checked_mul(n)
+        .ok_or_else(|| IoError::format(path, sizes.clone(), "the sizes overflow"))?;
     // The header and the stored data are held while the values are decoded; gzip data also
     // holds what it unpacks to.
     let unpacked = match header.encoding {
@@ -156,7 +185,7 @@ fn read_data(path: &Path, bytes: &[u8], header: &Header, budget: Budget) -> Resu
             }
             out
         }
-        Encoding::Ascii => return ascii_grid(&data_path, &data, header, count),
+        Encoding::Ascii => return ascii_grid(&data_path, &data, header, count, index),
     };
     let size = header.scalar.size();
     let need = count * size;
@@ -183,6 +212,7 @@ fn read_data(path: &Path, bytes: &[u8], header: &Header, budget: Budget) -> Resu
         ));
     }
     let values = decode_all(&data[..need], header.scalar, header.endian);
+    let values = pick_values(values, voxels, header.extra, index);
     finish(path, dims, values, header)
 }
 
@@ -195,7 +225,13 @@ fn gunzip(data: &[u8], limit: u64) -> std::io::Result<Vec<u8>> {
     Ok(out)
 }
 
-fn ascii_grid(path: &Path, data: &[u8], header: &Header, count: usize) -> Result<Grid, IoError> {
+fn ascii_grid(
+    path: &Path,
+    data: &[u8],
+    header: &Header,
+    count: usize,
+    index: usize,
+) -> Result<Grid, IoError> {
     let text = std::str::from_utf8(data)
         .map_err(|e| IoError::format(path, Position::Byte(e.valid_up_to() as u64), "not text"))?;
     let mut values = Vec::with_capacity(count);
@@ -226,6 +262,8 @@ fn ascii_grid(path: &Path, data: &[u8], header: &Header, count: usize) -> Result
         ));
     }
     values.truncate(count);
+    let voxels = count / header.extra.map_or(1, |e| e.n);
+    let values = pick_values(values, voxels, header.extra, index);
     finish(path, header.dims, values, header)
 }
 
@@ -243,8 +281,20 @@ enum Encoding {
     Ascii,
 }
 
+/// A fourth, non-spatial axis: its place (0: the values of each voxel interleaved, as
+/// `vector` kinds are; 3: whole volumes one after another, as `list` and `time` are), its
+/// entries, and whether they are channels (else frames).
+#[derive(Clone, Copy, Debug)]
+struct Extra {
+    axis: usize,
+    n: usize,
+    channels: bool,
+}
+
 struct Header {
+    /// The spatial axes' points.
     dims: [usize; 3],
+    extra: Option<Extra>,
     scalar: ScalarType,
     endian: Endian,
     encoding: Encoding,
@@ -258,6 +308,33 @@ struct Header {
 }
 
 impl Header {
+    /// The entry of the non-spatial axis `pick` chooses (0 without one).
+    fn pick(&self, path: &Path, pick: Pick) -> Result<usize, IoError> {
+        let Some(extra) = self.extra else {
+            return Pick::index(
+                path,
+                Position::Field("sizes".into()),
+                pick.frame.or(pick.channel),
+                1,
+                "--frame",
+                "frames or channels",
+            );
+        };
+        let (chosen, flag, what) = if extra.channels {
+            (pick.channel, "--channel", "channels")
+        } else {
+            (pick.frame, "--frame", "frames")
+        };
+        Pick::index(
+            path,
+            Position::Field("kinds".into()),
+            chosen,
+            extra.n,
+            flag,
+            what,
+        )
+    }
+
     fn parse(path: &Path, bytes: &[u8]) -> Result<Header, IoError> {
         if !bytes.starts_with(b"NRRD000") {
             return Err(IoError::format(
@@ -266,13 +343,14 @@ impl Header {
                 "not an NRRD file (missing the NRRD000x magic)",
             ));
         }
-        let mut dims = None;
+        let mut sizes: Option<Vec<usize>> = None;
+        let mut kinds: Option<Vec<String>> = None;
+        let mut spacings: Option<Vec<f64>> = None;
+        let mut direction_list: Option<(Vec<Option<Vec<f64>>>, usize)> = None;
         let mut dimension = None;
         let mut scalar = None;
         let mut endian = None;
         let mut encoding = None;
-        let mut spacing = None;
-        let mut directions = None;
         let mut origin = [0.0; 3];
         let mut data_file = None;
         let mut line_skip = 0;
@@ -350,14 +428,21 @@ impl Header {
                             })
                         })
                         .collect::<Result<_, _>>()?;
-                    if s.len() != 3 {
+                    if !(3..=4).contains(&s.len()) {
                         return Err(IoError::unsupported(
                             path,
                             pos(),
-                            format!("{} axes (3-D scalar volumes are read)", s.len()),
+                            format!(
+                                "{} axes (3-D volumes are read, and 4-D ones with one \
+                                 non-spatial axis, picked by --frame or --channel)",
+                                s.len()
+                            ),
                         ));
                     }
-                    dims = Some([s[0], s[1], s[2]]);
+                    sizes = Some(s);
+                }
+                "kinds" => {
+                    kinds = Some(value.split_whitespace().map(str::to_string).collect());
                 }
                 "endian" => {
                     endian = Some(match value {
@@ -381,32 +466,49 @@ impl Header {
                     })
                 }
                 "spacings" => {
-                    let s = numbers(value)?;
-                    if s.len() != 3 {
-                        return Err(IoError::format(path, pos(), "spacings needs 3 numbers"));
-                    }
-                    spacing = Some([s[0], s[1], s[2]]);
+                    // A non-spatial axis's spacing is NaN.
+                    spacings = Some(
+                        value
+                            .split_whitespace()
+                            .map(|t| {
+                                t.parse::<f64>().map_err(|_| {
+                                    IoError::format(
+                                        path,
+                                        pos(),
+                                        format!("'{t}' is not a number in '{key}'"),
+                                    )
+                                })
+                            })
+                            .collect::<Result<_, _>>()?,
+                    );
                 }
                 "space directions" => {
-                    let vectors: Vec<Vec<f64>> = value
-                        .split(')')
-                        .map(|p| p.trim().trim_start_matches('('))
-                        .filter(|p| !p.is_empty())
-                        .map(|p| numbers(&p.replace(',', " ")))
-                        .collect::<Result<_, _>>()?;
-                    if vectors.len() != 3 || vectors.iter().any(|v| v.len() != 3) {
-                        return Err(IoError::format(
-                            path,
-                            pos(),
-                            "space directions needs three 3-vectors",
-                        ));
+                    // One `(x,y,z)` per axis, `none` for a non-spatial one.
+                    let mut list = Vec::new();
+                    let mut rest = value.trim();
+                    while !rest.is_empty() {
+                        if let Some(after) = rest.strip_prefix("none") {
+                            list.push(None);
+                            rest = after.trim_start();
+                        } else if let Some(after) = rest.strip_prefix('(') {
+                            let end = after.find(')').ok_or_else(|| {
+                                IoError::format(
+                                    path,
+                                    pos(),
+                                    "an unclosed vector in space directions",
+                                )
+                            })?;
+                            list.push(Some(numbers(&after[..end].replace(',', " "))?));
+                            rest = after[end + 1..].trim_start();
+                        } else {
+                            return Err(IoError::format(
+                                path,
+                                pos(),
+                                format!("space directions: '{rest}' is neither a vector nor none"),
+                            ));
+                        }
                     }
-                    // Each vector is one axis's step: the columns of the index-to-world map.
-                    let linear: [[f64; 3]; 3] =
-                        std::array::from_fn(|r| std::array::from_fn(|c| vectors[c][r]));
-                    directions = Some(Orientation::from_linear(linear).ok_or_else(|| {
-                        IoError::format(path, pos(), "the space directions are singular")
-                    })?);
+                    direction_list = Some((list, line_no));
                 }
                 "space origin" => {
                     let o = numbers(
@@ -442,15 +544,103 @@ impl Header {
             }
         };
         let field = |name: &str| Position::Field(name.into());
+        let sizes = sizes.ok_or_else(|| IoError::format(path, field("sizes"), "missing"))?;
         if let Some(d) = dimension {
-            if d != 3 {
-                return Err(IoError::unsupported(
+            if d != sizes.len() {
+                return Err(IoError::format(
                     path,
                     field("dimension"),
-                    format!("dimension {d} (3-D volumes are read)"),
+                    format!("dimension {d} with {} sizes", sizes.len()),
                 ));
             }
         }
+        // Which axis is not spatial: by its kind, or by `none` among the space directions.
+        let spatial_kind = |k: &str| matches!(k, "domain" | "space" | "???" | "none");
+        let extra_axis = if sizes.len() == 4 {
+            let by_kind = kinds
+                .as_ref()
+                .filter(|k| k.len() == 4)
+                .and_then(|k| k.iter().position(|k| !spatial_kind(k)));
+            let by_direction = direction_list
+                .as_ref()
+                .and_then(|(l, _)| l.iter().position(Option::is_none));
+            match by_kind.or(by_direction) {
+                Some(a @ (0 | 3)) => Some(a),
+                Some(a) => {
+                    return Err(IoError::unsupported(
+                        path,
+                        field("kinds"),
+                        format!("the non-spatial axis is axis {a}: isocube reads it first (interleaved) or last"),
+                    ))
+                }
+                None => {
+                    return Err(IoError::unsupported(
+                        path,
+                        field("kinds"),
+                        "4 axes without kinds or space directions telling which is not spatial",
+                    ))
+                }
+            }
+        } else {
+            None
+        };
+        let spatial: Vec<usize> = (0..sizes.len())
+            .filter(|&a| Some(a) != extra_axis)
+            .collect();
+        let dims = [sizes[spatial[0]], sizes[spatial[1]], sizes[spatial[2]]];
+        let extra = extra_axis.map(|axis| {
+            let kind = kinds
+                .as_ref()
+                .and_then(|k| k.get(axis))
+                .map_or("", String::as_str);
+            Extra {
+                axis,
+                n: sizes[axis],
+                channels: !matches!(kind, "list" | "time"),
+            }
+        });
+        let spacing = match spacings {
+            Some(v) if v.len() == sizes.len() => {
+                Some([v[spatial[0]], v[spatial[1]], v[spatial[2]]])
+            }
+            Some(_) => {
+                return Err(IoError::format(
+                    path,
+                    field("spacings"),
+                    format!("needs {} numbers", sizes.len()),
+                ))
+            }
+            None => None,
+        };
+        let directions = match direction_list {
+            Some((list, line)) => {
+                let vectors: Vec<&Vec<f64>> = spatial
+                    .iter()
+                    .filter_map(|&a| list.get(a).and_then(Option::as_ref))
+                    .collect();
+                if list.len() != sizes.len()
+                    || vectors.len() != 3
+                    || vectors.iter().any(|v| v.len() != 3)
+                {
+                    return Err(IoError::format(
+                        path,
+                        Position::Line(line),
+                        "space directions needs a 3-vector for each spatial axis",
+                    ));
+                }
+                // Each vector is one axis's step: the columns of the index-to-world map.
+                let linear: [[f64; 3]; 3] =
+                    std::array::from_fn(|r| std::array::from_fn(|c| vectors[c][r]));
+                Some(Orientation::from_linear(linear).ok_or_else(|| {
+                    IoError::format(
+                        path,
+                        Position::Line(line),
+                        "the space directions are singular",
+                    )
+                })?)
+            }
+            None => None,
+        };
         let scalar = scalar.ok_or_else(|| IoError::format(path, field("type"), "missing"))?;
         let encoding =
             encoding.ok_or_else(|| IoError::format(path, field("encoding"), "missing"))?;
@@ -466,7 +656,8 @@ impl Header {
             }
         };
         Ok(Header {
-            dims: dims.ok_or_else(|| IoError::format(path, field("sizes"), "missing"))?,
+            dims,
+            extra,
             scalar,
             endian,
             encoding,

@@ -1,8 +1,8 @@
-"""Writes NIfTI-2 and 4-d reader fixtures into tests/data/volumes/ with nibabel, beside
-make_volumes.py's, and records the NIfTI-2 one in expected.json.
+"""Writes NIfTI-2 and 4-d reader fixtures into tests/data/volumes/ with nibabel, SimpleITK and
+pynrrd, beside make_volumes.py's, and records the NIfTI-2 one in expected.json.
 
     pip install -r tests/interop/requirements-volumes.txt
-    python tests/interop/make_nifti.py [OUTDIR]
+    python tests/interop/make_frames.py [OUTDIR]
 
 - nifti2.nii.gz: NIfTI-2 (540-byte header, float64 geometry), rotated and anisotropic, int16
   with a slope and intercept; the fixture's values.
@@ -10,6 +10,11 @@ make_volumes.py's, and records the NIfTI-2 one in expected.json.
   1000 t; its sform the identity scaled by (1, 2, 3).
 - channels.nii.gz: NIfTI-1, 5-d: two frames × two channels of float32, volume (t, c) holding
   the fixture's values plus 1000 t + 10000 c.
+- frames.mha (SimpleITK, NDims = 4) and frames.nrrd (pynrrd, kinds "domain domain domain
+  list"): three frames as frames.nii.
+- vectors.mha (SimpleITK, ElementNumberOfChannels = 2) and vectors.nrrd (pynrrd, kinds "vector
+  domain domain domain", the channels interleaved): channel c holds the fixture's values plus
+  10000 c.
 """
 
 import json
@@ -48,5 +53,29 @@ volumes = np.stack(
 assert volumes.shape == (NX, NY, NZ, 2, 2)
 nib.save(nib.Nifti1Image(volumes, np.diag([1.0, 2.0, 3.0, 1.0])), out / "channels.nii.gz")
 
+import nrrd
+import SimpleITK as sitk
+
+# SimpleITK's arrays are [t, z, y, x] (and [z, y, x, c] for vector images).
+sitk.WriteImage(
+    sitk.GetImageFromArray(frames.transpose(3, 2, 1, 0), isVector=False), str(out / "frames.mha"), useCompression=True
+)
+vectors = np.stack([values + 10000 * ch for ch in range(2)], axis=-1).astype(np.int32)  # [x, y, z, c]
+sitk.WriteImage(
+    sitk.GetImageFromArray(vectors.transpose(2, 1, 0, 3), isVector=True), str(out / "vectors.mha"), useCompression=False
+)
+nrrd.write(
+    str(out / "frames.nrrd"),
+    frames,
+    {"kinds": ["domain", "domain", "domain", "list"], "encoding": "gzip"},
+    index_order="F",
+)
+nrrd.write(
+    str(out / "vectors.nrrd"),
+    np.ascontiguousarray(vectors.transpose(3, 0, 1, 2)),
+    {"kinds": ["vector", "domain", "domain", "domain"], "encoding": "raw"},
+    index_order="F",
+)
+
 expected_path.write_text(json.dumps(expected, indent=1) + "\n")
-print("wrote nifti2.nii.gz, frames.nii, channels.nii.gz to", out)
+print("wrote nifti2.nii.gz, frames.nii/.mha/.nrrd, channels.nii.gz, vectors.mha/.nrrd to", out)
