@@ -2088,3 +2088,74 @@ fn dicom_segmentations_mesh_per_segment() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("it holds labels 1, 2"), "{err}");
 }
+
+/// `contours --reference`: the plane grid takes the image's pixels (a 0.5 mm image gives twice
+/// the cells of a 1 mm one over the same contours), the surface is still closed through the
+/// contours; an oblique series and non-square pixels are refused by name.
+#[test]
+fn contours_take_the_reference_image_pixels() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+    let plan = data.join("rtstruct.dcm");
+    let plan = plan.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let image = |name: &str, spacing: &str| {
+        let header = format!(
+            "ObjectType = Image\nNDims = 3\nDimSize = 4 4 3\nElementSpacing = {spacing} 5\nOffset = -30 -60 -5\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n"
+        );
+        std::fs::write(
+            dir.path().join(name),
+            [header.as_bytes(), &[0u8; 48]].concat(),
+        )
+        .unwrap();
+    };
+    image("fine.mha", "0.5 0.5");
+    image("coarse.mha", "1 1");
+    image("oblong.mha", "1 0.5");
+    let mut grids = Vec::new();
+    for reference in ["fine.mha", "coarse.mha"] {
+        let out = isocube(
+            dir.path(),
+            &[
+                "contours",
+                plan,
+                "-o",
+                "r.ply",
+                "--cap",
+                "flat",
+                "--reference",
+                reference,
+            ],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success() && err.contains("watertight, genus 1"),
+            "{err}"
+        );
+        let grid = err
+            .split(" plane grid")
+            .next()
+            .unwrap()
+            .rsplit(", ")
+            .next()
+            .unwrap();
+        let n: usize = grid.split('×').next().unwrap().parse().unwrap();
+        grids.push(n);
+    }
+    // 60 mm of contours and a cell to spare each side.
+    assert!(
+        grids[0] >= 120 && grids[0] <= 125 && grids[1] >= 60 && grids[1] <= 63,
+        "{grids:?}"
+    );
+    for (reference, says) in [
+        ("oblong.mha", "pixels are 1 × 0.5"),
+        (data.join("dicom").to_str().unwrap(), "not axial"),
+    ] {
+        let out = isocube(
+            dir.path(),
+            &["contours", plan, "-o", "x.ply", "--reference", reference],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(says), "{err}");
+    }
+}

@@ -29,6 +29,13 @@ pub(crate) struct Args {
     /// (repeatable; default: every region with CLOSED_PLANAR contours).
     #[arg(long, value_name = "NAME|NUMBER")]
     roi: Vec<String>,
+    /// The image the contours were drawn on (a DICOM series folder, or any volume file, in the
+    /// contours' coordinates): the plane grid takes its pixels — their spacing, and points on
+    /// its pixel lattice (shifted by 7 % and 4 % of a pixel, so that contours traced through
+    /// pixel centres do not put vertices on grid points) — instead of --grid or --cell. Its
+    /// slices must be axial and its pixels square.
+    #[arg(long, value_name = "VOLUME", conflicts_with_all = ["grid", "cell"])]
+    reference: Option<PathBuf>,
     #[command(flatten)]
     stack: StackArgs,
     /// The section-data paper's plain approach: crossings interpolated from the distances and no
@@ -337,7 +344,10 @@ fn mesh_stack(
     label: &str,
     quiet: bool,
 ) -> Result<(), Failure> {
-    let plane = args.stack.plane(stack)?;
+    let plane = match &args.reference {
+        Some(reference) => reference_plane(reference, stack)?,
+        None => args.stack.plane(stack)?,
+    };
     let cap = args.stack.cap(stack)?;
     let started = Instant::now();
     let fidelity = if args.plain {
@@ -382,6 +392,58 @@ fn mesh_stack(
         );
     }
     Ok(())
+}
+
+/// The plane grid on a reference image's pixel lattice: its pixel spacing, points at its
+/// pixel centres, covering the contours with a cell to spare.
+fn reference_plane(reference: &Path, stack: &SectionStack) -> Result<PlaneGrid, Failure> {
+    let options = isocube_io::VolumeOptions::default();
+    let (grid, orientation) = isocube_io::read_volume_oriented(reference, &options)
+        .map_err(|e| crate::io_failure(e, true))?;
+    let d = orientation.direction();
+    // Rows along x and columns along y, either way round: axial slices.
+    let axial =
+        (0..2).all(|a| (d[a][a].abs() - 1.0).abs() < 1e-6) && (d[2][2].abs() - 1.0).abs() < 1e-6;
+    let [sx, sy, _] = grid.spacing();
+    let bad = |why: String| {
+        Failure::input(anyhow::anyhow!(
+            "--reference {}: {why}",
+            reference.display()
+        ))
+    };
+    if !axial {
+        return Err(bad(
+            "its slices are not axial (rows along x, columns along y)".into(),
+        ));
+    }
+    if (sx - sy).abs() > 1e-6 * sx.max(sy) {
+        return Err(bad(format!(
+            "its pixels are {sx} × {sy}: the plane grid needs square cells"
+        )));
+    }
+    // The image's pixel lattice along each axis, shifted by a small odd fraction of a pixel:
+    // contours traced on pixel centres would otherwise put their vertices on grid points,
+    // where cells degenerate (the same fractions as `PlaneGrid::with_cell` uses).
+    let origin = grid.origin();
+    let (lo, hi, _) = stack.bounds();
+    let first = |a: usize, shift: f64| {
+        let o = origin[a];
+        o + ((lo[a] - o) / sx).floor() * sx - sx + shift * sx
+    };
+    let start = [first(0, 0.0719), first(1, 0.0437)];
+    let dims = [0, 1].map(|a| ((hi[a] - start[a]) / sx).ceil() as usize + 2);
+    let plane = PlaneGrid {
+        origin: start,
+        spacing: sx,
+        dims,
+    };
+    if !plane.indexable(stack.sections().len()) {
+        return Err(bad(format!(
+            "its {sx} pixels make a {}×{} plane grid, too large to index",
+            dims[0], dims[1]
+        )));
+    }
+    Ok(plane)
 }
 
 /// What the grid could not follow, for the summary line.
