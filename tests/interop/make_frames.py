@@ -15,6 +15,9 @@ pynrrd, beside make_volumes.py's, and records the NIfTI-2 one in expected.json.
 - vectors.mha (SimpleITK, ElementNumberOfChannels = 2) and vectors.nrrd (pynrrd, kinds "vector
   domain domain domain", the channels interleaved): channel c holds the fixture's values plus
   10000 c.
+- hyperstack.tif (tifffile, an ImageJ hyperstack TZCYX: 2 frames, 8 slices, 2 channels, 16-bit):
+  frame t, channel c holds the fixture's values plus 1000 t + 10000 c.
+- rgb.tif (tifffile, 8 pages of 8-bit RGB): sample c holds (the fixture's values + 40 c) mod 256.
 """
 
 import json
@@ -77,5 +80,16 @@ nrrd.write(
     index_order="F",
 )
 
+import tifffile
+
+# [t, z, c, y, x] as ImageJ orders a hyperstack's pages (channel fastest, then slice, then frame).
+hyper = np.stack(
+    [np.stack([values + 1000 * t + 10000 * ch for ch in range(2)], axis=0) for t in range(2)], axis=0
+)  # [t, c, x, y, z]
+hyper = hyper.transpose(0, 4, 1, 3, 2).astype(np.uint16)  # [t, z, c, y, x]
+tifffile.imwrite(out / "hyperstack.tif", hyper, imagej=True, metadata={"axes": "TZCYX", "spacing": 2.5})
+rgb = np.stack([(values + 40 * ch) % 256 for ch in range(3)], axis=-1).astype(np.uint8)  # [x, y, z, c]
+tifffile.imwrite(out / "rgb.tif", rgb.transpose(2, 1, 0, 3), photometric="rgb")
+
 expected_path.write_text(json.dumps(expected, indent=1) + "\n")
-print("wrote nifti2.nii.gz, frames.nii/.mha/.nrrd, channels.nii.gz, vectors.mha/.nrrd to", out)
+print("wrote nifti2.nii.gz, frames.nii/.mha/.nrrd, channels.nii.gz, vectors.mha/.nrrd, hyperstack.tif, rgb.tif to", out)

@@ -45,12 +45,13 @@ pub(crate) struct VolumeArgs {
     #[arg(long, value_name = "N")]
     pub scale: Option<usize>,
     /// Volumes with several channels: the channel to mesh (an OME-Zarr `c` axis, NIfTI's
-    /// `dim[5]`, MetaImage's `ElementNumberOfChannels`, an NRRD `vector` axis).
+    /// `dim[5]`, MetaImage's `ElementNumberOfChannels`, an NRRD `vector` axis, a TIFF's samples
+    /// per pixel or an ImageJ hyperstack's channels).
     #[arg(long, value_name = "N")]
     pub channel: Option<usize>,
     /// Volumes over time: the time point to mesh (an OME-Zarr `t` axis, NIfTI's `dim[4]`, a
-    /// fourth MetaImage axis, an NRRD `list` or `time` axis, a DICOM series with several images
-    /// at every slice position).
+    /// fourth MetaImage axis, an NRRD `list` or `time` axis, an ImageJ hyperstack's frames, a
+    /// DICOM series with several images at every slice position).
     #[arg(long, value_name = "N")]
     pub frame: Option<usize>,
     /// The most memory reading the volume may take: `512M`, `8G`, `1.5T` (binary units), a

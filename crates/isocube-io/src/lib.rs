@@ -440,7 +440,7 @@ pub fn read_volume_oriented(
         }
         VolumeFormat::Vti => vti::read_vti_within(path, budget)?,
         VolumeFormat::Nifti => read_nifti_volume(path, budget, Pick::of(options))?,
-        VolumeFormat::Tiff => identity(read_tiff_volume(path, budget)?),
+        VolumeFormat::Tiff => identity(read_tiff_volume(path, budget, Pick::of(options))?),
         VolumeFormat::Raw(raw) => identity(raw::read_raw_within(path, raw, budget)?),
     };
     with_overrides(path, read, options)
@@ -497,7 +497,7 @@ pub fn read_volume_bytes(
         }
         VolumeFormat::Vti => vti::read_vti_bytes(name, bytes, budget)?,
         VolumeFormat::Nifti => read_nifti_bytes(name, bytes, budget, Pick::of(options))?,
-        VolumeFormat::Tiff => identity(read_tiff_bytes(name, bytes, budget)?),
+        VolumeFormat::Tiff => identity(read_tiff_bytes(name, bytes, budget, Pick::of(options))?),
         VolumeFormat::Raw(raw) => identity(raw::read_raw_bytes(name, bytes, raw, budget)?),
     };
     with_overrides(name, read, options)
@@ -683,12 +683,12 @@ fn read_dicom_volume(path: &Path, _: Budget, _: Pick) -> Result<(Grid, Orientati
 }
 
 #[cfg(feature = "tiff")]
-fn read_tiff_volume(path: &Path, budget: Budget) -> Result<Grid, IoError> {
-    tiff_stack::read_tiff_within(path, budget)
+fn read_tiff_volume(path: &Path, budget: Budget, pick: Pick) -> Result<Grid, IoError> {
+    tiff_stack::read_tiff_within(path, budget, pick)
 }
 
 #[cfg(not(feature = "tiff"))]
-fn read_tiff_volume(path: &Path, _: Budget) -> Result<Grid, IoError> {
+fn read_tiff_volume(path: &Path, _: Budget, _: Pick) -> Result<Grid, IoError> {
     Err(IoError::unsupported(
         path,
         Position::File,
@@ -717,18 +717,19 @@ fn read_nifti_bytes(
 }
 
 #[cfg(feature = "tiff")]
-fn read_tiff_bytes(path: &Path, bytes: &[u8], budget: Budget) -> Result<Grid, IoError> {
+fn read_tiff_bytes(path: &Path, bytes: &[u8], budget: Budget, pick: Pick) -> Result<Grid, IoError> {
     tiff_stack::read_tiff_from(
         path,
         std::io::Cursor::new(bytes),
         bytes.len() as u64,
         budget,
+        pick,
     )
 }
 
 #[cfg(not(feature = "tiff"))]
-fn read_tiff_bytes(path: &Path, _: &[u8], budget: Budget) -> Result<Grid, IoError> {
-    read_tiff_volume(path, budget)
+fn read_tiff_bytes(path: &Path, _: &[u8], budget: Budget, pick: Pick) -> Result<Grid, IoError> {
+    read_tiff_volume(path, budget, pick)
 }
 
 #[cfg(feature = "nifti")]
@@ -1024,6 +1025,56 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// TIFF (`tests/interop/make_frames.py`, tifffile): an ImageJ hyperstack's pages of one
+    /// channel and frame make the volume (slice spacing from its description); of RGB pages
+    /// one sample; without a choice the error names it.
+    #[test]
+    #[cfg(feature = "tiff")]
+    fn tiff_channels_and_frames_are_picked() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes");
+        let pick = |frame: Option<usize>, channel: Option<usize>| VolumeOptions {
+            frame,
+            channel,
+            ..VolumeOptions::default()
+        };
+        let points = [(0, 0, 0), (11, 9, 7), (3, 2, 5)];
+        let hyper = dir.join("hyperstack.tif");
+        for (t, c) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (g, _) = read_volume_oriented(&hyper, &pick(Some(t), Some(c))).unwrap();
+            assert_eq!((g.dims(), g.spacing()[2]), ([12, 10, 8], 2.5));
+            for (i, j, k) in points {
+                let want = 100 + i + 10 * j + 100 * k + 1000 * t + 10000 * c;
+                assert_eq!(g.values()[g.index(i, j, k)], want as f32, "{t} {c}");
+            }
+        }
+        let e = read_volume_oriented(&hyper, &pick(Some(0), None))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("choose one with --channel (0 to 1)"), "{e}");
+        let e = read_volume_oriented(&hyper, &pick(None, Some(0)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("choose one with --frame (0 to 1)"), "{e}");
+        let rgb = dir.join("rgb.tif");
+        let bytes = std::fs::read(&rgb).unwrap();
+        for c in 0..3 {
+            let (g, _) = read_volume_oriented(&rgb, &pick(None, Some(c))).unwrap();
+            for (i, j, k) in points {
+                let want = (100 + i + 10 * j + 100 * k + 40 * c) % 256;
+                assert_eq!(g.values()[g.index(i, j, k)], want as f32, "{c}");
+            }
+            let (b, _) = read_volume_bytes(&bytes, &rgb, &pick(None, Some(c))).unwrap();
+            assert_eq!(b, g);
+        }
+        let e = read_volume_oriented(&rgb, &pick(None, None))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("3 samples per pixel: choose one with --channel (0 to 2)"),
+            "{e}"
+        );
     }
 
     /// A DICOM SEG (`tests/interop/make_dicom.py`): five shuffled 1-bit frames of two segments
