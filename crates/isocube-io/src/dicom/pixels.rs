@@ -367,9 +367,94 @@ fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
     })
 }
 
+/// Checks a JPEG-LS stream's header segments against the bounds ITU-T T.87 sets, before the
+/// decoder sees them: `pure_jpegls` trusts them, and its context arithmetic overflows on
+/// streams that break them. One component, no mapping tables, no point transform (what DICOM
+/// writes); preset parameters (LSE 1) within C.2.4.1.1's ranges; NEAR within A.2.1's.
+fn jpeg_ls_header(bytes: &[u8]) -> Result<(), String> {
+    let mut at = 2;
+    let mut precision = None;
+    let mut maxval = None;
+    loop {
+        while bytes.get(at) == Some(&0xFF) && bytes.get(at + 1) == Some(&0xFF) {
+            at += 1;
+        }
+        let (Some(&0xFF), Some(&marker)) = (bytes.get(at), bytes.get(at + 1)) else {
+            return Err(format!("no scan header before byte {at}"));
+        };
+        let len = bytes
+            .get(at + 2..at + 4)
+            .map(|b| usize::from(u16::from_be_bytes([b[0], b[1]])))
+            .ok_or("the stream ends inside a marker segment")?;
+        let segment = bytes
+            .get(at + 4..at + 2 + len.max(2))
+            .ok_or("the stream ends inside a marker segment")?;
+        let word = |i: usize| {
+            segment
+                .get(i..i + 2)
+                .map(|b| u32::from(u16::from_be_bytes([b[0], b[1]])))
+        };
+        match marker {
+            0xF7 => {
+                let (&p, &nf) = (
+                    segment.first().ok_or("a short frame header")?,
+                    segment.get(5).ok_or("a short frame header")?,
+                );
+                if !(2..=16).contains(&p) || nf != 1 || segment.get(7) != Some(&0x11) {
+                    return Err(format!("a frame of {nf} components, {p}-bit, sampling {:?}: isocube reads one 2- to 16-bit component", segment.get(7)));
+                }
+                precision = Some(u32::from(p));
+            }
+            0xF8 => {
+                let id = *segment.first().ok_or("a short preset parameters segment")?;
+                if id != 1 {
+                    return Err(format!(
+                        "preset parameters of kind {id} (mapping tables) are not read"
+                    ));
+                }
+                let p = precision.ok_or("preset parameters before the frame header")?;
+                let (max, t1, t2, t3, reset) = match (word(1), word(3), word(5), word(7), word(9)) {
+                    (Some(a), Some(b), Some(c), Some(d), Some(e)) => (a, b, c, d, e),
+                    _ => return Err("a short preset parameters segment".into()),
+                };
+                let full = (1u32 << p) - 1;
+                let max = if max == 0 { full } else { max };
+                // Zero thresholds and reset mean the defaults.
+                let ordered = [t1, t2, t3].iter().all(|&t| t <= max)
+                    && (t1 == 0 || t2 == 0 || t1 <= t2)
+                    && (t2 == 0 || t3 == 0 || t2 <= t3);
+                if max > full || !ordered || !(reset == 0 || (3..=max.max(255)).contains(&reset)) {
+                    return Err(format!("preset parameters MAXVAL {max}, T1 {t1}, T2 {t2}, T3 {t3}, RESET {reset} outside T.87's ranges for {p}-bit samples"));
+                }
+                maxval = Some(max);
+            }
+            0xDA => {
+                let p = precision.ok_or("a scan before the frame header")?;
+                let ns = *segment.first().ok_or("a short scan header")?;
+                let near = segment.get(3).copied().map(u32::from);
+                let (ilv, pt) = (segment.get(4).copied(), segment.get(5).copied());
+                let max = maxval.unwrap_or((1u32 << p) - 1);
+                match (ns, segment.get(2), near, ilv, pt) {
+                    (1, Some(0), Some(near), Some(0), Some(0)) if near <= 255.min(max / 2) => return Ok(()),
+                    _ => {
+                        return Err(format!(
+                            "a scan of {ns} components, mapping table {:?}, NEAR {near:?}, interleave {ilv:?}, point transform {pt:?}: isocube reads one component, no table, no point transform",
+                            segment.get(2)
+                        ))
+                    }
+                }
+            }
+            0xD9 => return Err("the stream ends before its scan".into()),
+            _ => {}
+        }
+        at += 2 + len;
+    }
+}
+
 fn jpeg_ls(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
     let (width, height) = jpeg_frame_size(bytes).map_err(|e| format!("JPEG-LS: {e}"))?;
     check_size(fmt, width, height)?;
+    jpeg_ls_header(bytes).map_err(|e| format!("JPEG-LS: {e}"))?;
     let (samples, width, height) = jpegls::decode(bytes, fmt.cols as u32, fmt.rows as u32)
         .map_err(|e| format!("JPEG-LS: {e}"))?;
     check_size(fmt, width as usize, height as usize)?;
