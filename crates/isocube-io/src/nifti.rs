@@ -209,22 +209,10 @@ pub(super) fn read_nifti_within(
 ) -> Result<(Grid, Orientation), IoError> {
     let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
     let len = file.metadata().map_err(|e| IoError::os(path, e))?.len();
-    let mut stream = stored(path, std::io::BufReader::with_capacity(1 << 20, file));
-    let mut first = [0u8; 4];
-    stream
-        .read_exact(&mut first)
-        .map_err(|e| stream_error(path, e))?;
-    if is_nifti2(first) {
-        let known = (!gzipped(path)).then_some(len);
-        return read_nifti2(
-            path,
-            std::io::Cursor::new(first).chain(stream),
-            known,
-            budget,
-            pick,
-        );
+    let reader = std::io::BufReader::with_capacity(1 << 20, file);
+    if let Some(read) = try_nifti2(path, reader, len, budget, pick)? {
+        return Ok(read);
     }
-    drop(stream);
     check_size(path, budget)?;
     if pick.frame.unwrap_or(0) == 0 && pick.channel.unwrap_or(0) == 0 {
         let file = std::fs::File::open(path).map_err(|e| IoError::os(path, e))?;
@@ -246,20 +234,8 @@ pub(super) fn read_nifti_bytes(
     budget: Budget,
     pick: Pick,
 ) -> Result<(Grid, Orientation), IoError> {
-    let mut stream = stored(path, bytes);
-    let mut first = [0u8; 4];
-    stream
-        .read_exact(&mut first)
-        .map_err(|e| stream_error(path, e))?;
-    if is_nifti2(first) {
-        let known = (!gzipped(path)).then_some(bytes.len() as u64);
-        return read_nifti2(
-            path,
-            std::io::Cursor::new(first).chain(stream),
-            known,
-            budget,
-            pick,
-        );
+    if let Some(read) = try_nifti2(path, bytes, bytes.len() as u64, budget, pick)? {
+        return Ok(read);
     }
     check_header(path, bytes, bytes.len() as u64, budget)?;
     if pick.frame.unwrap_or(0) == 0 && pick.channel.unwrap_or(0) == 0 {
@@ -283,6 +259,28 @@ fn stored<'a>(path: &Path, reader: impl Read + 'a) -> Box<dyn Read + 'a> {
     } else {
         Box::new(reader)
     }
+}
+
+/// A NIfTI-2 file's volume from `reader` (its `len` bytes as stored, gzip or not), or `None`
+/// when its header is NIfTI-1's.
+fn try_nifti2(
+    path: &Path,
+    reader: impl Read,
+    len: u64,
+    budget: Budget,
+    pick: Pick,
+) -> Result<Option<(Grid, Orientation)>, IoError> {
+    let mut stream = stored(path, reader);
+    let mut first = [0u8; 4];
+    stream
+        .read_exact(&mut first)
+        .map_err(|e| stream_error(path, e))?;
+    if !is_nifti2(first) {
+        return Ok(None);
+    }
+    let known = (!gzipped(path)).then_some(len);
+    let whole = std::io::Cursor::new(first).chain(stream);
+    read_nifti2(path, whole, known, budget, pick).map(Some)
 }
 
 /// Whether a header's first four bytes (`sizeof_hdr`) say NIfTI-2, in either byte order.
@@ -411,25 +409,13 @@ fn read_nifti2(
         ));
     }
     let (datatype, bitpix) = (i16_at(12), i16_at(14));
-    let scalar = match datatype {
-        2 => ScalarType::U8,
-        256 => ScalarType::I8,
-        4 => ScalarType::I16,
-        512 => ScalarType::U16,
-        8 => ScalarType::I32,
-        768 => ScalarType::U32,
-        1024 => ScalarType::I64,
-        1280 => ScalarType::U64,
-        16 => ScalarType::F32,
-        64 => ScalarType::F64,
-        other => {
-            return Err(IoError::unsupported(
-                path,
-                field("datatype"),
-                format!("datatype {other}: isocube reads one integer or real scalar per voxel"),
-            ))
-        }
-    };
+    let scalar = scalar_of(datatype).ok_or_else(|| {
+        IoError::unsupported(
+            path,
+            field("datatype"),
+            format!("datatype {datatype}: isocube reads one integer or real scalar per voxel"),
+        )
+    })?;
     if bitpix as usize != 8 * scalar.size() {
         return Err(IoError::format(
             path,
@@ -575,18 +561,8 @@ fn placement_within(path: &Path, bytes: &[u8], len: u64) -> Result<Option<Placem
     if &header.magic != b"n+1\0" || frames != 1 {
         return Ok(None);
     }
-    let scalar = match header.datatype {
-        2 => ScalarType::U8,
-        256 => ScalarType::I8,
-        4 => ScalarType::I16,
-        512 => ScalarType::U16,
-        8 => ScalarType::I32,
-        768 => ScalarType::U32,
-        1024 => ScalarType::I64,
-        1280 => ScalarType::U64,
-        16 => ScalarType::F32,
-        64 => ScalarType::F64,
-        _ => return Ok(None),
+    let Some(scalar) = scalar_of(header.datatype) else {
+        return Ok(None);
     };
     let endian = match header.endianness {
         nifti::Endianness::Little => Endian::Little,
@@ -769,6 +745,24 @@ fn finish(
         .and_then(|g| g.with_origin(origin))
         .map_err(|e| IoError::grid(path, e))?;
     Ok((grid, orientation))
+}
+
+/// The scalar type of a NIfTI `datatype` code (both versions share them), for the types isocube
+/// reads.
+fn scalar_of(datatype: i16) -> Option<ScalarType> {
+    Some(match datatype {
+        2 => ScalarType::U8,
+        256 => ScalarType::I8,
+        4 => ScalarType::I16,
+        512 => ScalarType::U16,
+        8 => ScalarType::I32,
+        768 => ScalarType::U32,
+        1024 => ScalarType::I64,
+        1280 => ScalarType::U64,
+        16 => ScalarType::F32,
+        64 => ScalarType::F64,
+        _ => return None,
+    })
 }
 
 /// A header's geometry fields (NIfTI-1's in `f32`, NIfTI-2's in `f64`).

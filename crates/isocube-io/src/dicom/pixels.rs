@@ -278,13 +278,13 @@ fn check_size(fmt: &PixelFormat, width: usize, height: usize) -> Result<(), Stri
     Ok(())
 }
 
-/// The image size a JPEG or JPEG-LS stream's frame header declares (width, height), read
-/// before any decoder sees the stream: decoders reserve what the header says, so a frame
-/// header that disagrees with Rows and Columns is refused first.
-fn jpeg_frame_size(bytes: &[u8]) -> Result<(usize, usize), String> {
+/// The marker segments of a JPEG or JPEG-LS stream's header, in order, up to and including
+/// its first scan header (SOS): each marker and its segment's bytes (after the length).
+fn header_segments(bytes: &[u8]) -> Result<Vec<(u8, &[u8])>, String> {
     if bytes.get(..2) != Some(&[0xFF, 0xD8]) {
         return Err("the stream does not open with a JPEG start of image".into());
     }
+    let mut segments = Vec::new();
     let mut at = 2;
     loop {
         // Markers may be preceded by fill bytes (0xFF).
@@ -292,26 +292,42 @@ fn jpeg_frame_size(bytes: &[u8]) -> Result<(usize, usize), String> {
             at += 1;
         }
         let (Some(&0xFF), Some(&marker)) = (bytes.get(at), bytes.get(at + 1)) else {
-            return Err(format!("no frame header before byte {at}"));
+            return Err(format!("no scan header before byte {at}"));
         };
+        if marker == 0xD9 {
+            return Err("the stream ends before its scan".into());
+        }
         let len = bytes
             .get(at + 2..at + 4)
             .map(|b| usize::from(u16::from_be_bytes([b[0], b[1]])))
+            .filter(|&len| len >= 2)
             .ok_or("the stream ends inside a marker segment")?;
-        let frame = matches!(marker, 0xC0..=0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF | 0xF7);
-        if frame {
-            let header = bytes
-                .get(at + 4..at + 9)
-                .ok_or("the stream ends inside its frame header")?;
-            let height = usize::from(u16::from_be_bytes([header[1], header[2]]));
-            let width = usize::from(u16::from_be_bytes([header[3], header[4]]));
-            return Ok((width, height));
-        }
-        if marker == 0xDA || marker == 0xD9 || len < 2 {
-            return Err("no frame header before the scan".into());
+        let segment = bytes
+            .get(at + 4..at + 2 + len)
+            .ok_or("the stream ends inside a marker segment")?;
+        segments.push((marker, segment));
+        if marker == 0xDA {
+            return Ok(segments);
         }
         at += 2 + len;
     }
+}
+
+/// The image size a JPEG or JPEG-LS stream's frame header declares (width, height), read
+/// before any decoder sees the stream: decoders reserve what the header says, so a frame
+/// header that disagrees with Rows and Columns is refused first.
+fn jpeg_frame_size(bytes: &[u8]) -> Result<(usize, usize), String> {
+    let frame = |m: u8| matches!(m, 0xC0..=0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF | 0xF7);
+    let (_, header) = header_segments(bytes)?
+        .into_iter()
+        .find(|(m, _)| frame(*m))
+        .ok_or("no frame header before the scan")?;
+    let header = header
+        .get(..5)
+        .ok_or("the stream ends inside its frame header")?;
+    let height = usize::from(u16::from_be_bytes([header[1], header[2]]));
+    let width = usize::from(u16::from_be_bytes([header[3], header[4]]));
+    Ok((width, height))
 }
 
 /// The image size a JPEG 2000 codestream's SIZ segment declares, read before decoding (see
@@ -372,23 +388,9 @@ fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
 /// streams that break them. One component, no mapping tables, no point transform (what DICOM
 /// writes); preset parameters (LSE 1) within C.2.4.1.1's ranges; NEAR within A.2.1's.
 fn jpeg_ls_header(bytes: &[u8]) -> Result<(), String> {
-    let mut at = 2;
     let mut precision = None;
     let mut maxval = None;
-    loop {
-        while bytes.get(at) == Some(&0xFF) && bytes.get(at + 1) == Some(&0xFF) {
-            at += 1;
-        }
-        let (Some(&0xFF), Some(&marker)) = (bytes.get(at), bytes.get(at + 1)) else {
-            return Err(format!("no scan header before byte {at}"));
-        };
-        let len = bytes
-            .get(at + 2..at + 4)
-            .map(|b| usize::from(u16::from_be_bytes([b[0], b[1]])))
-            .ok_or("the stream ends inside a marker segment")?;
-        let segment = bytes
-            .get(at + 4..at + 2 + len.max(2))
-            .ok_or("the stream ends inside a marker segment")?;
+    for (marker, segment) in header_segments(bytes)? {
         let word = |i: usize| {
             segment
                 .get(i..i + 2)
@@ -396,12 +398,14 @@ fn jpeg_ls_header(bytes: &[u8]) -> Result<(), String> {
         };
         match marker {
             0xF7 => {
-                let (&p, &nf) = (
-                    segment.first().ok_or("a short frame header")?,
-                    segment.get(5).ok_or("a short frame header")?,
-                );
+                let (Some(&p), Some(&nf)) = (segment.first(), segment.get(5)) else {
+                    return Err("a short frame header".into());
+                };
                 if !(2..=16).contains(&p) || nf != 1 || segment.get(7) != Some(&0x11) {
-                    return Err(format!("a frame of {nf} components, {p}-bit, sampling {:?}: isocube reads one 2- to 16-bit component", segment.get(7)));
+                    return Err(format!(
+                        "a frame of {nf} components, {p}-bit, sampling {:?}: isocube reads one 2- to 16-bit component",
+                        segment.get(7)
+                    ));
                 }
                 precision = Some(u32::from(p));
             }
@@ -434,21 +438,18 @@ fn jpeg_ls_header(bytes: &[u8]) -> Result<(), String> {
                 let near = segment.get(3).copied().map(u32::from);
                 let (ilv, pt) = (segment.get(4).copied(), segment.get(5).copied());
                 let max = maxval.unwrap_or((1u32 << p) - 1);
-                match (ns, segment.get(2), near, ilv, pt) {
-                    (1, Some(0), Some(near), Some(0), Some(0)) if near <= 255.min(max / 2) => return Ok(()),
-                    _ => {
-                        return Err(format!(
-                            "a scan of {ns} components, mapping table {:?}, NEAR {near:?}, interleave {ilv:?}, point transform {pt:?}: isocube reads one component, no table, no point transform",
-                            segment.get(2)
-                        ))
-                    }
-                }
+                return match (ns, segment.get(2), near, ilv, pt) {
+                    (1, Some(0), Some(near), Some(0), Some(0)) if near <= 255.min(max / 2) => Ok(()),
+                    _ => Err(format!(
+                        "a scan of {ns} components, mapping table {:?}, NEAR {near:?}, interleave {ilv:?}, point transform {pt:?}: isocube reads one component, no table, no point transform",
+                        segment.get(2)
+                    )),
+                };
             }
-            0xD9 => return Err("the stream ends before its scan".into()),
             _ => {}
         }
-        at += 2 + len;
     }
+    Err("no scan header".into())
 }
 
 fn jpeg_ls(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
