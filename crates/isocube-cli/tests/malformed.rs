@@ -129,7 +129,7 @@ fn cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>, &'static str)> {
         // TIFF.
         ("text.tif", b"this is not a tiff".to_vec(), vec![], "TIFF"),
         ("cut.tif", tiff_page(4, 4, 1, 16)[..60].to_vec(), vec![], "not a readable TIFF"),
-        ("rgb.tif", tiff_page(2, 2, 3, 12), vec![], "grey"),
+        ("rgb.tif", tiff_page(2, 2, 3, 12), vec![], "3 samples per pixel: choose one with --channel"),
         ("strip.tif", tiff_page(4, 4, 1, 16)[..126].to_vec(), vec![], "page 0"),
         // Absurd sizes: refused before allocating, under the default limit (the machine's
         // memory) or a given one.

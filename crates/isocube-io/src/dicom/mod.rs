@@ -81,11 +81,12 @@ pub(super) fn read_dicom_within(
     } else {
         vec![path.to_path_buf()]
     };
-    let mut planes = Vec::new();
-    let mut layouts: Vec<Layout> = Vec::new();
+    // Files are parsed one by one, each data set kept (compressed pixel data stays compressed)
+    // and its decoded values counted against the budget before any is decoded; then the
+    // files' frames are decoded in parallel, the slow part of compressed series.
+    let mut sets = Vec::new();
     let mut held = 0u64;
     for file in files {
-        // A file is held whole while it is parsed, then its planes' values stay.
         let len = std::fs::metadata(&file)
             .map_err(|e| IoError::os(&file, e))?
             .len();
@@ -98,8 +99,22 @@ pub(super) fn read_dicom_within(
         if path.is_dir() && find(&set.nodes, PIXEL_DATA).is_none() {
             continue;
         }
-        let (layout, mut more) = read_image(&file, &set, budget, held)?;
-        held += more.iter().map(|p| 4 * p.values.len() as u64).sum::<u64>();
+        held = held
+            .saturating_add(set.data.len() as u64)
+            .saturating_add(4 * planned_values(&file, &set)?);
+        budget.check(&file, Position::Field("Rows".into()), held)?;
+        sets.push((file, set));
+    }
+    let images = {
+        use rayon::prelude::*;
+        sets.par_iter()
+            .map(|(file, set)| read_image(file, set, Budget::UNLIMITED, 0))
+            .collect::<Result<Vec<_>, IoError>>()?
+    };
+    drop(sets);
+    let mut planes = Vec::new();
+    let mut layouts: Vec<Layout> = Vec::new();
+    for (layout, mut more) in images {
         planes.append(&mut more);
         layouts.push(layout);
     }
@@ -602,6 +617,22 @@ fn segmentation(v: &Values, nodes: &[Node]) -> Result<Option<Segmentation>, IoEr
         }
     }
     Ok(Some(Segmentation { kind, names }))
+}
+
+/// How many values a file's frames decode to (Rows × Columns × Number of Frames), for the
+/// budget before decoding.
+fn planned_values(path: &Path, set: &DataSet) -> Result<u64, IoError> {
+    let v = Values { path, set };
+    let nodes = &set.nodes[..];
+    let count = |tag, name| -> Result<u64, IoError> {
+        match find(nodes, tag) {
+            Some(n) => Ok(v.int(n, name)?.max(1) as u64),
+            None => Ok(1),
+        }
+    };
+    Ok(count((0x0028, 0x0010), "Rows")?
+        .saturating_mul(count((0x0028, 0x0011), "Columns")?)
+        .saturating_mul(count((0x0028, 0x0008), "NumberOfFrames")?))
 }
 
 /// One file's layout and planes.
