@@ -1,0 +1,54 @@
+"""A 256 × 256 × 120 CT-like series (two nested balls and noise, 0.8 × 0.8 × 2 mm) in four
+transfer syntaxes, written by pydicom and its encoders into the current folder: raw/, rle/,
+jls/, j2k/ (bench/dicom/run.sh)."""
+
+from pathlib import Path
+
+import numpy as np
+from pydicom.dataset import FileDataset, FileMetaDataset
+from pydicom.uid import (
+    ExplicitVRLittleEndian,
+    JPEG2000Lossless,
+    JPEGLSLossless,
+    RLELossless,
+    generate_uid,
+)
+
+N, NZ = 256, 120
+x, y = np.meshgrid(np.arange(N), np.arange(N), indexing="xy")
+rng = np.random.default_rng(1)
+for syntax, name in [
+    (ExplicitVRLittleEndian, "raw"),
+    (RLELossless, "rle"),
+    (JPEGLSLossless, "jls"),
+    (JPEG2000Lossless, "j2k"),
+]:
+    folder = Path(name)
+    folder.mkdir(exist_ok=True)
+    series = generate_uid()
+    for k in range(NZ):
+        r = np.sqrt((x - 128) ** 2 + (y - 128) ** 2 + ((k - 60) * 2.0) ** 2)
+        image = (1000 * (r < 90) + 400 * (r < 60) + rng.normal(0, 20, (N, N))).astype(np.int16)
+        meta = FileMetaDataset()
+        meta.MediaStorageSOPClassUID = "1.2.840.10008.5.1.4.1.1.2"
+        meta.MediaStorageSOPInstanceUID = generate_uid()
+        meta.TransferSyntaxUID = ExplicitVRLittleEndian
+        ds = FileDataset(str(folder / f"{k}.dcm"), {}, file_meta=meta, preamble=b"\0" * 128)
+        ds.SOPClassUID = meta.MediaStorageSOPClassUID
+        ds.SOPInstanceUID = meta.MediaStorageSOPInstanceUID
+        ds.SeriesInstanceUID = series
+        ds.Modality = "CT"
+        ds.ImagePositionPatient = [0.0, 0.0, 2.0 * k]
+        ds.ImageOrientationPatient = [1, 0, 0, 0, 1, 0]
+        ds.PixelSpacing = [0.8, 0.8]
+        ds.Rows, ds.Columns = N, N
+        ds.SamplesPerPixel = 1
+        ds.PhotometricInterpretation = "MONOCHROME2"
+        ds.BitsAllocated, ds.BitsStored, ds.HighBit = 16, 16, 15
+        ds.PixelRepresentation = 1
+        ds.RescaleSlope, ds.RescaleIntercept = 1, -1024
+        if syntax == ExplicitVRLittleEndian:
+            ds.PixelData = image.tobytes()
+        else:
+            ds.compress(syntax, image)
+        ds.save_as(folder / f"{k}.dcm", enforce_file_format=True)
