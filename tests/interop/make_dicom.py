@@ -317,3 +317,28 @@ ds.save_as(out / "seg.dcm", enforce_file_format=True)
 back = pydicom.dcmread(out / "seg.dcm")
 assert np.array_equal(back.pixel_array, np.stack([masks[f] for f in shuffle]))
 print("wrote seg.dcm:", len(masks), "frames")
+
+# The same structure set with a third region whose contour crosses itself (a bow tie): the
+# other regions are read, the bow tie refused by name.
+ds = pydicom.dcmread(out / "rtstruct.dcm")
+ds.SOPInstanceUID = generate_uid()
+ds.file_meta.MediaStorageSOPInstanceUID = ds.SOPInstanceUID
+ds.StructureSetROISequence.append(item(ROINumber=9, ROIName="bowtie"))
+bowtie = [(0, 0), (20, 20), (20, 0), (0, 20)]
+ds.ROIContourSequence.append(
+    item(
+        ReferencedROINumber=9,
+        ContourSequence=Sequence(
+            [
+                item(
+                    ContourGeometricType="CLOSED_PLANAR",
+                    NumberOfContourPoints=4,
+                    ContourData=[float(c) for x, y in bowtie for c in (x, y, z)],
+                )
+                for z in (0.0, 5.0)
+            ]
+        ),
+    )
+)
+ds.save_as(out / "rtstruct-bowtie.dcm", enforce_file_format=True)
+print("wrote rtstruct-bowtie.dcm")

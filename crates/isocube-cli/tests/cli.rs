@@ -2159,3 +2159,38 @@ fn contours_take_the_reference_image_pixels() {
         assert!(err.contains(says), "{err}");
     }
 }
+
+/// A structure set with one region whose contour crosses itself: the other regions are written
+/// and the command exits 2 naming the refused one; asked for by `--roi`, it is the error and
+/// nothing is written.
+#[test]
+fn a_refused_roi_does_not_stop_the_others() {
+    let plan =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/volumes/rtstruct-bowtie.dcm");
+    let plan = plan.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = isocube(
+        dir.path(),
+        &["contours", plan, "-o", "plan.ply", "--cap", "flat"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("1 region of interest refused, the others written"),
+        "{err}"
+    );
+    assert!(
+        err.contains("ROI 9 ('bowtie'), contour 1 (z 0)") && err.contains("meet at (10, 10)"),
+        "{err}"
+    );
+    assert_eq!(info(dir.path(), "plan-ring.ply")["watertight"], true);
+    assert!(!dir.path().join("plan-bowtie.ply").exists());
+    let out = isocube(
+        dir.path(),
+        &[
+            "contours", plan, "-o", "x.ply", "--roi", "bowtie", "--roi", "ring",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.path().join("x-ring.ply").exists() && !dir.path().join("x-bowtie.ply").exists());
+}

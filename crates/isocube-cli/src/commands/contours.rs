@@ -255,9 +255,19 @@ fn run_structure_set(args: &Args, quiet: bool) -> Result<(), Failure> {
         chosen = (0..rois.len()).collect();
     }
     let mut skipped = Vec::new();
+    let mut refused = Vec::new();
     let mut outputs = Vec::new();
     for &i in &chosen {
         let roi = &rois[i];
+        if let Some(problem) = &roi.problem {
+            // Asked for by name, a refused region is the error; otherwise the others are
+            // written and the command fails after them, naming it.
+            if !args.roi.is_empty() {
+                return Err(Failure::input(anyhow::anyhow!("{problem}")));
+            }
+            refused.push(problem.clone());
+            continue;
+        }
         if roi.stack.is_none() {
             let what = roi
                 .other
@@ -283,7 +293,7 @@ fn run_structure_set(args: &Args, quiet: bool) -> Result<(), Failure> {
         }
         outputs.push(output);
     }
-    if outputs.is_empty() {
+    if outputs.is_empty() && refused.is_empty() {
         return Err(Failure::input(anyhow::anyhow!(
             "{}: no region of interest with CLOSED_PLANAR contours among {}",
             args.input,
@@ -307,6 +317,19 @@ fn run_structure_set(args: &Args, quiet: bool) -> Result<(), Failure> {
             "skipped (no CLOSED_PLANAR contours): {}",
             skipped.join(", ")
         );
+    }
+    if !refused.is_empty() {
+        let n = refused.len();
+        return Err(Failure::input(anyhow::anyhow!(
+            "{n} region{} of interest refused, {} (--roi picks regions): {}",
+            if n == 1 { "" } else { "s" },
+            if outputs.is_empty() {
+                "nothing else to write"
+            } else {
+                "the others written"
+            },
+            refused.join("; ")
+        )));
     }
     Ok(())
 }

@@ -25,6 +25,9 @@ pub struct RtRoi {
     pub stack: Option<SectionStack>,
     /// Contours of other geometric types (POINT, OPEN_PLANAR, OPEN_NONPLANAR), counted by type.
     pub other: Vec<(String, usize)>,
+    /// Why the region's contours were refused (a contour that crosses itself, points off its
+    /// plane, …), naming the file, region and contour; the other regions are read.
+    pub problem: Option<String>,
 }
 
 const STRUCTURE_SET_ROIS: (u16, u16) = (0x3006, 0x0020);
@@ -117,91 +120,100 @@ pub fn read_rt_structure_set_bytes(bytes: &[u8], name: &Path) -> Result<Vec<RtRo
         })?;
         let roi_name = lookup(&names, number);
         let at = |what: String| field(format!("ROI {number} ('{roi_name}'), {what}"));
-        let mut planar: Vec<(f64, Vec<[f64; 2]>, usize)> = Vec::new();
-        let mut other: Vec<(String, usize)> = Vec::new();
-        let contours = find(item, CONTOURS).map_or(&[][..], |s| &s.items[..]);
-        for (c, contour) in contours.iter().enumerate() {
-            let kind = find(contour, GEOMETRIC_TYPE)
-                .map(|n| v.text(n))
-                .unwrap_or_default();
-            if kind != "CLOSED_PLANAR" {
-                match other.iter_mut().find(|(k, _)| *k == kind) {
-                    Some((_, count)) => *count += 1,
-                    None => other.push((kind, 1)),
+        // A region whose contours are refused does not stop the others: it comes back with
+        // the reason.
+        let build = || -> Result<(Option<SectionStack>, Vec<(String, usize)>), IoError> {
+            let mut planar: Vec<(f64, Vec<[f64; 2]>, usize)> = Vec::new();
+            let mut other: Vec<(String, usize)> = Vec::new();
+            let contours = find(item, CONTOURS).map_or(&[][..], |s| &s.items[..]);
+            for (c, contour) in contours.iter().enumerate() {
+                let kind = find(contour, GEOMETRIC_TYPE)
+                    .map(|n| v.text(n))
+                    .unwrap_or_default();
+                if kind != "CLOSED_PLANAR" {
+                    match other.iter_mut().find(|(k, _)| *k == kind) {
+                        Some((_, count)) => *count += 1,
+                        None => other.push((kind, 1)),
+                    }
+                    continue;
                 }
-                continue;
-            }
-            let data = find(contour, CONTOUR_DATA).ok_or_else(|| {
-                IoError::format(
-                    name,
-                    at(format!("contour {}: ContourData", c + 1)),
-                    "missing",
-                )
-            })?;
-            let numbers = v.numbers(data, "ContourData")?;
-            let declared = number_of(contour, POINT_COUNT, "NumberOfContourPoints")?;
-            if numbers.len() % 3 != 0
-                || declared.is_some_and(|d| d as u64 * 3 != numbers.len() as u64)
-            {
-                return Err(IoError::format(
-                    name,
-                    at(format!("contour {}: ContourData", c + 1)),
-                    format!(
-                        "{} numbers for {} points",
-                        numbers.len(),
-                        declared.map_or("x, y, z".into(), |d| d.to_string())
-                    ),
-                ));
-            }
-            let points: Vec<[f64; 3]> = numbers
-                .chunks_exact(3)
-                .map(|p| [p[0], p[1], p[2]])
-                .collect();
-            let Some(z) = points.first().map(|p| p[2]) else {
-                continue;
-            };
-            if let Some(p) = points.iter().find(|p| (p[2] - z).abs() > PLANE) {
-                return Err(IoError::unsupported(
-                    name,
-                    at(format!("contour {}", c + 1)),
-                    format!(
-                        "points at z {z} and {}: isocube reads contours in axial planes",
-                        p[2]
-                    ),
-                ));
-            }
-            planar.push((z, points.iter().map(|p| [p[0], p[1]]).collect(), c + 1));
-        }
-        planar.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut sections = Vec::new();
-        let mut i = 0;
-        while i < planar.len() {
-            let z = planar[i].0;
-            let mut loops = Vec::new();
-            while i < planar.len() && planar[i].0 - z <= PLANE {
-                let (_, points, c) = &planar[i];
-                for points in split_keyholes(points.clone()) {
-                    let contour = Contour::new(points).map_err(|e| {
-                        IoError::format(name, at(format!("contour {c} (z {z})")), e.to_string())
-                    })?;
-                    loops.push(contour);
-                }
-                i += 1;
-            }
-            if !loops.is_empty() {
-                let section = Section::new(z, loops).map_err(|e| {
-                    IoError::format(name, at(format!("the section at z {z}")), e.to_string())
+                let data = find(contour, CONTOUR_DATA).ok_or_else(|| {
+                    IoError::format(
+                        name,
+                        at(format!("contour {}: ContourData", c + 1)),
+                        "missing",
+                    )
                 })?;
-                sections.push(section);
+                let numbers = v.numbers(data, "ContourData")?;
+                let declared = number_of(contour, POINT_COUNT, "NumberOfContourPoints")?;
+                if numbers.len() % 3 != 0
+                    || declared.is_some_and(|d| d as u64 * 3 != numbers.len() as u64)
+                {
+                    return Err(IoError::format(
+                        name,
+                        at(format!("contour {}: ContourData", c + 1)),
+                        format!(
+                            "{} numbers for {} points",
+                            numbers.len(),
+                            declared.map_or("x, y, z".into(), |d| d.to_string())
+                        ),
+                    ));
+                }
+                let points: Vec<[f64; 3]> = numbers
+                    .chunks_exact(3)
+                    .map(|p| [p[0], p[1], p[2]])
+                    .collect();
+                let Some(z) = points.first().map(|p| p[2]) else {
+                    continue;
+                };
+                if let Some(p) = points.iter().find(|p| (p[2] - z).abs() > PLANE) {
+                    return Err(IoError::unsupported(
+                        name,
+                        at(format!("contour {}", c + 1)),
+                        format!(
+                            "points at z {z} and {}: isocube reads contours in axial planes",
+                            p[2]
+                        ),
+                    ));
+                }
+                planar.push((z, points.iter().map(|p| [p[0], p[1]]).collect(), c + 1));
             }
-        }
-        let stack = if sections.is_empty() {
-            None
-        } else {
-            Some(
-                SectionStack::new(sections)
-                    .map_err(|e| IoError::format(name, at("sections".into()), e.to_string()))?,
-            )
+            planar.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let mut sections = Vec::new();
+            let mut i = 0;
+            while i < planar.len() {
+                let z = planar[i].0;
+                let mut loops = Vec::new();
+                while i < planar.len() && planar[i].0 - z <= PLANE {
+                    let (_, points, c) = &planar[i];
+                    for points in split_keyholes(points.clone()) {
+                        let contour = Contour::new(points).map_err(|e| {
+                            IoError::format(name, at(format!("contour {c} (z {z})")), e.to_string())
+                        })?;
+                        loops.push(contour);
+                    }
+                    i += 1;
+                }
+                if !loops.is_empty() {
+                    let section = Section::new(z, loops).map_err(|e| {
+                        IoError::format(name, at(format!("the section at z {z}")), e.to_string())
+                    })?;
+                    sections.push(section);
+                }
+            }
+            let stack = if sections.is_empty() {
+                None
+            } else {
+                Some(
+                    SectionStack::new(sections)
+                        .map_err(|e| IoError::format(name, at("sections".into()), e.to_string()))?,
+                )
+            };
+            Ok((stack, other))
+        };
+        let (stack, other, problem) = match build() {
+            Ok((stack, other)) => (stack, other, None),
+            Err(e) => (None, Vec::new(), Some(e.to_string())),
         };
         out.push(RtRoi {
             number,
@@ -209,6 +221,7 @@ pub fn read_rt_structure_set_bytes(bytes: &[u8], name: &Path) -> Result<Vec<RtRo
             kind: lookup(&kinds, number),
             stack,
             other,
+            problem,
         });
     }
     Ok(out)
