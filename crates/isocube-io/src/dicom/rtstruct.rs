@@ -30,6 +30,9 @@ pub struct RtRoi {
     pub problem: Option<String>,
 }
 
+/// A region's closed contours as a stack (if any), and its other contours counted by type.
+type RoiContours = (Option<SectionStack>, Vec<(String, usize)>);
+
 const STRUCTURE_SET_ROIS: (u16, u16) = (0x3006, 0x0020);
 const ROI_NUMBER: (u16, u16) = (0x3006, 0x0022);
 const ROI_NAME: (u16, u16) = (0x3006, 0x0026);
@@ -122,7 +125,7 @@ pub fn read_rt_structure_set_bytes(bytes: &[u8], name: &Path) -> Result<Vec<RtRo
         let at = |what: String| field(format!("ROI {number} ('{roi_name}'), {what}"));
         // A region whose contours are refused does not stop the others: it comes back with
         // the reason.
-        let build = || -> Result<(Option<SectionStack>, Vec<(String, usize)>), IoError> {
+        let build = || -> Result<RoiContours, IoError> {
             let mut planar: Vec<(f64, Vec<[f64; 2]>, usize)> = Vec::new();
             let mut other: Vec<(String, usize)> = Vec::new();
             let contours = find(item, CONTOURS).map_or(&[][..], |s| &s.items[..]);
