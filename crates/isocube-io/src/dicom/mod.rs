@@ -246,14 +246,16 @@ fn merge_segment_planes(
     let Some(step) = step else {
         return Ok(planes);
     };
-    let count = (distinct.last().copied().unwrap_or(0.0) / step).round() as usize + 1;
-    if count > 1 << 16 {
+    let span = (distinct.last().copied().unwrap_or(0.0) / step).round();
+    // Checked as a float: a tiny spacing makes the span too large for any integer.
+    if span.is_nan() || span >= f64::from(1u32 << 16) {
         return Err(IoError::format(
             path,
             Position::Field("SpacingBetweenSlices".into()),
-            format!("{step}: the frames would span {count} planes"),
+            format!("{step}: the frames would span {span} planes"),
         ));
     }
+    let count = span as usize + 1;
     let n = first.size.0 * first.size.1;
     let mut merged: Vec<Option<Plane>> = (0..count).map(|_| None).collect();
     let base = planes

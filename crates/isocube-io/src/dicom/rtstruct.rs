@@ -150,7 +150,10 @@ pub fn read_rt_structure_set_bytes(bytes: &[u8], name: &Path) -> Result<Vec<RtRo
                 let numbers = v.numbers(data, "ContourData")?;
                 let declared = number_of(contour, POINT_COUNT, "NumberOfContourPoints")?;
                 if numbers.len() % 3 != 0
-                    || declared.is_some_and(|d| d as u64 * 3 != numbers.len() as u64)
+                    || declared.is_some_and(|d| {
+                        u64::try_from(d).ok().and_then(|d| d.checked_mul(3))
+                            != Some(numbers.len() as u64)
+                    })
                 {
                     return Err(IoError::format(
                         name,
