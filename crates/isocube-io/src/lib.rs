@@ -585,12 +585,27 @@ impl<'a> VolumeFormat<'a> {
 }
 
 /// Whether a file has DICOM's "DICM" after its 128-byte preamble.
-fn has_dicom_marker(path: &Path) -> bool {
+pub(crate) fn has_dicom_marker(path: &Path) -> bool {
     let mut magic = [0u8; 132];
     std::fs::File::open(path)
         .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
         .is_ok()
         && &magic[128..] == b"DICM"
+}
+
+/// Whether `path` is a DICOM file, as the readers decide: named `.dcm`, `.dicom` or `.ima`, or
+/// a file with DICOM's marker whatever its name.
+///
+/// ```
+/// assert!(isocube_io::is_dicom_file(std::path::Path::new("plan.dcm")));
+/// assert!(!isocube_io::is_dicom_file(std::path::Path::new("ct.nii.gz")));
+/// ```
+pub fn is_dicom_file(path: &Path) -> bool {
+    let by_name = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["dcm", "dicom", "ima"].contains(&e.to_ascii_lowercase().as_str()));
+    by_name || (path.is_file() && has_dicom_marker(path))
 }
 
 /// The read volume with the spacing and origin the options override.

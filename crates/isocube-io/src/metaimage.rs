@@ -35,28 +35,7 @@ pub(super) fn read_metaimage_bytes(
 ) -> Result<(Grid, Orientation), IoError> {
     let header = Header::parse(path, bytes)?;
     let volume = header.pick(path, pick)?;
-    let count = header
-        .dims
-        .iter()
-        .try_fold(1usize, |n, &d| n.checked_mul(d));
-    let count = count.ok_or_else(|| {
-        IoError::format(
-            path,
-            Position::Field("DimSize".into()),
-            "dimensions overflow",
-        )
-    })?;
-    let need = count
-        .checked_mul(header.frames)
-        .and_then(|n| n.checked_mul(header.channels))
-        .and_then(|n| n.checked_mul(header.scalar.size()))
-        .ok_or_else(|| {
-            IoError::format(
-                path,
-                Position::Field("DimSize".into()),
-                "dimensions overflow",
-            )
-        })?;
+    let (count, need) = header.sizes(path)?;
     // The file, the unpacked data when compressed, and the values.
     let unpacked = if header.compressed { need as u64 } else { 0 };
     let held = bytes.len() as u64 + unpacked;
@@ -88,17 +67,7 @@ pub(super) fn placement(path: &Path, bytes: &[u8]) -> Result<Option<Placement>, 
     if header.compressed || header.frames > 1 || header.channels > 1 {
         return Ok(None);
     }
-    let need = header
-        .dims
-        .iter()
-        .try_fold(header.scalar.size(), |n, &d| n.checked_mul(d))
-        .ok_or_else(|| {
-            IoError::format(
-                path,
-                Position::Field("DimSize".into()),
-                "dimensions overflow",
-            )
-        })?;
+    let (_, need) = header.sizes(path)?;
     let (data_file, start, len) = match &header.data_file {
         None => (None, header.length, bytes.len()),
         Some(name) => {
@@ -232,6 +201,23 @@ struct Header {
 }
 
 impl Header {
+    /// The values of one volume, and the bytes of the data (every frame and channel).
+    fn sizes(&self, path: &Path) -> Result<(usize, usize), IoError> {
+        let count = self.dims.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
+        let need = count
+            .and_then(|n| n.checked_mul(self.frames))
+            .and_then(|n| n.checked_mul(self.channels))
+            .and_then(|n| n.checked_mul(self.scalar.size()));
+        match (count, need) {
+            (Some(count), Some(need)) => Ok((count, need)),
+            _ => Err(IoError::format(
+                path,
+                Position::Field("DimSize".into()),
+                "dimensions overflow",
+            )),
+        }
+    }
+
     /// The frame and channel `pick` chooses (each 0 where the file has one).
     fn pick(&self, path: &Path, pick: Pick) -> Result<(usize, usize), IoError> {
         let frame = Pick::index(

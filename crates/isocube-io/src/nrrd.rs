@@ -467,20 +467,7 @@ impl Header {
                 }
                 "spacings" => {
                     // A non-spatial axis's spacing is NaN.
-                    spacings = Some(
-                        value
-                            .split_whitespace()
-                            .map(|t| {
-                                t.parse::<f64>().map_err(|_| {
-                                    IoError::format(
-                                        path,
-                                        pos(),
-                                        format!("'{t}' is not a number in '{key}'"),
-                                    )
-                                })
-                            })
-                            .collect::<Result<_, _>>()?,
-                    );
+                    spacings = Some(numbers(value)?);
                 }
                 "space directions" => {
                     // One `(x,y,z)` per axis, `none` for a non-spatial one.

@@ -195,7 +195,7 @@ fn parse_grid(s: &str) -> Result<[usize; 2], String> {
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     crate::check_mesh_output(&args.output)?;
-    if is_dicom(&args.input) {
+    if isocube_io::is_dicom_file(Path::new(&args.input)) {
         return run_structure_set(args, quiet);
     }
     if !args.roi.is_empty() {
@@ -206,22 +206,6 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     }
     let stack = load_stack(&args.input, &args.output, &args.stack, quiet)?;
     mesh_stack(args, &stack, &args.output, "", quiet)
-}
-
-/// Whether the input is a DICOM file (by extension, or by its marker).
-fn is_dicom(input: &str) -> bool {
-    let path = Path::new(input);
-    let by_name = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| ["dcm", "dicom"].contains(&e.to_ascii_lowercase().as_str()));
-    let mut magic = [0u8; 132];
-    by_name
-        || (path.is_file()
-            && std::fs::File::open(path)
-                .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
-                .is_ok()
-            && &magic[128..] == b"DICM")
 }
 
 /// Each region of interest of an RT Structure Set (or those `--roi` names) to its own mesh.

@@ -516,12 +516,7 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
     }
     // A DICOM segmentation names its segments: the names go in the summary.
     let input = std::path::Path::new(&args.volume.volume);
-    let dicom_file = input.is_file()
-        && input
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| ["dcm", "dicom"].contains(&e.to_ascii_lowercase().as_str()));
-    let names = if dicom_file {
+    let names = if input.is_file() && isocube_io::is_dicom_file(input) {
         isocube_io::read_dicom_segments(input).unwrap_or_default()
     } else {
         Vec::new()

@@ -72,7 +72,7 @@ pub(super) fn read_dicom_within(
         let mut files: Vec<PathBuf> = Vec::new();
         for entry in entries {
             let file = entry.map_err(|e| IoError::os(path, e))?.path();
-            if file.is_file() && has_marker(&file) {
+            if file.is_file() && super::has_dicom_marker(&file) {
                 files.push(file);
             }
         }
@@ -297,15 +297,6 @@ fn merge_segment_planes(
             })
         })
         .collect())
-}
-
-/// Whether a file has "DICM" after its 128-byte preamble.
-fn has_marker(path: &Path) -> bool {
-    let mut magic = [0u8; 132];
-    std::fs::File::open(path)
-        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
-        .is_ok()
-        && &magic[128..] == b"DICM"
 }
 
 /// Sorts the planes along the normal and makes the grid: x along a row, y down the columns, z
