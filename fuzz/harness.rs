@@ -26,6 +26,7 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("dicom", "dcm"),
     ("dicom_rle", "dcm"),
     ("dicom_jpeg", "dcm"),
+    ("dicom_jpeg12", "dcm"),
     ("dicom_jpegls", "dcm"),
     ("dicom_j2k", "dcm"),
     ("rtstruct", "dcm"),
@@ -183,13 +184,14 @@ pub fn run_in(dir: &Path, name: &str, data: &[u8]) {
 }
 
 /// A DICOM file of two frames, both `data[3..]` as one fragment, in the transfer syntax of
-/// `codec` (`rle`, `jpeg` lossless, `jpegls`, `j2k`), of `1 + data[0] % 32` rows and
+/// `codec` (`rle`, `jpeg` lossless, `jpeg12` extended, `jpegls`, `j2k`), of `1 + data[0] % 32` rows and
 /// `1 + data[1] % 32` columns, 8, 16 or 32 bits as `data[2] % 3` says, signed when
 /// `data[2] >= 128`.
 pub fn encapsulated_dicom(codec: &str, data: &[u8]) -> Vec<u8> {
     let syntax: &[u8] = match codec {
         "rle" => b"1.2.840.10008.1.2.5\0",
         "jpeg" => b"1.2.840.10008.1.2.4.70",
+        "jpeg12" => b"1.2.840.10008.1.2.4.51",
         "jpegls" => b"1.2.840.10008.1.2.4.80",
         _ => b"1.2.840.10008.1.2.4.90",
     };

@@ -11,6 +11,8 @@ What each variant exercises in isocube's reader:
 - dicom-bigendian, dicom-deflate: explicit VR big endian; a deflated data set.
 - dicom-rle, dicom-jpegls, dicom-j2k, dicom-jpeg-lossless: one compressed slice per file, with
   negative stored values (a rescale intercept brings them back), so sign extension shows.
+- dicom-jpeg12: 12-bit lossy JPEG (process 4), with dicom-jpeg12.npy, the values pydicom
+  decodes from it.
 - enhanced.dcm: an enhanced CT, one multi-frame file whose frames are out of order, placed by
   per-frame Plane Position, with shared Pixel Measures, Plane Orientation and value transform.
 - enhanced-jpegls.dcm: the same with its frames JPEG-LS compressed (one fragment per frame).
@@ -33,6 +35,7 @@ from pydicom.uid import (
     ExplicitVRLittleEndian,
     JPEG2000Lossless,
     JPEGLosslessSV1,
+    JPEGExtended12Bit,
     JPEGLSLossless,
     RLELossless,
     generate_uid,
@@ -129,6 +132,41 @@ for name, syntax in [
         assert back.file_meta.TransferSyntaxUID == syntax
         assert np.array_equal(back.pixel_array.astype(np.int16), shifted), name
     record(name)
+
+
+# 12-bit lossy JPEG (JPEG Extended, process 4): the series' stored values as unsigned 12-bit
+# samples, encoded by libjpeg-turbo's 12-bit build (imagecodecs). Lossy, so the volume test
+# allows the coding error ("tolerance", in rescaled units); beside it, dicom-jpeg12.npy holds
+# what Thomas Richter's libjpeg (pydicom's decoder for this syntax, through
+# pylibjpeg-libjpeg) makes of the very frames, which isocube must give value for value.
+def jpeg12():
+    import imagecodecs
+
+    folder = fresh(out / "dicom-jpeg12")
+    reference = []
+    error = 0
+    for ds in slices:
+        ds = pydicom.dcmread(ds.filename)
+        stored = ds.pixel_array.astype(np.uint16)
+        ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 12, 11, 0
+        ds.LossyImageCompression = "01"
+        ds.PixelData = encapsulate([imagecodecs.jpeg8_encode(stored, level=95, bitspersample=12)])
+        ds["PixelData"].VR = "OB"
+        ds.file_meta.TransferSyntaxUID = JPEGExtended12Bit
+        target = folder / Path(ds.filename).name
+        ds.save_as(target, enforce_file_format=True)
+        back = pydicom.dcmread(target)
+        reference.append((float(np.dot(back.ImagePositionPatient, normal)), back.pixel_array))
+        error = max(error, int(np.abs(back.pixel_array.astype(int) - stored).max()))
+    planes = np.stack([plane for _, plane in sorted(reference, key=lambda r: r[0])])  # [z, y, x]
+    np.save(out / "dicom-jpeg12.npy", np.asfortranarray(planes.transpose(2, 1, 0)))
+    record("dicom-jpeg12")
+    # Rescaled by the slope 2; one more stored unit of slack for rounding.
+    expected["files"]["dicom-jpeg12"]["tolerance"] = 2.0 * (error + 1)
+    print(f"dicom-jpeg12: lossy error up to {error} stored units")
+
+
+jpeg12()
 
 
 def new_file(name, sop_class, syntax=ExplicitVRLittleEndian):

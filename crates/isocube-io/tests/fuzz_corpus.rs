@@ -48,7 +48,7 @@ fn every_fuzz_input_is_read_or_refused_cleanly() {
 fn decoder_seeds_decode() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus");
     let options = isocube_io::VolumeOptions::default();
-    for codec in ["rle", "jpeg", "jpegls", "j2k"] {
+    for codec in ["rle", "jpeg", "jpeg12", "jpegls", "j2k"] {
         let mut seeds = 0;
         for entry in std::fs::read_dir(root.join(format!("dicom_{codec}"))).unwrap() {
             let path = entry.unwrap().path();

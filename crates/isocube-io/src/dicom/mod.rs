@@ -14,6 +14,7 @@
 //! to Bits Stored, sign-extended when signed, and go through Rescale Slope and Intercept (per
 //! frame in enhanced files) and Dose Grid Scaling (RT Dose: values in Gy).
 
+mod dct;
 mod elements;
 mod pixels;
 mod rtstruct;

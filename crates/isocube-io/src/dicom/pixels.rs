@@ -1,6 +1,6 @@
 //! Pixel data to stored values, frame by frame: native pixel data in either byte order (1, 8,
 //! 16 or 32 bits allocated), and encapsulated frames decoded by well-kept crates — JPEG
-//! (baseline, lossless) by `jpeg-decoder`, JPEG-LS by `pure_jpegls`, JPEG 2000 by `jpeg2k` on
+//! (baseline, lossless) by `jpeg-decoder` (12-bit extended lossy JPEG in [`dct`]), JPEG-LS by `pure_jpegls`, JPEG 2000 by `jpeg2k` on
 //! `openjp2` (OpenJPEG ported to Rust) — or, for RLE Lossless, here: the one crate adapter
 //! (dicom-rs's) stops at 16 bits and RT doses are 32-bit. Values are masked to Bits Stored
 //! and sign-extended when Pixel Representation says signed, as every DICOM viewer shows them.
@@ -8,6 +8,7 @@
 use std::ops::Range;
 use std::path::Path;
 
+use super::dct;
 use super::elements::{Compression, DataSet, Node};
 use crate::{IoError, Position};
 
@@ -278,9 +279,12 @@ fn check_size(fmt: &PixelFormat, width: usize, height: usize) -> Result<(), Stri
     Ok(())
 }
 
+/// A JPEG marker and its segment's bytes (after the length).
+pub(super) type Segment<'a> = (u8, &'a [u8]);
+
 /// The marker segments of a JPEG or JPEG-LS stream's header, in order, up to and including
-/// its first scan header (SOS): each marker and its segment's bytes (after the length).
-fn header_segments(bytes: &[u8]) -> Result<Vec<(u8, &[u8])>, String> {
+/// its first scan header (SOS); and where the scan's entropy-coded data begins.
+pub(super) fn header_segments(bytes: &[u8]) -> Result<(Vec<Segment<'_>>, usize), String> {
     if bytes.get(..2) != Some(&[0xFF, 0xD8]) {
         return Err("the stream does not open with a JPEG start of image".into());
     }
@@ -307,7 +311,7 @@ fn header_segments(bytes: &[u8]) -> Result<Vec<(u8, &[u8])>, String> {
             .ok_or("the stream ends inside a marker segment")?;
         segments.push((marker, segment));
         if marker == 0xDA {
-            return Ok(segments);
+            return Ok((segments, at + 2 + len));
         }
         at += 2 + len;
     }
@@ -319,6 +323,7 @@ fn header_segments(bytes: &[u8]) -> Result<Vec<(u8, &[u8])>, String> {
 fn jpeg_frame_size(bytes: &[u8]) -> Result<(usize, usize), String> {
     let frame = |m: u8| matches!(m, 0xC0..=0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF | 0xF7);
     let (_, header) = header_segments(bytes)?
+        .0
         .into_iter()
         .find(|(m, _)| frame(*m))
         .ok_or("no frame header before the scan")?;
@@ -354,14 +359,23 @@ fn j2k_size(bytes: &[u8]) -> Result<(usize, usize), String> {
 fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
     let (width, height) = jpeg_frame_size(bytes).map_err(|e| format!("JPEG: {e}"))?;
     check_size(fmt, width, height)?;
+    if dct::is_extended_12bit(bytes) {
+        let frame = dct::decode(bytes).map_err(|e| format!("JPEG (12-bit extended): {e}"))?;
+        check_size(fmt, frame.width, frame.height)?;
+        return Ok(frame
+            .samples
+            .into_iter()
+            .map(|v| fmt.value(u32::from(v)))
+            .collect());
+    }
     let mut decoder = jpeg_decoder::Decoder::new(bytes);
     let pixels = decoder.decode().map_err(|e| match e {
-        // jpeg-decoder (the one maintained Rust decoder with lossless JPEG) reads lossy JPEG of
-        // 8 bits only.
+        // jpeg-decoder reads lossy JPEG of 8 bits, and 12-bit extended frames are decoded
+        // above; this is progressive or arithmetic-coded 12-bit JPEG.
         jpeg_decoder::Error::Unsupported(jpeg_decoder::UnsupportedFeature::SamplePrecision(p)) => {
             format!(
-                "lossy JPEG of {p}-bit samples (process 4) is not read; decompress it first \
-                 (gdcmconv --raw, dcmdjpeg)"
+                "lossy JPEG of {p}-bit samples other than extended sequential Huffman (SOF1) \
+                 is not read; decompress it first (gdcmconv --raw, dcmdjpeg)"
             )
         }
         e => format!("JPEG: {e}"),
@@ -390,7 +404,7 @@ fn jpeg(bytes: &[u8], fmt: &PixelFormat) -> Result<Vec<f64>, String> {
 fn jpeg_ls_header(bytes: &[u8]) -> Result<(), String> {
     let mut precision = None;
     let mut maxval = None;
-    for (marker, segment) in header_segments(bytes)? {
+    for (marker, segment) in header_segments(bytes)?.0 {
         let word = |i: usize| {
             segment
                 .get(i..i + 2)
