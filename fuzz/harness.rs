@@ -22,6 +22,7 @@ pub const TARGETS: &[(&str, &str)] = &[
     ("vti", "vti"),
     ("nifti", "nii"),
     ("nifti_gz", "nii.gz"),
+    ("minc", "mnc"),
     ("tiff", "tif"),
     ("dicom", "dcm"),
     ("dicom_rle", "dcm"),

@@ -239,9 +239,10 @@ def read_volume(
     channel: int | None = None,
 ) -> Volume:
     """Reads a volume file as ``isocube extract`` does: by extension ``.npy``, ``.nrrd`` /
-    ``.nhdr``, ``.nii`` / ``.nii.gz`` (NIfTI-1 and NIfTI-2), ``.mha`` / ``.mhd``, ``.tif`` /
-    ``.tiff`` (a stack), ``.vti``, ``.dcm`` (one DICOM file: multi-frame, RT Dose, SEG as
-    labels); a folder as a DICOM series (sorted along its normal, rescaled) or a Zarr store.
+    ``.nhdr``, ``.nii`` / ``.nii.gz`` (NIfTI-1 and NIfTI-2), ``.mnc`` / ``.mnc.gz`` (MINC-1),
+    ``.mha`` / ``.mhd``, ``.tif`` / ``.tiff`` (a stack), ``.vti``, ``.dcm`` (one DICOM file:
+    multi-frame, RT Dose, SEG as labels); a folder as a DICOM series (sorted along its normal,
+    rescaled) or a Zarr store.
 
     Parameters
     ----------

@@ -2,7 +2,8 @@
 # Writes meshes in every format isocube writes and loads each back with an independent reader
 # (trimesh, meshio, VTK, gmsh), checking counts, positions, normals and vertex values; a finite
 # element solver (scikit-fem) uses the volume meshes; and pydicom's own DICOM files (every
-# transfer syntax isocube reads, RT Dose) mesh as the arrays pydicom decodes.
+# transfer syntax isocube reads, RT Dose) and nibabel's NIfTI and MINC files mesh as the arrays
+# pydicom and nibabel decode.
 #
 #   tests/interop/run.sh [WORKDIR]
 #
@@ -18,7 +19,8 @@ if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
   "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$here/requirements.txt"
 fi
-cargo build --quiet --release --manifest-path "$root/Cargo.toml" -p isocube-cli
+# With MINC-2 (the opt-in minc2 feature: the HDF5 library, Debian libhdf5-dev), for check_minc.py.
+cargo build --quiet --release --manifest-path "$root/Cargo.toml" -p isocube-cli --features minc2
 isocube="${CARGO_TARGET_DIR:-$root/target}/release/isocube"
 
 # Two surfaces: a closed torus with another field's values on it, an open gyroid patch.
@@ -98,3 +100,7 @@ done
 # NIfTI-2 and 4-d NIfTI as nibabel ships them: every frame (--frame) meshed from the file and
 # from the frame nibabel decodes, placed by the affine nibabel reads.
 "$venv/bin/python" "$here/check_nifti.py" "$isocube" "$work/nifti"
+
+# MINC-1 and MINC-2 as nibabel ships them: every file and frame meshed from the file and from
+# the array nibabel decodes, placed by nibabel's affine.
+"$venv/bin/python" "$here/check_minc.py" "$isocube" "$work/minc"

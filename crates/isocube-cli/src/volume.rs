@@ -15,9 +15,10 @@ use crate::Failure;
 #[derive(Clone, Debug, Args)]
 pub(crate) struct VolumeArgs {
     /// `sample:NAME:N` (a built-in sample on N points per axis; noise takes `:SEED` too), or a
-    /// file: .npy, .nrrd, .nhdr, .nii, .nii.gz (NIfTI-1 and -2), .mha, .mhd, .vti, .tif/.tiff,
+    /// file: .npy, .nrrd, .nhdr, .nii, .nii.gz (NIfTI-1 and -2), .mnc, .mnc.gz (MINC-1; MINC-2
+    /// when built with the minc2 feature), .mha, .mhd, .vti, .tif/.tiff,
     /// DICOM (a series folder, or one .dcm: multi-frame enhanced CT/MR, RT Dose, SEG as labels;
-    /// uncompressed, RLE, JPEG, JPEG-LS, JPEG 2000), a Zarr array or OME-Zarr image folder (v2
+    /// uncompressed, RLE, JPEG incl. 12-bit lossy, JPEG-LS, JPEG 2000), a Zarr array or OME-Zarr image folder (v2
     /// or v3), or raw (with --dims and --type). 4-d files: --frame, --channel.
     pub volume: String,
     /// Raw files: points along x, y, z.

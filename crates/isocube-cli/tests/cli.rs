@@ -1384,7 +1384,15 @@ fn oriented_volumes_give_meshes_in_world_coordinates() {
         ))
         .unwrap();
         let far = q["distance"]["max"].as_f64().unwrap();
-        assert!(far < 1e-3, "{name}: {far}");
+        // The fixtures' values are linear in the indices, so the level set is a plane the
+        // triangles lie in; a lossy encoding's coding error bends it, and the triangles'
+        // interiors (sampled too) leave the curved surface by a little (in grid spacings).
+        let bound = if file.get("tolerance").is_some() {
+            0.02
+        } else {
+            1e-3
+        };
+        assert!(far < bound, "{name}: {far}");
         let (world, wt) = ascii_ply(&dir.path().join("w.ply"));
         let (index, it) = ascii_ply(&dir.path().join("i.ply"));
         assert!(world.len() > 50 && world.len() == index.len(), "{name}");

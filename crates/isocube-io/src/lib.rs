@@ -16,7 +16,8 @@
 //!
 //! Volumes: raw binary ([`RawOptions`]), NumPy `.npy` ([`NpyAxes`]), NRRD (attached `.nrrd`
 //! or detached `.nhdr` headers; raw, gzip or ASCII encodings), MetaImage (`.mha`, `.mhd`; raw or
-//! zlib), VTK ImageData (`.vti`: ASCII, binary or appended, raw or zlib), and with the `nifti`,
+//! zlib), VTK ImageData (`.vti`: ASCII, binary or appended, raw or zlib), MINC-1 (`.mnc`,
+//! `.mnc.gz`; MINC-2, which is HDF5, with the `minc2` feature), and with the `nifti`,
 //! `tiff` and `dicom` features NIfTI-1 (`.nii`, `.nii.gz`), multi-page TIFF stacks and DICOM
 //! series (a folder of uncompressed slices), and with `zarr` Zarr v2/v3 arrays and OME-Zarr
 //! images (`ZarrVolume`, read a layer of chunks at a time). Readers of formats that
@@ -54,6 +55,7 @@ mod inflating;
 mod mapped;
 mod mesh_io;
 mod metaimage;
+mod minc;
 #[cfg(feature = "nifti")]
 mod nifti;
 mod npy;
@@ -422,7 +424,7 @@ pub fn read_volume(path: &Path, options: &VolumeOptions) -> Result<Grid, IoError
 
 /// Reads a volume and how its axes lie in the world: a folder is a DICOM series (feature
 /// `dicom`); files by extension: `.npy`, `.nrrd`/`.nhdr`, `.nii`/`.nii.gz` (feature `nifti`),
-/// `.mha`/`.mhd`, `.tif`/`.tiff` (feature `tiff`), `.vti`, otherwise raw (which needs
+/// `.mnc` (MINC-1, also `.mnc.gz`; MINC-2 with feature `minc2`), `.mha`/`.mhd`, `.tif`/`.tiff` (feature `tiff`), `.vti`, otherwise raw (which needs
 /// [`VolumeOptions::raw`]). Formats without a direction give [`Orientation::IDENTITY`].
 pub fn read_volume_oriented(
     path: &Path,
@@ -440,6 +442,7 @@ pub fn read_volume_oriented(
         }
         VolumeFormat::Vti => vti::read_vti_within(path, budget)?,
         VolumeFormat::Nifti => read_nifti_volume(path, budget, Pick::of(options))?,
+        VolumeFormat::Minc => minc::read_minc_within(path, budget, Pick::of(options))?,
         VolumeFormat::Tiff => identity(read_tiff_volume(path, budget, Pick::of(options))?),
         VolumeFormat::Raw(raw) => identity(raw::read_raw_within(path, raw, budget)?),
     };
@@ -497,6 +500,7 @@ pub fn read_volume_bytes(
         }
         VolumeFormat::Vti => vti::read_vti_bytes(name, bytes, budget)?,
         VolumeFormat::Nifti => read_nifti_bytes(name, bytes, budget, Pick::of(options))?,
+        VolumeFormat::Minc => minc::read_minc_bytes(name, bytes, budget, Pick::of(options))?,
         VolumeFormat::Tiff => identity(read_tiff_bytes(name, bytes, budget, Pick::of(options))?),
         VolumeFormat::Raw(raw) => identity(raw::read_raw_bytes(name, bytes, raw, budget)?),
     };
@@ -542,6 +546,7 @@ enum VolumeFormat<'a> {
     MetaImage,
     Vti,
     Nifti,
+    Minc,
     Tiff,
     Raw(&'a RawOptions),
 }
@@ -566,6 +571,7 @@ impl<'a> VolumeFormat<'a> {
             "mha" | "mhd" => VolumeFormat::MetaImage,
             "vti" => VolumeFormat::Vti,
             _ if name.ends_with(".nii") || name.ends_with(".nii.gz") => VolumeFormat::Nifti,
+            _ if name.ends_with(".mnc") || name.ends_with(".mnc.gz") => VolumeFormat::Minc,
             "tif" | "tiff" => VolumeFormat::Tiff,
             "dcm" | "dicom" | "ima" => VolumeFormat::Dicom,
             // DICOM files often have no extension at all: they carry a marker.
@@ -576,7 +582,7 @@ impl<'a> VolumeFormat<'a> {
                     return Err(IoError::unsupported(
                         path,
                         Position::File,
-                        "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd, .vti, .tif, .tiff, .dcm (or a DICOM folder) or a Zarr store",
+                        "unknown volume extension: give the raw layout (dims and type) or use .npy, .nrrd, .nhdr, .nii, .nii.gz, .mnc, .mnc.gz, .mha, .mhd, .vti, .tif, .tiff, .dcm (or a DICOM folder) or a Zarr store",
                     ))
                 }
             },

@@ -245,6 +245,11 @@ pub(super) fn decode(bytes: &[u8]) -> Result<Frame, String> {
                 if height == 0 || width == 0 {
                     return Err("a frame without lines (a DNL marker is not read)".into());
                 }
+                // The caller checked the first frame header against Rows × Columns: a second
+                // one would size the image unchecked.
+                if frame.is_some() {
+                    return Err("two frame headers".into());
+                }
                 frame = Some((width, height, h[6], usize::from(h[8])));
             }
             0xC0 | 0xC2 | 0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF => {
