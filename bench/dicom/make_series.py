@@ -1,13 +1,16 @@
-"""A 256 × 256 × 120 CT-like series (two nested balls and noise, 0.8 × 0.8 × 2 mm) in four
+"""A 256 × 256 × 120 CT-like series (two nested balls and noise, 0.8 × 0.8 × 2 mm) in five
 transfer syntaxes, written by pydicom and its encoders into the current folder: raw/, rle/,
-jls/, j2k/ (bench/dicom/run.sh)."""
+jls/, j2k/, and j12/ (12-bit lossy JPEG Extended, quality 90, by libjpeg-turbo through
+imagecodecs) (bench/dicom/run.sh)."""
 
 from pathlib import Path
 
 import numpy as np
 from pydicom.dataset import FileDataset, FileMetaDataset
+from pydicom.encaps import encapsulate
 from pydicom.uid import (
     ExplicitVRLittleEndian,
+    JPEGExtended12Bit,
     JPEG2000Lossless,
     JPEGLSLossless,
     RLELossless,
@@ -22,6 +25,7 @@ for syntax, name in [
     (RLELossless, "rle"),
     (JPEGLSLossless, "jls"),
     (JPEG2000Lossless, "j2k"),
+    (JPEGExtended12Bit, "j12"),
 ]:
     folder = Path(name)
     folder.mkdir(exist_ok=True)
@@ -49,6 +53,16 @@ for syntax, name in [
         ds.RescaleSlope, ds.RescaleIntercept = 1, -1024
         if syntax == ExplicitVRLittleEndian:
             ds.PixelData = image.tobytes()
+        elif syntax == JPEGExtended12Bit:
+            import imagecodecs
+
+            # 12-bit samples are unsigned: shifted up by 100, the intercept down by as much.
+            ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 12, 11, 0
+            ds.RescaleIntercept = -1124
+            stored = np.clip(image.astype(np.int32) + 100, 0, 4095).astype(np.uint16)
+            ds.PixelData = encapsulate([imagecodecs.jpeg8_encode(stored, level=90, bitspersample=12)])
+            ds["PixelData"].VR = "OB"
+            ds.file_meta.TransferSyntaxUID = syntax
         else:
             ds.compress(syntax, image)
         ds.save_as(folder / f"{k}.dcm", enforce_file_format=True)

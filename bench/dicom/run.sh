@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# A 256 × 256 × 120 CT-like DICOM series in four transfer syntaxes (uncompressed, RLE, JPEG-LS,
-# JPEG 2000; written by pydicom and its encoders), meshed end to end — read, decode, mesh,
+# A 256 × 256 × 120 CT-like DICOM series in five transfer syntaxes (uncompressed, RLE, JPEG-LS,
+# JPEG 2000, 12-bit lossy JPEG; written by pydicom and its encoders), meshed end to end — read, decode, mesh,
 # write a binary PLY — by `isocube extract` and by pydicom (with its plugins) + scikit-image's
 # marching_cubes, best of REPEATS runs each.
 #
 #   bench/dicom/run.sh [WORKDIR] [REPEATS]
 #
-# Needs a Python with numpy, pydicom, pylibjpeg, pylibjpeg-openjpeg, pyjpegls and scikit-image
+# Needs a Python with numpy, pydicom, pylibjpeg, pylibjpeg-libjpeg, pylibjpeg-openjpeg, pyjpegls,
+# imagecodecs (the 12-bit JPEG encoder) and scikit-image
 # ($PYTHON, default python3).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -18,7 +19,7 @@ mkdir -p "$work"
 cargo build --quiet --release --manifest-path "$root/Cargo.toml" -p isocube-cli
 isocube="${CARGO_TARGET_DIR:-$root/target}/release/isocube"
 (cd "$work" && "$python" "$here/make_series.py")
-for syntax in raw rle jls j2k; do
+for syntax in raw rle jls j2k j12; do
   best=""
   for _ in $(seq "$repeats"); do
     start=$(date +%s.%N)

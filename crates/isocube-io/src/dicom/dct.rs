@@ -37,10 +37,15 @@ pub(super) fn is_extended_12bit(bytes: &[u8]) -> bool {
     })
 }
 
-/// A Huffman table in the form of ISO/IEC 10918-1 F.2.2.3: per code length, the largest code,
-/// and where that length's values start.
+/// Bits of a code looked up at once; longer codes continue bit by bit.
+const FAST: u32 = 9;
+
+/// A Huffman table: a lookup of the first [`FAST`] bits, and for longer codes the form of
+/// ISO/IEC 10918-1 F.2.2.3 (per code length, the largest code and where its values start).
 #[derive(Clone)]
 struct Huffman {
+    /// Indexed by the next `FAST` bits: code length (0: longer than `FAST`) and value.
+    fast: Vec<(u8, u8)>,
     /// Largest code of each length 1..=16 (index = length), −1 where a length has none.
     max_code: [i32; 17],
     /// `values` index of the first code of each length, minus that code.
@@ -52,23 +57,34 @@ impl Huffman {
     fn new(counts: &[u8], values: &[u8]) -> Result<Self, String> {
         let mut max_code = [-1; 17];
         let mut offset = [0; 17];
+        let mut fast = vec![(0u8, 0u8); 1 << FAST];
         let mut code = 0i32;
         let mut k = 0i32;
         for len in 1..=16 {
             let n = i32::from(counts[len - 1]);
             offset[len] = k - code;
+            // Codes of `len` bits run out at 2^len: more would not be prefix-free.
+            if code + n > 1 << len {
+                return Err(format!("a Huffman table with too many codes of {len} bits"));
+            }
+            for c in code..code + n {
+                if len as u32 <= FAST {
+                    // Every FAST-bit pattern that begins with this code.
+                    let spread = FAST - len as u32;
+                    let first = (c as usize) << spread;
+                    let value = values[(k + c - code) as usize];
+                    fast[first..first + (1 << spread)].fill((len as u8, value));
+                }
+            }
             if n > 0 {
                 code += n;
                 k += n;
                 max_code[len] = code - 1;
-                // Codes of `len` bits run out at 2^len: more would not be prefix-free.
-                if code > 1 << len {
-                    return Err(format!("a Huffman table with too many codes of {len} bits"));
-                }
             }
             code <<= 1;
         }
         Ok(Huffman {
+            fast,
             max_code,
             offset,
             values: values.to_vec(),
@@ -76,8 +92,16 @@ impl Huffman {
     }
 
     fn decode(&self, bits: &mut Bits) -> Result<u8, String> {
-        let mut code = bits.bit()? as i32;
-        for len in 1..=16 {
+        bits.fill();
+        let (len, value) = self.fast[bits.peek(FAST) as usize];
+        if len > 0 {
+            bits.consume(u32::from(len))?;
+            return Ok(value);
+        }
+        let mut code = bits.peek(FAST) as i32;
+        bits.consume(FAST)?;
+        for len in FAST as usize + 1..=16 {
+            code = (code << 1) | bits.take(1)?;
             if code <= self.max_code[len] {
                 let at =
                     usize::try_from(code + self.offset[len]).map_err(|_| "a bad Huffman code")?;
@@ -87,53 +111,80 @@ impl Huffman {
                     .copied()
                     .ok_or_else(|| "a bad Huffman code".to_string());
             }
-            code = (code << 1) | bits.bit()? as i32;
         }
         Err("a Huffman code longer than 16 bits".into())
     }
 }
 
-/// The entropy-coded data of a scan, bit by bit, stuffed zero bytes removed.
+/// The entropy-coded data of a scan as a stream of bits, stuffed zero bytes removed. Past a
+/// marker or the end, zero bits are supplied so lookups can run ahead, but using one is an
+/// error: the scan ended before its last block.
 struct Bits<'a> {
     data: &'a [u8],
     at: usize,
-    byte: u32,
-    left: u32,
+    /// The next bits, first bit highest; `count` of them, the last `padding` of which are not
+    /// in the stream.
+    acc: u64,
+    count: u32,
+    padding: u32,
 }
 
 impl Bits<'_> {
-    fn bit(&mut self) -> Result<u32, String> {
-        if self.left == 0 {
-            let byte = *self
-                .data
-                .get(self.at)
-                .ok_or("the scan ends before its last block")?;
-            if byte == 0xFF {
-                match self.data.get(self.at + 1) {
-                    Some(0) => self.at += 1,
-                    Some(m) => {
-                        return Err(format!(
-                            "marker {:02X} inside the entropy-coded data at byte {}",
-                            m, self.at
-                        ))
-                    }
-                    None => return Err("the scan ends before its last block".into()),
-                }
-            }
-            self.at += 1;
-            self.byte = u32::from(byte);
-            self.left = 8;
+    fn new(data: &[u8]) -> Bits<'_> {
+        Bits {
+            data,
+            at: 0,
+            acc: 0,
+            count: 0,
+            padding: 0,
         }
-        self.left -= 1;
-        Ok(self.byte >> self.left & 1)
+    }
+
+    /// Tops the buffer up to at least 57 bits.
+    fn fill(&mut self) {
+        while self.count <= 56 {
+            let byte = match self.data.get(self.at) {
+                Some(&0xFF) if self.data.get(self.at + 1) == Some(&0) => {
+                    self.at += 2;
+                    0xFF
+                }
+                // A marker (or the end): supply zeros, and stay before it.
+                Some(&0xFF) | None => {
+                    self.padding += 8;
+                    0
+                }
+                Some(&b) => {
+                    self.at += 1;
+                    b
+                }
+            };
+            self.acc |= u64::from(byte) << (56 - self.count);
+            self.count += 8;
+        }
+    }
+
+    /// The next `n` bits (n ≤ 16) without taking them; the buffer must be filled.
+    fn peek(&self, n: u32) -> u64 {
+        self.acc >> (64 - n)
+    }
+
+    fn consume(&mut self, n: u32) -> Result<(), String> {
+        if self.count - n < self.padding {
+            return Err("the scan ends before its last block".into());
+        }
+        self.acc <<= n;
+        self.count -= n;
+        Ok(())
     }
 
     /// `n` bits (n ≤ 16) as an unsigned number, first bit highest.
     fn take(&mut self, n: u32) -> Result<i32, String> {
-        let mut v = 0;
-        for _ in 0..n {
-            v = (v << 1) | self.bit()? as i32;
+        if n == 0 {
+            return Ok(0);
         }
+        self.fill();
+        let v = self.peek(n) as i32;
+        self.consume(n)?;
         Ok(v)
     }
 
@@ -150,9 +201,12 @@ impl Bits<'_> {
         })
     }
 
-    /// Skips to the restart marker RSTm that must come next (the rest of the byte is padding).
+    /// Skips to the restart marker RSTm that must come next: the rest of the current byte is
+    /// padding (and whole bytes before the marker are dropped, as libjpeg does).
     fn restart(&mut self, m: u8) -> Result<(), String> {
-        self.left = 0;
+        self.acc = 0;
+        self.count = 0;
+        self.padding = 0;
         while self.data.get(self.at) == Some(&0xFF) && self.data.get(self.at + 1) == Some(&0xFF) {
             self.at += 1;
         }
@@ -278,24 +332,19 @@ pub(super) fn decode(bytes: &[u8]) -> Result<Frame, String> {
         .get(tq)
         .copied()
         .flatten()
-        .ok_or(format!("quantisation table {tq} is not defined"))?;
+        .ok_or_else(|| format!("quantisation table {tq} is not defined"))?;
     let dc = dc
         .get(td)
         .and_then(Option::as_ref)
-        .ok_or(format!("DC Huffman table {td} is not defined"))?;
+        .ok_or_else(|| format!("DC Huffman table {td} is not defined"))?;
     let ac = ac
         .get(ta)
         .and_then(Option::as_ref)
-        .ok_or(format!("AC Huffman table {ta} is not defined"))?;
+        .ok_or_else(|| format!("AC Huffman table {ta} is not defined"))?;
 
     let (across, down) = (width.div_ceil(8), height.div_ceil(8));
     let mut samples = vec![0u16; width * height];
-    let mut bits = Bits {
-        data: &bytes[scan_start..],
-        at: 0,
-        byte: 0,
-        left: 0,
-    };
+    let mut bits = Bits::new(&bytes[scan_start..]);
     let mut predictor = 0i32;
     let mut block = [0i32; 64];
     let mut pixels = [0u16; 64];
@@ -330,7 +379,7 @@ pub(super) fn decode(bytes: &[u8]) -> Result<Frame, String> {
             k += run;
             let at = *ZIGZAG
                 .get(k)
-                .ok_or(format!("AC coefficients run past the end of block {n}"))?;
+                .ok_or_else(|| format!("AC coefficients run past the end of block {n}"))?;
             block[at] = bits.value(size)?;
             k += 1;
         }
@@ -371,6 +420,11 @@ const C0_390: i64 = 200;
 #[inline]
 fn idct8(input: [i64; 8]) -> [i64; 8] {
     let [c0, c1, c2, c3, c4, c5, c6, c7] = input;
+    // Most lines of smooth images hold their first coefficient only; every product below is
+    // then zero, and every output this (exactly as the full sums give it).
+    if input[1..] == [0; 7] {
+        return [c0 << FIX; 8];
+    }
     // Even part.
     let z1 = (c2 + c6) * C0_541;
     let tmp2 = z1 - c6 * C1_847;
