@@ -112,3 +112,26 @@ def test_levels_from_the_data(tmp_path: Path) -> None:
     assert np.array_equal(auto.triangles, volume.extract(printed).triangles)
     with pytest.raises(isocube.InputError):
         volume.extract("lots")
+
+
+MINC = DATA.parent / "minc"
+
+
+@pytest.mark.parametrize("key", sorted(json.loads((MINC / "expected.json").read_text())))
+def test_minc_files_read_as_nibabel_reads_them(key: str) -> None:
+    """MINC-1 files give nibabel's values and affine (tests/interop/make_minc.py); MINC-2 (HDF5)
+    needs the ``minc2`` build and is refused by name without it."""
+    entry = json.loads((MINC / "expected.json").read_text())[key]
+    path = MINC / entry["file"]
+    if path.read_bytes()[:4] == b"\x89HDF":
+        with pytest.raises(isocube.FormatError, match="minc2"):
+            isocube.read_volume(path, frame=entry["frame"])
+        return
+    volume = isocube.read_volume(path, frame=entry["frame"])
+    want = np.load(MINC / entry["values"])
+    assert np.array_equal(volume.values, want)
+    # nibabel's affine is over the file's axes, slowest first: isocube's reversed.
+    affine = np.asarray(entry["affine"])
+    ours = np.asarray(volume.direction) * np.asarray(volume.spacing)
+    assert np.allclose(ours, affine[:3, [2, 1, 0]], atol=1e-9)
+    assert np.allclose(volume.origin, affine[:3, 3], atol=1e-9)
