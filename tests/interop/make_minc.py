@@ -12,6 +12,8 @@ tests (crates/isocube-io/src/minc). Run from anywhere:
   cosines, a negative step, and the dimensions in an unusual order (yspace, zspace, xspace).
 - records.mnc: the same image over an unlimited `time` dimension (a record variable), two
   frames, scaled per (time, yspace).
+- vector.mnc: float voxels with a `vector_dimension` of 3 (CDF-2, 64-bit offsets), each channel
+  holding 1000 c + x + 10 y + 100 z.
 - expected.json: for each file (and frame), nibabel's affine (file axis order) and the name of
   NAME[-frameN].npy, nibabel's scaled values as float32, stored as isocube reads them (x fastest:
   a Fortran-order array over the file's axes reversed).
@@ -112,8 +114,18 @@ def write(name, frames):
 write("oblique.mnc", 0)
 write("records.mnc", 2)
 
+# vector.mnc: RGB-like float voxels, `vector_dimension` fastest (nibabel does not read these):
+# channel c at (x, y, z) holds 1000 c + x + 10 y + 100 z.
+nc = netcdf_file(out / "vector.mnc", "w", version=2)
+for d, n in [("zspace", 4), ("yspace", 3), ("xspace", 5), ("vector_dimension", 3)]:
+    nc.createDimension(d, n)
+vector = nc.createVariable("image", "f", ("zspace", "yspace", "xspace", "vector_dimension"))
+z, y, x, ch = np.meshgrid(*(np.arange(n) for n in (4, 3, 5, 3)), indexing="ij")
+vector[:] = (1000 * ch + x + 10 * y + 100 * z).astype(np.float32)
+nc.close()
+
 expected = {}
-for name in sorted(p.name for p in out.glob("*.mnc")):
+for name in sorted(p.name for p in out.glob("*.mnc") if p.name != "vector.mnc"):
     image = nibabel.load(out / name)
     data = np.asarray(image.get_fdata(), dtype=np.float32)
     frames = data.shape[0] if data.ndim == 4 else 0

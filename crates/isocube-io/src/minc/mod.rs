@@ -282,42 +282,23 @@ pub(crate) fn volume(
     if axes.iter().any(|a| a.len == 0) {
         return Err(IoError::format(path, field("image"), "an empty dimension"));
     }
-    let frame = match time {
-        Some((_, n)) => Pick::index(
-            path,
-            field("time"),
-            pick.frame,
-            n,
-            "--frame",
-            "frames (time)",
-        )?,
-        None => Pick::index(
-            path,
-            field("time"),
-            pick.frame,
-            1,
-            "--frame",
-            "frames (time)",
-        )?,
-    };
-    let channel = match vector {
-        Some((_, n)) => Pick::index(
-            path,
-            field("vector_dimension"),
-            pick.channel,
-            n,
-            "--channel",
-            "channels (vector_dimension)",
-        )?,
-        None => Pick::index(
-            path,
-            field("vector_dimension"),
-            pick.channel,
-            1,
-            "--channel",
-            "channels (vector_dimension)",
-        )?,
-    };
+    // Without a time or vector dimension, the file holds one of each (0 may still be asked).
+    let frame = Pick::index(
+        path,
+        field("time"),
+        pick.frame,
+        time.map_or(1, |(_, n)| n),
+        "--frame",
+        "frames (time)",
+    )?;
+    let channel = Pick::index(
+        path,
+        field("vector_dimension"),
+        pick.channel,
+        vector.map_or(1, |(_, n)| n),
+        "--channel",
+        "channels (vector_dimension)",
+    )?;
     // isocube's x (fastest) is the image's fastest spatial dimension.
     axes.reverse();
     let dims = [axes[0].len, axes[1].len, axes[2].len];
@@ -595,6 +576,35 @@ mod tests {
             let gz = gz.finish().unwrap();
             let named = dir().join(format!("{name}.gz"));
             assert_eq!(read_volume_bytes(&gz, &named, &options).unwrap(), from_file);
+        }
+    }
+
+    /// A `vector_dimension` (fastest, here) is a channel: each one chosen with `--channel`
+    /// gives that component's volume; without the choice the file is refused naming it.
+    #[test]
+    fn vector_components_are_channels() {
+        let path = dir().join("vector.mnc");
+        let e = read_volume_oriented(&path, &VolumeOptions::default()).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("3 channels (vector_dimension): choose one with --channel (0 to 2)"),
+            "{e}"
+        );
+        for c in 0..3 {
+            let options = VolumeOptions {
+                channel: Some(c),
+                ..VolumeOptions::default()
+            };
+            let (grid, _) = read_volume_oriented(&path, &options).unwrap();
+            assert_eq!(grid.dims(), [5, 3, 4]);
+            for k in 0..4 {
+                for j in 0..3 {
+                    for i in 0..5 {
+                        let want = (1000 * c + i + 10 * j + 100 * k) as f32;
+                        assert_eq!(grid.value(i, j, k), want);
+                    }
+                }
+            }
         }
     }
 
