@@ -279,9 +279,26 @@ pub(crate) fn volume(
             ),
         ));
     }
-    if axes.iter().any(|a| a.len == 0) {
+    if image.dims.iter().any(|(_, len)| *len == 0) {
         return Err(IoError::format(path, field("image"), "an empty dimension"));
     }
+    // The whole variable is read as f64 beside the f32 volume. Held within the budget and
+    // addressable, every product of dimensions below fits a usize.
+    let total = image.count();
+    let held = total
+        .checked_mul(12)
+        .filter(|&n| usize::try_from(n).is_ok());
+    let Some(held) = held else {
+        return Err(IoError::format(
+            path,
+            field("image"),
+            format!(
+                "dimensions {} hold more values than memory can address",
+                names(&image)
+            ),
+        ));
+    };
+    budget.check(path, field("image"), held)?;
     // Without a time or vector dimension, the file holds one of each (0 may still be asked).
     let frame = Pick::index(
         path,
@@ -303,8 +320,6 @@ pub(crate) fn volume(
     axes.reverse();
     let dims = [axes[0].len, axes[1].len, axes[2].len];
     let count = dims.iter().product::<usize>();
-    // The whole variable is read as f64 beside the f32 volume.
-    budget.check_values(path, field("image"), image.count().saturating_mul(8), count)?;
     let raw = file.values("image", &image)?;
     if raw.len() as u64 != image.count() {
         return Err(IoError::format(

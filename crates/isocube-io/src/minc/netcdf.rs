@@ -285,8 +285,10 @@ impl<'a> NetCdf<'a> {
             .collect();
         match record[..] {
             [v] if v.nc_type.size() < 4 => {
-                let per: u64 = v.dims[1..].iter().map(|&d| self.len(d) as u64).product();
-                per * v.nc_type.size() as u64
+                let per = v.dims[1..]
+                    .iter()
+                    .fold(1u64, |n, &d| n.saturating_mul(self.len(d) as u64));
+                per.saturating_mul(v.nc_type.size() as u64)
             }
             _ => record
                 .iter()
