@@ -47,6 +47,9 @@ enum Command {
     Tables(commands::tables::Args),
     /// Extract the built-in samples and print a summary table.
     Demo(commands::demo::Args),
+    /// Explore a volume in the browser: drag the level and see the surface change at once
+    /// (a local page on 127.0.0.1, guarded by a token).
+    View(commands::view::Args),
 }
 
 /// An error with the exit code it should produce.
@@ -185,6 +188,7 @@ fn dispatch(cli: &Cli) -> Result<(), Failure> {
         Command::Tables(a) => commands::tables::run(a),
         Command::Tetmesh(a) => commands::tetmesh::run(a, cli.quiet),
         Command::Demo(a) => commands::demo::run(a, cli.quiet),
+        Command::View(a) => commands::view::run(a, cli.quiet),
     }
 }
 

@@ -9,3 +9,4 @@ pub(crate) mod render;
 pub(crate) mod subdivide;
 pub(crate) mod tables;
 pub(crate) mod tetmesh;
+pub(crate) mod view;

@@ -1,0 +1,408 @@
+"use strict";
+// isocube view: the page. No dependencies: WebGL 2 for the surface, 2-d canvases for the
+// histogram, the slices and the angle histogram. Every request carries the page's token.
+
+const token = new URLSearchParams(location.search).get("token") || "";
+const $ = (id) => document.getElementById(id);
+const api = (route, params = {}) =>
+  `/api/${route}?` + new URLSearchParams({ ...params, token }).toString();
+
+// ---- state ----------------------------------------------------------------------------------
+let volume = null;          // /api/volume
+let level = 0;              // the level shown
+let seq = 0;                // mesh requests sent
+let inflight = null;        // AbortController of the newest mesh request
+let drawn = { count: 0, edges: 0, figures: null };
+const latencies = [];       // slider-to-picture times, ms
+// What a browser test reads and drives.
+window.isocube = { latencies, figures: () => drawn.figures, setLevel: (l) => setLevel(l, true) };
+
+// ---- WebGL ----------------------------------------------------------------------------------
+const canvas = $("gl");
+const gl = canvas.getContext("webgl2", { antialias: true, preserveDrawingBuffer: true });
+if (!gl) {
+  $("status").textContent = "WebGL 2 is not available in this browser";
+}
+const compile = (type, src) => {
+  const s = gl.createShader(type);
+  gl.shaderSource(s, src);
+  gl.compileShader(s);
+  if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(s));
+  return s;
+};
+const program = (vs, fs) => {
+  const p = gl.createProgram();
+  gl.attachShader(p, compile(gl.VERTEX_SHADER, vs));
+  gl.attachShader(p, compile(gl.FRAGMENT_SHADER, fs));
+  gl.linkProgram(p);
+  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(p));
+  return p;
+};
+const surface = program(
+  `#version 300 es
+  in vec3 position; in vec3 normal;
+  uniform mat4 mvp; uniform mat4 view;
+  out vec3 n; out vec3 eye;
+  void main() {
+    n = mat3(view) * normal;
+    eye = (view * vec4(position, 1.0)).xyz;
+    gl_Position = mvp * vec4(position, 1.0);
+  }`,
+  `#version 300 es
+  precision highp float;
+  in vec3 n; in vec3 eye; out vec4 color;
+  void main() {
+    vec3 N = normalize(n);
+    // Two-sided: the side facing increasing values warm, the other cool.
+    vec3 base = gl_FrontFacing ? vec3(0.88, 0.66, 0.25) : vec3(0.35, 0.55, 0.85);
+    if (!gl_FrontFacing) N = -N;
+    vec3 L = normalize(vec3(0.3, 0.5, 1.0));
+    float d = max(dot(N, L), 0.0);
+    vec3 H = normalize(L + normalize(-eye));
+    float s = pow(max(dot(N, H), 0.0), 40.0) * 0.25;
+    color = vec4(base * (0.18 + 0.82 * d) + s, 1.0);
+  }`
+);
+const lines = program(
+  `#version 300 es
+  in vec3 position; uniform mat4 mvp;
+  void main() { gl_Position = mvp * vec4(position, 1.0); gl_Position.z -= 1e-4 * gl_Position.w; }`,
+  `#version 300 es
+  precision highp float; out vec4 color;
+  void main() { color = vec4(0.08, 0.08, 0.1, 0.55); }`
+);
+const buffers = { position: gl.createBuffer(), normal: gl.createBuffer(), index: gl.createBuffer(), edges: gl.createBuffer() };
+const vao = gl.createVertexArray();
+const edgeVao = gl.createVertexArray();
+gl.bindVertexArray(vao);
+for (const [name, buffer] of [["position", buffers.position], ["normal", buffers.normal]]) {
+  const at = gl.getAttribLocation(surface, name);
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+  gl.enableVertexAttribArray(at);
+  gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+}
+gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.index);
+gl.bindVertexArray(edgeVao);
+{
+  const at = gl.getAttribLocation(lines, "position");
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.position);
+  gl.enableVertexAttribArray(at);
+  gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.edges);
+}
+gl.bindVertexArray(null);
+
+// ---- camera ---------------------------------------------------------------------------------
+const camera = { yaw: 0.6, pitch: 0.45, distance: 3, target: [0, 0, 0], radius: 1 };
+const mul = (a, b) => {
+  const o = new Float32Array(16);
+  for (let i = 0; i < 4; i++) for (let j = 0; j < 4; j++) {
+    let s = 0;
+    for (let k = 0; k < 4; k++) s += a[k * 4 + j] * b[i * 4 + k];
+    o[i * 4 + j] = s;
+  }
+  return o;
+};
+const perspective = (fovy, aspect, near, far) => {
+  const f = 1 / Math.tan(fovy / 2), nf = 1 / (near - far);
+  return new Float32Array([f / aspect, 0, 0, 0, 0, f, 0, 0, 0, 0, (far + near) * nf, -1, 0, 0, 2 * far * near * nf, 0]);
+};
+const lookAt = (eye, at, up) => {
+  const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+  const norm = (a) => { const l = Math.hypot(...a) || 1; return a.map((v) => v / l); };
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  const z = norm(sub(eye, at)), x = norm(cross(up, z)), y = cross(z, x);
+  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  return new Float32Array([x[0], y[0], z[0], 0, x[1], y[1], z[1], 0, x[2], y[2], z[2], 0, -dot(x, eye), -dot(y, eye), -dot(z, eye), 1]);
+};
+function draw() {
+  const dpr = window.devicePixelRatio || 1;
+  const w = Math.max(1, Math.floor(canvas.clientWidth * dpr)), h = Math.max(1, Math.floor(canvas.clientHeight * dpr));
+  if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
+  gl.viewport(0, 0, w, h);
+  gl.clearColor(0.07, 0.08, 0.1, 1);
+  gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+  if (!drawn.count) return;
+  const r = camera.radius * camera.distance;
+  const c = Math.cos(camera.pitch);
+  const eye = [
+    camera.target[0] + r * c * Math.cos(camera.yaw),
+    camera.target[1] + r * c * Math.sin(camera.yaw),
+    camera.target[2] + r * Math.sin(camera.pitch),
+  ];
+  const view = lookAt(eye, camera.target, [0, 0, 1]);
+  const proj = perspective(0.7, w / h, r * 0.02, r * 4);
+  const mvp = mul(proj, view);
+  gl.enable(gl.DEPTH_TEST);
+  gl.useProgram(surface);
+  gl.uniformMatrix4fv(gl.getUniformLocation(surface, "mvp"), false, mvp);
+  gl.uniformMatrix4fv(gl.getUniformLocation(surface, "view"), false, view);
+  gl.bindVertexArray(vao);
+  gl.drawElements(gl.TRIANGLES, drawn.count, gl.UNSIGNED_INT, 0);
+  if ($("edges").checked && drawn.edges) {
+    gl.enable(gl.BLEND);
+    gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
+    gl.useProgram(lines);
+    gl.uniformMatrix4fv(gl.getUniformLocation(lines, "mvp"), false, mvp);
+    gl.bindVertexArray(edgeVao);
+    gl.drawElements(gl.LINES, drawn.edges, gl.UNSIGNED_INT, 0);
+    gl.disable(gl.BLEND);
+  }
+  gl.bindVertexArray(null);
+}
+let dragging = null;
+canvas.addEventListener("pointerdown", (e) => { dragging = [e.clientX, e.clientY]; canvas.setPointerCapture(e.pointerId); });
+canvas.addEventListener("pointerup", () => { dragging = null; });
+canvas.addEventListener("pointermove", (e) => {
+  if (!dragging) return;
+  camera.yaw -= (e.clientX - dragging[0]) * 0.01;
+  camera.pitch = Math.max(-1.55, Math.min(1.55, camera.pitch + (e.clientY - dragging[1]) * 0.01));
+  dragging = [e.clientX, e.clientY];
+  requestAnimationFrame(draw);
+});
+canvas.addEventListener("wheel", (e) => {
+  e.preventDefault();
+  camera.distance = Math.max(0.3, Math.min(20, camera.distance * Math.exp(e.deltaY * 0.001)));
+  requestAnimationFrame(draw);
+}, { passive: false });
+window.addEventListener("resize", () => requestAnimationFrame(draw));
+
+// ---- the mesh -------------------------------------------------------------------------------
+const settings = () => ({
+  level: String(level),
+  method: $("method").value,
+  topology: $("topology").value,
+  triangulate: $("triangulate").value,
+  snap: $("snap").value,
+});
+function edgesOf(tris, vertices) {
+  const seen = new Set(), out = [];
+  for (let t = 0; t < tris.length; t += 3) {
+    for (let e = 0; e < 3; e++) {
+      const a = tris[t + e], b = tris[t + (e + 1) % 3];
+      const key = a < b ? a * vertices + b : b * vertices + a;
+      if (!seen.has(key)) { seen.add(key); out.push(a, b); }
+    }
+  }
+  return new Uint32Array(out);
+}
+let lastTris = null, lastVertices = 0, framed = false;
+function uploadEdges() {
+  if (!$("edges").checked || !lastTris) { drawn.edges = 0; return; }
+  const e = edgesOf(lastTris, lastVertices);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.edges);
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, e, gl.STATIC_DRAW);
+  drawn.edges = e.length;
+}
+function show(figures) {
+  $("triangles").textContent = figures.triangles.toLocaleString("en");
+  $("vertices").textContent = figures.vertices.toLocaleString("en");
+  $("millis").textContent = `${figures.millis.toFixed(1)} ms`;
+  $("watertight").textContent = $("genus").textContent = "…";
+}
+// The topology after the picture, for the surface still shown.
+async function showTopology(shown) {
+  const reply = await fetch(api("topology", settings()));
+  if (!reply.ok || drawn.figures !== shown) return;
+  const t = await reply.json();
+  if (drawn.figures !== shown) return;
+  $("watertight").textContent = t.watertight ? "yes" : `no (${t.boundary_edges} boundary edges)`;
+  $("genus").textContent = `${t.components}, ${t.genus ?? "–"}`;
+}
+const percentile = (values, p) => {
+  const s = [...values].sort((a, b) => a - b);
+  return s[Math.min(s.length - 1, Math.floor(p * s.length))];
+};
+// Fetches the mesh for the current settings; the newest request wins (older ones are
+// aborted here and refused by the server). Resolves once the picture is drawn.
+async function remesh(started) {
+  clearTimeout(topologyTimer);
+  if (inflight) inflight.abort();
+  const controller = (inflight = new AbortController());
+  seq += 1;
+  const t0 = performance.now();
+  let reply, data;
+  try {
+    reply = await fetch(api("mesh", { ...settings(), seq }), { signal: controller.signal });
+    if (reply.status === 409) return false;
+    if (!reply.ok) { $("status").textContent = await reply.text(); return false; }
+    data = await reply.arrayBuffer();
+  } catch (e) {
+    // A newer request took over: this one's answer no longer matters.
+    if (e.name === "AbortError") return false;
+    throw e;
+  }
+  if (controller !== inflight) return false;
+  $("status").textContent = "";
+  const t1 = performance.now();
+  const head = new DataView(data, 0, 16);
+  const nv = head.getUint32(4, true), nt = head.getUint32(8, true), nj = head.getUint32(12, true);
+  const figures = JSON.parse(new TextDecoder().decode(new Uint8Array(data, 16, nj)));
+  const at = 16 + nj;
+  const positions = new Float32Array(data, at, nv * 3);
+  const normals = new Float32Array(data, at + nv * 12, nv * 3);
+  const tris = new Uint32Array(data, at + nv * 24, nt * 3);
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.position);
+  gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.normal);
+  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.index);
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, tris, gl.STATIC_DRAW);
+  drawn.count = tris.length;
+  lastTris = tris;
+  lastVertices = nv;
+  uploadEdges();
+  if (!framed && nv > 0) {
+    // Frame the first surface: the camera orbits its bounding box's centre.
+    const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+    for (let i = 0; i < positions.length; i += 3) for (let a = 0; a < 3; a++) {
+      lo[a] = Math.min(lo[a], positions[i + a]); hi[a] = Math.max(hi[a], positions[i + a]);
+    }
+    camera.target = lo.map((v, a) => (v + hi[a]) / 2);
+    camera.radius = Math.max(1e-9, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
+    framed = true;
+  }
+  const t2 = performance.now();
+  draw();
+  gl.finish();
+  const t3 = performance.now();
+  // Where the time of the last picture went (ms): the request, the upload, the drawing.
+  window.isocube.timings = { fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2 };
+  drawn.figures = figures;
+  show(figures);
+  if (started !== undefined) {
+    latencies.push(performance.now() - started);
+    $("latency").textContent = `${percentile(latencies, 0.5).toFixed(0)} / ${percentile(latencies, 0.95).toFixed(0)} ms`;
+  }
+  drawSlices();
+  // The topology (an edge table on the server) once the slider rests: asked at every step it
+  // would hold the single-threaded server up before the next surface.
+  clearTimeout(topologyTimer);
+  topologyTimer = setTimeout(() => showTopology(figures), 300);
+  return true;
+}
+let topologyTimer = 0;
+
+// ---- the level: slider over the value range, histogram behind --------------------------------
+const toSlider = (l) => Math.round(((l - volume.min) / (volume.max - volume.min || 1)) * 10000);
+const fromSlider = (s) => volume.min + (s / 10000) * (volume.max - volume.min);
+function setLevel(l, fromCode) {
+  level = l;
+  $("levelvalue").textContent = `= ${Number(l.toPrecision(6))}`;
+  if (fromCode) $("level").value = String(toSlider(l));
+  $("levelnum").value = String(Number(l.toPrecision(8)));
+  return remesh(performance.now());
+}
+function drawHistogram() {
+  const c = $("histogram"), ctx = c.getContext("2d");
+  c.width = c.clientWidth; c.height = c.clientHeight;
+  const counts = volume.histogram, top = Math.log1p(Math.max(...counts));
+  ctx.fillStyle = "#4b5563";
+  for (let i = 0; i < counts.length; i++) {
+    const h = (Math.log1p(counts[i]) / (top || 1)) * c.height;
+    ctx.fillRect((i / counts.length) * c.width, c.height - h, c.width / counts.length + 0.5, h);
+  }
+}
+$("level").addEventListener("input", () => setLevel(fromSlider(Number($("level").value)), false));
+$("levelnum").addEventListener("change", () => {
+  const l = Number($("levelnum").value);
+  if (Number.isFinite(l)) setLevel(l, true);
+});
+for (const id of ["method", "topology", "triangulate", "snap"]) {
+  $(id).addEventListener("change", () => remesh(performance.now()));
+}
+$("edges").addEventListener("change", () => { uploadEdges(); draw(); });
+
+// ---- slices: the volume across each axis, the level's contour on it ---------------------------
+const sliceCache = [null, null, null];
+async function loadSlice(axis) {
+  const index = Number($(`index${axis}`).value);
+  const reply = await fetch(api("slice", { axis, index }));
+  if (!reply.ok) return;
+  const data = await reply.arrayBuffer();
+  const head = new DataView(data, 0, 8);
+  sliceCache[axis] = { w: head.getUint32(0, true), h: head.getUint32(4, true), v: new Float32Array(data, 8) };
+  drawSlice(axis);
+}
+function drawSlice(axis) {
+  const s = sliceCache[axis];
+  if (!s) return;
+  const c = $(`slice${axis}`), ctx = c.getContext("2d");
+  const scale = Math.max(1, Math.floor(192 / Math.max(s.w, s.h)));
+  c.width = s.w * scale; c.height = s.h * scale;
+  const image = ctx.createImageData(s.w, s.h);
+  const span = volume.max - volume.min || 1;
+  for (let y = 0; y < s.h; y++) for (let x = 0; x < s.w; x++) {
+    // Rows drawn bottom-up, so the second axis points up.
+    const g = Math.max(0, Math.min(255, ((s.v[y * s.w + x] - volume.min) / span) * 255));
+    const o = ((s.h - 1 - y) * s.w + x) * 4;
+    image.data[o] = image.data[o + 1] = image.data[o + 2] = g; image.data[o + 3] = 255;
+  }
+  const tmp = document.createElement("canvas");
+  tmp.width = s.w; tmp.height = s.h;
+  tmp.getContext("2d").putImageData(image, 0, 0);
+  ctx.imageSmoothingEnabled = false;
+  ctx.drawImage(tmp, 0, 0, c.width, c.height);
+  // Marching squares at the level: a segment across every cell whose corners straddle it.
+  ctx.strokeStyle = "#e0a530"; ctx.lineWidth = 1.5; ctx.beginPath();
+  const at = (x, y) => s.v[y * s.w + x];
+  const px = (x, y) => [(x + 0.5) * scale, (s.h - 0.5 - y) * scale];
+  for (let y = 0; y + 1 < s.h; y++) for (let x = 0; x + 1 < s.w; x++) {
+    const corners = [[x, y], [x + 1, y], [x + 1, y + 1], [x, y + 1]];
+    const cross = [];
+    for (let e = 0; e < 4; e++) {
+      const [ax, ay] = corners[e], [bx, by] = corners[(e + 1) % 4];
+      const a = at(ax, ay) - level, b = at(bx, by) - level;
+      if ((a < 0) !== (b < 0)) {
+        const t = a / (a - b);
+        cross.push(px(ax + t * (bx - ax), ay + t * (by - ay)));
+      }
+    }
+    for (let k = 0; k + 1 < cross.length; k += 2) {
+      ctx.moveTo(...cross[k]); ctx.lineTo(...cross[k + 1]);
+    }
+  }
+  ctx.stroke();
+}
+const drawSlices = () => [0, 1, 2].forEach(drawSlice);
+for (const axis of [0, 1, 2]) $(`index${axis}`).addEventListener("input", () => loadSlice(axis));
+
+// ---- quality and downloads ------------------------------------------------------------------
+$("measure").addEventListener("click", async () => {
+  const reply = await fetch(api("quality", settings()));
+  if (!reply.ok) return;
+  const q = await reply.json();
+  $("minangle").textContent = `${q.min_angle.min.toFixed(1)}° / ${q.min_angle.mean.toFixed(1)}°`;
+  $("below").textContent = q.below.map((b) => `${(100 * b).toFixed(1)} %`).join(" / ");
+  const c = $("angles"), ctx = c.getContext("2d");
+  c.width = c.clientWidth; c.height = c.clientHeight;
+  const top = Math.max(...q.histogram) || 1;
+  ctx.fillStyle = "#e0a530";
+  q.histogram.forEach((n, i) => {
+    const h = (n / top) * c.height;
+    ctx.fillRect((i / 36) * c.width, c.height - h, c.width / 36 - 1, h);
+  });
+});
+for (const link of document.querySelectorAll("a.dl")) {
+  link.addEventListener("click", (e) => {
+    e.preventDefault();
+    location.href = api("download", { ...settings(), format: link.dataset.format });
+  });
+}
+
+// ---- start ----------------------------------------------------------------------------------
+(async () => {
+  volume = await (await fetch(api("volume"))).json();
+  $("name").textContent = volume.name;
+  $("dims").textContent = `${volume.dims.join(" × ")} points, values ${volume.min} to ${volume.max}`;
+  document.title = `isocube view — ${volume.name}`;
+  drawHistogram();
+  for (const axis of [0, 1, 2]) {
+    const input = $(`index${axis}`);
+    input.max = String(volume.dims[axis] - 1);
+    input.value = String(Math.floor(volume.dims[axis] / 2));
+    loadSlice(axis);
+  }
+  await setLevel(volume.level, true);
+  window.isocube.ready = true;
+})();

@@ -1,0 +1,157 @@
+// `isocube view` in a real browser: Debian's Chromium driven by playwright-core (its own
+// browser download is not reachable from our machines).
+//
+//   cd tests/browser && npm ci && node view.test.mjs ISOCUBE WORKDIR [CHROMIUM]
+//
+// On sample:tangle:128: the page opens; three levels set through the slider give the triangle
+// counts `isocube extract` gives at those levels; switching to ternary does too; the PLY the
+// page downloads is byte for byte the command's file; the canvas is not blank and changes with
+// the level. On sample:tangle:256: the time from a slider move to the new picture, over a
+// sweep of levels (p50 / p95; reported, not asserted: a timing in CI is no test). Also a page
+// screenshot for the README.
+
+import { spawn, execFileSync } from "node:child_process";
+import { readFileSync, mkdirSync } from "node:fs";
+import { join } from "node:path";
+import assert from "node:assert/strict";
+import { chromium } from "playwright-core";
+
+const [isocube, work, executable = "/usr/bin/chromium"] = process.argv.slice(2);
+assert.ok(isocube && work, "usage: node view.test.mjs ISOCUBE WORKDIR [CHROMIUM]");
+mkdirSync(work, { recursive: true });
+
+/** Starts `isocube view VOLUME` and resolves with its URL (the first line it prints). */
+function serve(volume) {
+  const child = spawn(isocube, ["view", volume, "--no-open", "--quiet"], { stdio: ["ignore", "pipe", "inherit"] });
+  return new Promise((resolve, reject) => {
+    let out = "";
+    child.stdout.on("data", (d) => {
+      out += d;
+      const line = out.split("\n")[0];
+      if (out.includes("\n")) resolve({ url: line.trim(), stop: () => child.kill() });
+    });
+    child.on("exit", (code) => reject(new Error(`isocube view exited with ${code}`)));
+  });
+}
+
+/** The triangle count `isocube extract` reports for these arguments, and its file. */
+function extract(volume, level, extra = []) {
+  const out = join(work, `cli-${level}-${extra.join("")}.ply`);
+  const run = execFileSync(isocube, ["extract", volume, "--level", String(level), "-o", out, ...extra], {
+    encoding: "utf8",
+    stdio: ["ignore", "pipe", "pipe"],
+  });
+  return out;
+}
+function trianglesOf(ply) {
+  const head = readFileSync(ply).subarray(0, 400).toString("latin1");
+  return Number(/element face (\d+)/.exec(head)[1]);
+}
+
+const browser = await chromium.launch({
+  executablePath: executable,
+  // Software WebGL (SwiftShader) where there is no GPU.
+  args: ["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--ignore-gpu-blocklist"],
+});
+const context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
+let page = await context.newPage();
+const errors = [];
+function watch(p) {
+  p.on("pageerror", (e) => errors.push(String(e)));
+  // The browser asks for /favicon.ico without the token: that 403 is the server's due.
+  p.on("console", (m) => {
+    if (m.type() === "error" && !m.text().includes("403")) console.log(`page console: ${m.text()}`);
+  });
+}
+watch(page);
+
+const figures = () => page.evaluate(() => window.isocube.figures());
+const countShown = async () => Number((await page.locator("#triangles").textContent()).replace(/,/g, ""));
+
+// ---- counts, ternary, download, pictures on tangle:128 -------------------------------------
+{
+  const volume = "sample:tangle:128";
+  const server = await serve(volume);
+  await page.goto(server.url);
+  await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 60000 });
+  const info = await page.evaluate(() => ({ min: Number(document.querySelector("#level").min) }));
+  const shots = [];
+  for (const level of [-2, 0, 5]) {
+    // Through the slider's own input event, as a drag does: the slider position for this level.
+    await page.evaluate((l) => window.isocube.setLevel(l), level);
+    const f = await figures();
+    assert.equal(f.level, level);
+    const cli = trianglesOf(extract(volume, level));
+    assert.equal(await countShown(), cli, `level ${level}: page ${await countShown()}, isocube extract ${cli}`);
+    assert.equal(f.triangles, cli);
+    shots.push(await page.locator("#gl").screenshot());
+    console.log(`level ${level}: ${cli} triangles on the page and from isocube extract`);
+  }
+  // A drag of the slider itself: the level it lands on is meshed and shown.
+  await page.locator("#level").fill("3000");
+  await page.waitForFunction(() => {
+    const f = window.isocube.figures();
+    return f && Math.abs(f.level - Number(document.querySelector("#levelnum").value)) < 1e-3;
+  });
+  // The canvas is a picture, and a different one at another level.
+  const distinct = (png) => new Set(png.subarray(0, png.length).toString("base64").match(/.{1,8}/g)).size;
+  assert.ok(shots[0].length > 5000 && distinct(shots[0]) > 500, "the canvas looks blank");
+  assert.ok(!shots[0].equals(shots[2]), "the picture did not change with the level");
+  // Ternary.
+  await page.evaluate((l) => window.isocube.setLevel(l), 0);
+  await page.selectOption("#method", "ternary");
+  await page.waitForFunction(() => window.isocube.figures() && document.querySelector("#method").value === "ternary");
+  await page.waitForTimeout(200);
+  await page.evaluate((l) => window.isocube.setLevel(l), 0);
+  const ternaryFile = extract(volume, 0, ["--method", "ternary"]);
+  assert.equal(await countShown(), trianglesOf(ternaryFile));
+  console.log(`ternary at level 0: ${trianglesOf(ternaryFile)} triangles on the page and from isocube extract`);
+  // Download the PLY: the command's file, byte for byte.
+  const [download] = await Promise.all([page.waitForEvent("download"), page.click('a.dl[data-format="ply"]')]);
+  const saved = join(work, "page.ply");
+  await download.saveAs(saved);
+  assert.ok(readFileSync(saved).equals(readFileSync(ternaryFile)), "the downloaded PLY differs from isocube extract's");
+  console.log(`downloaded PLY (${readFileSync(saved).length} bytes) equals isocube extract's file`);
+  await page.selectOption("#method", "mc");
+  await page.click("#measure");
+  await page.waitForFunction(() => document.querySelector("#minangle").textContent !== "–");
+  await page.screenshot({ path: join(work, "view.png") });
+  server.stop();
+}
+
+// ---- latency on a 256³ volume --------------------------------------------------------------
+{
+  const server = await serve("sample:tangle:256");
+  // A fresh page: nothing of the first one's WebGL state or connections carries over.
+  await page.close();
+  page = await context.newPage();
+  watch(page);
+  await page.goto(server.url);
+  await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 120000 });
+  const times = await page.evaluate(async () => {
+    window.isocube.latencies.length = 0;
+    const input = document.querySelector("#level");
+    // Slider positions from 20 % to 60 % of the range, one at a time as a slow drag gives them.
+    for (let s = 2000; s <= 6000; s += 200) {
+      input.value = String(s);
+      const done = new Promise((resolve) => {
+        const n = window.isocube.latencies.length;
+        const poll = () => (window.isocube.latencies.length > n ? resolve() : setTimeout(poll, 1));
+        poll();
+      });
+      input.dispatchEvent(new Event("input"));
+      await done;
+    }
+    return [...window.isocube.latencies];
+  });
+  const parts = await page.evaluate(() => window.isocube.timings);
+  console.log(`the last picture: request ${parts.fetch.toFixed(0)} ms, upload ${parts.upload.toFixed(0)} ms, drawing ${parts.draw.toFixed(0)} ms (software WebGL)`);
+  times.sort((a, b) => a - b);
+  const p = (q) => times[Math.min(times.length - 1, Math.floor(q * times.length))];
+  console.log(`tangle:256, slider to picture over ${times.length} levels: p50 ${p(0.5).toFixed(0)} ms, p95 ${p(0.95).toFixed(0)} ms, max ${times[times.length - 1].toFixed(0)} ms`);
+  server.stop();
+}
+
+assert.deepEqual(errors, [], `errors on the page: ${errors.join("; ")}`);
+await browser.close();
+console.log("isocube view: browser test passed");
