@@ -1,14 +1,14 @@
 // `isocube view` in a real browser: Debian's Chromium driven by playwright-core (its own
 // browser download is not reachable from our machines).
 //
-//   cd tests/browser && npm ci && node view.test.mjs ISOCUBE WORKDIR [CHROMIUM]
+//   cd tests/browser && npm ci && node view.test.mjs ISOCUBE WORKDIR [--latency] [CHROMIUM]
 //
 // On sample:tangle:128: the page opens; three levels set through the slider give the triangle
 // counts `isocube extract` gives at those levels; switching to ternary does too; the PLY the
 // page downloads is byte for byte the command's file; the canvas is not blank and changes with
-// the level. On sample:tangle:256: the time from a slider move to the new picture, over a
-// sweep of levels (p50 / p95; reported, not asserted: a timing in CI is no test). Also a page
-// screenshot for the README.
+// the level. Also a page screenshot for the README. With --latency (a measurement, not a test:
+// CI does not run it), on sample:tangle:256 in a browser of its own: the time from a slider move
+// to the new picture over a sweep of levels, p50 / p95.
 
 import { spawn, execFileSync } from "node:child_process";
 import { readFileSync, mkdirSync } from "node:fs";
@@ -16,7 +16,9 @@ import { join } from "node:path";
 import assert from "node:assert/strict";
 import { chromium } from "playwright-core";
 
-const [isocube, work, executable = "/usr/bin/chromium"] = process.argv.slice(2);
+const args = process.argv.slice(2);
+const latency = args.includes("--latency");
+const [isocube, work, executable = "/usr/bin/chromium"] = args.filter((a) => a !== "--latency");
 assert.ok(isocube && work, "usage: node view.test.mjs ISOCUBE WORKDIR [CHROMIUM]");
 mkdirSync(work, { recursive: true });
 
@@ -48,12 +50,14 @@ function trianglesOf(ply) {
   return Number(/element face (\d+)/.exec(head)[1]);
 }
 
-const browser = await chromium.launch({
-  executablePath: executable,
-  // Software WebGL (SwiftShader) where there is no GPU.
-  args: ["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--ignore-gpu-blocklist"],
-});
-const context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
+const launch = () =>
+  chromium.launch({
+    executablePath: executable,
+    // Software WebGL (SwiftShader) where there is no GPU.
+    args: ["--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--ignore-gpu-blocklist"],
+  });
+let browser = await launch();
+let context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
 let page = await context.newPage();
 const errors = [];
 function watch(p) {
@@ -120,35 +124,56 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
 }
 
 // ---- latency on a 256³ volume --------------------------------------------------------------
-{
+if (latency) {
   const server = await serve("sample:tangle:256");
-  // A fresh page: nothing of the first one's WebGL state or connections carries over.
-  await page.close();
+  // A browser of its own: nothing of the first one's WebGL state or connections carries over.
+  await browser.close();
+  browser = await launch();
+  context = await browser.newContext({ viewport: { width: 1280, height: 800 } });
   page = await context.newPage();
   watch(page);
   await page.goto(server.url);
   await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 120000 });
-  const times = await page.evaluate(async () => {
-    window.isocube.latencies.length = 0;
-    const input = document.querySelector("#level");
-    // Slider positions from 20 % to 60 % of the range, one at a time as a slow drag gives them.
-    for (let s = 2000; s <= 6000; s += 200) {
-      input.value = String(s);
-      const done = new Promise((resolve) => {
-        const n = window.isocube.latencies.length;
-        const poll = () => (window.isocube.latencies.length > n ? resolve() : setTimeout(poll, 1));
-        poll();
-      });
-      input.dispatchEvent(new Event("input"));
-      await done;
-    }
-    return [...window.isocube.latencies];
-  });
+  // Slider positions from 20 % to 60 % of the range, one at a time as a slow drag gives them:
+  // each waits for the first picture of its level (a half-resolution preview on a volume this
+  // large); then a few positions each left to rest, waiting for the full surface.
+  const sweep = (from, to, step, list) =>
+    page.evaluate(
+      async ([from, to, step, list]) => {
+        const times = window.isocube[list];
+        times.length = 0;
+        const input = document.querySelector("#level");
+        for (let s = from; s <= to; s += step) {
+          input.value = String(s);
+          const n = times.length;
+          const deadline = performance.now() + 60000;
+          const done = new Promise((resolve, reject) => {
+            const poll = () =>
+              times.length > n
+                ? resolve()
+                : performance.now() > deadline
+                  ? reject(new Error(`no picture for slider position ${s} within 60 s`))
+                  : setTimeout(poll, 1);
+            poll();
+          });
+          input.dispatchEvent(new Event("input"));
+          await done;
+        }
+        return [...times];
+      },
+      [from, to, step, list]
+    );
+  const stats = (times) => {
+    times.sort((a, b) => a - b);
+    const p = (q) => times[Math.min(times.length - 1, Math.floor(q * times.length))];
+    return `p50 ${p(0.5).toFixed(0)} ms, p95 ${p(0.95).toFixed(0)} ms, max ${times[times.length - 1].toFixed(0)} ms`;
+  };
+  const previews = await sweep(2000, 6000, 200, "latencies");
   const parts = await page.evaluate(() => window.isocube.timings);
-  console.log(`the last picture: request ${parts.fetch.toFixed(0)} ms, upload ${parts.upload.toFixed(0)} ms, drawing ${parts.draw.toFixed(0)} ms (software WebGL)`);
-  times.sort((a, b) => a - b);
-  const p = (q) => times[Math.min(times.length - 1, Math.floor(q * times.length))];
-  console.log(`tangle:256, slider to picture over ${times.length} levels: p50 ${p(0.5).toFixed(0)} ms, p95 ${p(0.95).toFixed(0)} ms, max ${times[times.length - 1].toFixed(0)} ms`);
+  console.log(`tangle:256, slider to the first picture (half-resolution preview) over ${previews.length} levels: ${stats(previews)}`);
+  console.log(`  the last one: request ${parts.fetch.toFixed(0)} ms, upload ${parts.upload.toFixed(0)} ms, drawing ${parts.draw.toFixed(0)} ms (software WebGL)`);
+  const full = await sweep(3000, 5000, 500, "fullLatencies");
+  console.log(`tangle:256, slider to the full surface (after 200 ms at rest) over ${full.length} levels: ${stats(full)}`);
   server.stop();
 }
 

@@ -95,6 +95,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         hosts: [format!("127.0.0.1:{port}"), format!("localhost:{port}")],
         latest: 0,
         cached: None,
+        coarse: None,
     };
     for request in server.incoming_requests() {
         let response = state.answer(&request);
@@ -133,6 +134,9 @@ type Answer = Response<std::io::Cursor<Vec<u8>>>;
 /// What the mesh routes are asked for.
 #[derive(Clone, Debug, PartialEq)]
 struct Settings {
+    /// The preview: every other grid point along each axis (about a quarter the triangles),
+    /// for the picture while the slider moves.
+    coarse: bool,
     level: f32,
     method: String,
     topology: Topology,
@@ -153,6 +157,8 @@ struct State {
     latest: u64,
     /// The last mesh made, and what it was made with.
     cached: Option<(Settings, Arc<Made>)>,
+    /// The preview grid, made when first asked for.
+    coarse: Option<Grid>,
 }
 
 /// A mesh and its figures.
@@ -179,6 +185,26 @@ fn bytes(body: Vec<u8>, kind: &str) -> Answer {
         .with_chunked_threshold(usize::MAX)
         .with_header(header("Content-Type", kind))
         .with_header(header("Cache-Control", "no-store"))
+}
+
+/// Every other grid point along each axis (spacing doubled, an eighth of the cells): the same
+/// box, less the last layer of cells where an axis has an even number of points.
+fn every_other(grid: &Grid) -> Result<Grid, String> {
+    let [nx, ny, nz] = grid.dims();
+    let dims = [nx.div_ceil(2), ny.div_ceil(2), nz.div_ceil(2)];
+    let mut values = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                values.push(grid.value(2 * i, 2 * j, 2 * k));
+            }
+        }
+    }
+    let spacing = grid.spacing().map(|s| 2.0 * s);
+    Grid::new(dims, values)
+        .and_then(|g| g.with_spacing(spacing))
+        .and_then(|g| g.with_origin(grid.origin()))
+        .map_err(|e| e.to_string())
 }
 
 /// A request's query parameters, decoded.
@@ -321,6 +347,7 @@ impl State {
             None => 0.3,
         };
         Ok(Settings {
+            coarse: false,
             level,
             method,
             topology,
@@ -358,7 +385,16 @@ impl State {
             }
         }
         let options = self.options(s);
-        let view = self.grid.view().with_orientation(self.orientation);
+        let grid = match s.coarse {
+            true => match &self.coarse {
+                Some(g) => g,
+                None => self
+                    .coarse
+                    .insert(every_other(&self.grid).map_err(|e| text(500, e))?),
+            },
+            false => &self.grid,
+        };
+        let view = grid.view().with_orientation(self.orientation);
         let started = Instant::now();
         let mut mesh = Mesh::new();
         extract_into(view, &options, &mut mesh, &mut |_, _| {
@@ -385,12 +421,14 @@ impl State {
             return Err(text(409, "superseded by a later request"));
         }
         self.latest = seq;
-        let s = self.settings(q)?;
+        let mut s = self.settings(q)?;
+        s.coarse = q.get("coarse") == Some("1");
         let made = self.made(&s)?;
         let mesh = &made.mesh;
         // Counts only: the topology (an edge table) waits for /api/topology, so the picture
         // does not.
         let figures = serde_json::json!({
+            "coarse": s.coarse,
             "level": s.level,
             "vertices": mesh.positions.len(),
             "triangles": mesh.triangles.len(),

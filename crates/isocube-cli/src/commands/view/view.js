@@ -13,9 +13,10 @@ let level = 0;              // the level shown
 let seq = 0;                // mesh requests sent
 let inflight = null;        // AbortController of the newest mesh request
 let drawn = { count: 0, edges: 0, figures: null };
-const latencies = [];       // slider-to-picture times, ms
+const latencies = [];       // slider to the first picture of the new level, ms
+const fullLatencies = [];   // slider to the full-resolution picture, ms (large volumes)
 // What a browser test reads and drives.
-window.isocube = { latencies, figures: () => drawn.figures, setLevel: (l) => setLevel(l, true) };
+window.isocube = { latencies, fullLatencies, figures: () => drawn.figures, setLevel: (l) => setLevel(l, true) };
 
 // ---- WebGL ----------------------------------------------------------------------------------
 const canvas = $("gl");
@@ -215,7 +216,7 @@ const percentile = (values, p) => {
 };
 // Fetches the mesh for the current settings; the newest request wins (older ones are
 // aborted here and refused by the server). Resolves once the picture is drawn.
-async function remesh(started) {
+async function remesh(started, coarse = false) {
   clearTimeout(topologyTimer);
   if (inflight) inflight.abort();
   const controller = (inflight = new AbortController());
@@ -223,7 +224,8 @@ async function remesh(started) {
   const t0 = performance.now();
   let reply, data;
   try {
-    reply = await fetch(api("mesh", { ...settings(), seq }), { signal: controller.signal });
+    const params = { ...settings(), seq, ...(coarse ? { coarse: 1 } : {}) };
+    reply = await fetch(api("mesh", params), { signal: controller.signal });
     if (reply.status === 409) return false;
     if (!reply.ok) { $("status").textContent = await reply.text(); return false; }
     data = await reply.arrayBuffer();
@@ -271,8 +273,14 @@ async function remesh(started) {
   drawn.figures = figures;
   show(figures);
   if (started !== undefined) {
-    latencies.push(performance.now() - started);
+    const first = !coarse && pendingFull === started ? fullLatencies : latencies;
+    first.push(performance.now() - started);
+    if (!coarse && first === fullLatencies) pendingFull = null;
     $("latency").textContent = `${percentile(latencies, 0.5).toFixed(0)} / ${percentile(latencies, 0.95).toFixed(0)} ms`;
+  }
+  if (coarse) {
+    $("triangles").textContent += " (preview)";
+    return true;
   }
   drawSlices();
   // The topology (an edge table on the server) once the slider rests: asked at every step it
@@ -286,12 +294,27 @@ let topologyTimer = 0;
 // ---- the level: slider over the value range, histogram behind --------------------------------
 const toSlider = (l) => Math.round(((l - volume.min) / (volume.max - volume.min || 1)) * 10000);
 const fromSlider = (s) => volume.min + (s / 10000) * (volume.max - volume.min);
+// Volumes above 4 M points show a half-resolution preview while the slider moves, and the
+// full surface once it rests for 200 ms.
+const large = () => volume.dims[0] * volume.dims[1] * volume.dims[2] > 1 << 22;
+let restTimer = 0, pendingFull = null;
 function setLevel(l, fromCode) {
   level = l;
   $("levelvalue").textContent = `= ${Number(l.toPrecision(6))}`;
   if (fromCode) $("level").value = String(toSlider(l));
   $("levelnum").value = String(Number(l.toPrecision(8)));
-  return remesh(performance.now());
+  clearTimeout(restTimer);
+  const started = performance.now();
+  if (fromCode || !large()) {
+    pendingFull = null;
+    return remesh(started);
+  }
+  pendingFull = started;
+  // The rest is counted from the preview's picture: a slow preview is not overtaken.
+  return remesh(started, true).then((shown) => {
+    if (shown && pendingFull === started) restTimer = setTimeout(() => remesh(started), 200);
+    return shown;
+  });
 }
 function drawHistogram() {
   const c = $("histogram"), ctx = c.getContext("2d");
