@@ -726,22 +726,54 @@ fn empty_failure(args: &Args, level: f32, summary: Option<ValueSummary>) -> Fail
     ))
 }
 
+/// The extraction choices `extract` and `view` share, as the command line spells them.
+pub(crate) struct Choices<'a> {
+    pub method: &'a str,
+    pub topology: Topology,
+    pub triangulate: Strategy,
+    pub zero_threshold: f32,
+    pub snap: f32,
+    pub snap_position: SnapPosition,
+    pub flip: bool,
+    pub normals: bool,
+    pub relax: usize,
+}
+
+impl Choices<'_> {
+    /// The library's options at `level`: one conversion for every front end, so `view`'s
+    /// downloads are `extract`'s files.
+    pub(crate) fn options(&self, level: f32) -> ExtractOptions {
+        ExtractOptions::default()
+            .with_level(level)
+            .with_flip(self.flip)
+            .with_normals(self.normals)
+            .with_topology(self.topology)
+            .with_triangulation(self.triangulate)
+            .with_relax(self.relax)
+            .with_method(match self.method {
+                "ternary" => Method::Ternary(
+                    Snapping::default()
+                        .with_zero_threshold(self.zero_threshold)
+                        .with_snap(self.snap)
+                        .with_position(self.snap_position),
+                ),
+                _ => Method::MarchingCubes,
+            })
+    }
+}
+
 /// The library's options from the arguments, at `level`.
 fn options(args: &Args, level: f32) -> ExtractOptions {
-    ExtractOptions::default()
-        .with_level(level)
-        .with_flip(args.flip)
-        .with_normals(!args.no_normals)
-        .with_topology(args.topology)
-        .with_triangulation(args.triangulate)
-        .with_relax(args.relax)
-        .with_method(match args.method.as_str() {
-            "ternary" => Method::Ternary(
-                Snapping::default()
-                    .with_zero_threshold(args.zero_threshold)
-                    .with_snap(args.snap)
-                    .with_position(args.snap_position),
-            ),
-            _ => Method::MarchingCubes,
-        })
+    Choices {
+        method: &args.method,
+        topology: args.topology,
+        triangulate: args.triangulate,
+        zero_threshold: args.zero_threshold,
+        snap: args.snap,
+        snap_position: args.snap_position,
+        flip: args.flip,
+        normals: !args.no_normals,
+        relax: args.relax,
+    }
+    .options(level)
 }

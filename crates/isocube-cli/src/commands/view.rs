@@ -14,13 +14,14 @@ use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{extract_into, ExtractOptions, Method, SnapPosition, Snapping};
+use isocube::extract::{extract_into, ExtractOptions, SnapPosition};
 use isocube::field::{Grid, Level, Orientation, ValueSummary};
 use isocube::mesh::Mesh;
 use isocube::quality::{quality_report, Strategy};
 use isocube_io::{write_mesh_to, MeshFormat};
 use tiny_http::{Header, Method as HttpMethod, Request, Response, Server};
 
+use crate::commands::extract::Choices;
 use crate::volume::VolumeArgs;
 use crate::Failure;
 
@@ -362,19 +363,20 @@ impl State {
         let room = self
             .max_memory
             .map(|limit| limit.saturating_sub(std::mem::size_of_val(self.grid.values()) as u64));
-        ExtractOptions::default()
-            .with_level(s.level)
-            .with_topology(s.topology)
-            .with_triangulation(s.triangulate)
-            .with_method(match s.method.as_str() {
-                "ternary" => Method::Ternary(
-                    Snapping::default()
-                        .with_snap(s.snap)
-                        .with_position(SnapPosition::NearestCrossing),
-                ),
-                _ => Method::MarchingCubes,
-            })
-            .with_max_memory(room)
+        // `isocube extract`'s defaults for what the page does not offer.
+        Choices {
+            method: &s.method,
+            topology: s.topology,
+            triangulate: s.triangulate,
+            zero_threshold: 0.0,
+            snap: s.snap,
+            snap_position: SnapPosition::NearestCrossing,
+            flip: false,
+            normals: true,
+            relax: 0,
+        }
+        .options(s.level)
+        .with_max_memory(room)
     }
 
     /// The mesh for these settings: the last one again, or a new one.
