@@ -6,13 +6,16 @@
 // On sample:tangle:128: the page opens; three levels set through the slider give the triangle
 // counts `isocube extract` gives at those levels; switching to ternary does too; the PLY the
 // page downloads is byte for byte the command's file; the canvas is not blank and changes with
-// the level. Also a page screenshot for the README. With --latency (a measurement, not a test:
+// the level. A segmentation's labels, a cage at two subdivision levels and a contour stack show
+// the surfaces `extract --labels`, `subdivide` and `contours` make; a label toggles off and on.
+// Also a page screenshot for the README. With --latency (a measurement, not a test:
 // CI does not run it), on sample:tangle:256 in a browser of its own: the time from a slider move
 // to the new picture over a sweep of levels, p50 / p95.
 
 import { spawn, execFileSync } from "node:child_process";
 import { readFileSync, mkdirSync } from "node:fs";
 import { join } from "node:path";
+import { fileURLToPath } from "node:url";
 import assert from "node:assert/strict";
 import { chromium } from "playwright-core";
 
@@ -22,9 +25,11 @@ const [isocube, work, executable = "/usr/bin/chromium"] = args.filter((a) => a !
 assert.ok(isocube && work, "usage: node view.test.mjs ISOCUBE WORKDIR [CHROMIUM]");
 mkdirSync(work, { recursive: true });
 
-/** Starts `isocube view VOLUME` and resolves with its URL (the first line it prints). */
-function serve(volume) {
-  const child = spawn(isocube, ["view", volume, "--no-open", "--quiet"], { stdio: ["ignore", "pipe", "inherit"] });
+const repo = fileURLToPath(new URL("../..", import.meta.url));
+
+/** Starts `isocube view INPUT [OPTIONS]` and resolves with its URL (the first line it prints). */
+function serve(...input) {
+  const child = spawn(isocube, ["view", ...input, "--no-open", "--quiet"], { stdio: ["ignore", "pipe", "inherit"] });
   return new Promise((resolve, reject) => {
     let out = "";
     child.stdout.on("data", (d) => {
@@ -33,6 +38,8 @@ function serve(volume) {
       if (out.includes("\n")) resolve({ url: line.trim(), stop: () => child.kill() });
     });
     child.on("exit", (code) => reject(new Error(`isocube view exited with ${code}`)));
+    // No server outlives the test, whatever fails.
+    process.on("exit", () => child.kill());
   });
 }
 
@@ -61,7 +68,10 @@ let context = await browser.newContext({ viewport: { width: 1280, height: 800 },
 let page = await context.newPage();
 const errors = [];
 function watch(p) {
-  p.on("pageerror", (e) => errors.push(String(e)));
+  p.on("pageerror", (e) => {
+    errors.push(String(e));
+    console.log(`page error: ${e}`);
+  });
   // The browser asks for /favicon.ico without the token: that 403 is the server's due.
   p.on("console", (m) => {
     if (m.type() === "error" && !m.text().includes("403")) console.log(`page console: ${m.text()}`);
@@ -123,6 +133,65 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   server.stop();
 }
 
+// ---- a segmentation's labels, a cage, a contour stack -----------------------------------------
+const ready = () => page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 60000 });
+const shownParts = () => page.evaluate(() => window.isocube.parts());
+{
+  const labels = join(repo, "tests/data/volumes/labels.nii.gz");
+  execFileSync(isocube, ["extract", labels, "--labels", "-o", join(work, "l.ply")], { stdio: "ignore" });
+  const server = await serve(labels, "--labels");
+  await page.goto(server.url);
+  await ready();
+  const shown = await shownParts();
+  assert.ok(shown.length >= 2, `labels shown: ${shown.length}`);
+  for (const p of shown) {
+    const cli = trianglesOf(join(work, `l-${p.number}.ply`));
+    assert.equal(p.figures.triangles, cli, `label ${p.number}`);
+  }
+  assert.equal(await page.locator("#partlist tr").count(), shown.length);
+  const all = await page.locator("#gl").screenshot();
+  await page.evaluate(() => window.isocube.toggle(0, false));
+  const without = await page.locator("#gl").screenshot();
+  assert.ok(!all.equals(without), "hiding a label did not change the picture");
+  await page.evaluate(() => window.isocube.toggle(0, true));
+  assert.ok(all.equals(await page.locator("#gl").screenshot()), "showing the label again did not restore the picture");
+  await page.screenshot({ path: join(work, "view-labels.png") });
+  console.log(`labels: ${shown.map((p) => `${p.number}: ${p.figures.triangles}`).join(", ")} triangles, as isocube extract --labels; a label toggles`);
+  server.stop();
+}
+{
+  const server = await serve("sample:cube", "--levels", "1");
+  await page.goto(server.url);
+  await ready();
+  assert.equal(await page.evaluate(() => window.isocube.lines()), 12, "the cube cage's edges");
+  for (const levels of [2, 3]) {
+    const file = join(work, `cube-${levels}.ply`);
+    execFileSync(isocube, ["subdivide", "sample:cube", "--levels", String(levels), "-o", file], { stdio: "ignore" });
+    await page.evaluate((n) => window.isocube.setLevels(n), levels);
+    assert.equal((await figures()).triangles, trianglesOf(file), `${levels} levels`);
+  }
+  await page.screenshot({ path: join(work, "view-cage.png") });
+  console.log("cage: the cube's 12 edges, its surface at 2 and 3 levels as isocube subdivide's");
+  server.stop();
+}
+{
+  const file = join(work, "orebody.ply");
+  execFileSync(isocube, ["contours", "sample:orebody", "-o", file], { stdio: "ignore" });
+  const server = await serve("sample:orebody");
+  await page.goto(server.url);
+  await ready();
+  const [ore] = await shownParts();
+  assert.equal(ore.figures.triangles, trianglesOf(file));
+  const contours = await page.evaluate(() => window.isocube.lines());
+  assert.ok(contours > 100, `${contours} contour segments`);
+  const shot = await page.locator("#gl").screenshot();
+  await page.screenshot({ path: join(work, "view-contours.png") });
+  await page.locator("#lines").uncheck();
+  assert.ok(!shot.equals(await page.locator("#gl").screenshot()), "the contours are not drawn");
+  console.log(`contour stack: ${ore.figures.triangles} triangles as isocube contours, ${contours} contour segments drawn`);
+  server.stop();
+}
+
 // ---- latency on a 256³ volume --------------------------------------------------------------
 if (latency) {
   const server = await serve("sample:tangle:256");
@@ -168,12 +237,25 @@ if (latency) {
     const p = (q) => times[Math.min(times.length - 1, Math.floor(q * times.length))];
     return `p50 ${p(0.5).toFixed(0)} ms, p95 ${p(0.95).toFixed(0)} ms, max ${times[times.length - 1].toFixed(0)} ms`;
   };
+  // Where the pictures' time went (medians): extraction on the server, the request in all
+  // (extraction, encoding, transfer), the upload to WebGL, the drawing.
+  const breakdown = async (coarse) => {
+    const all = (await page.evaluate(() => window.isocube.timings)).filter((t) => t.coarse === coarse);
+    const median = (key) => {
+      const v = all.map((t) => t[key]).sort((a, b) => a - b);
+      return v[Math.floor(v.length / 2)];
+    };
+    await page.evaluate(() => { window.isocube.timings.length = 0; });
+    return `extraction ${median("extract").toFixed(0)} ms, request ${median("fetch").toFixed(0)} ms, ` +
+      `upload ${median("upload").toFixed(0)} ms, drawing ${median("draw").toFixed(0)} ms, ${(median("bytes") / 1e6).toFixed(1)} MB`;
+  };
+  await page.evaluate(() => { window.isocube.timings.length = 0; });
   const previews = await sweep(2000, 6000, 200, "latencies");
-  const parts = await page.evaluate(() => window.isocube.timings);
   console.log(`tangle:256, slider to the first picture (half-resolution preview) over ${previews.length} levels: ${stats(previews)}`);
-  console.log(`  the last one: request ${parts.fetch.toFixed(0)} ms, upload ${parts.upload.toFixed(0)} ms, drawing ${parts.draw.toFixed(0)} ms (software WebGL)`);
+  console.log(`  previews: ${await breakdown(true)}`);
   const full = await sweep(3000, 5000, 500, "fullLatencies");
   console.log(`tangle:256, slider to the full surface (after 200 ms at rest) over ${full.length} levels: ${stats(full)}`);
+  console.log(`  full surfaces: ${await breakdown(false)}`);
   server.stop();
 }
 

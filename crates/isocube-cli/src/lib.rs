@@ -47,8 +47,11 @@ enum Command {
     Tables(commands::tables::Args),
     /// Extract the built-in samples and print a summary table.
     Demo(commands::demo::Args),
-    /// Explore a volume in the browser: drag the level and see the surface change at once
-    /// (a local page on 127.0.0.1, guarded by a token).
+    /// Explore a volume in the browser: drag the level and see the surface change at once (a
+    /// local page on 127.0.0.1, guarded by a token). Also a segmentation's labels (--labels),
+    /// a mesh (.ply, .obj, .stl, .off), a cage and its subdivision (.obj polygons,
+    /// sample:cube|plate|box-hole|boss) and contour stacks (.csv, .json, .dxf, an RT Structure
+    /// Set, sample:orebody) with their contours.
     View(commands::view::Args),
 }
 

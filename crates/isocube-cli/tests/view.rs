@@ -1,6 +1,7 @@
 //! `isocube view`'s server, over raw HTTP: what it refuses (no token, a wrong token, another
 //! Host, paths outside its routes, bodies, long URLs, stale mesh requests) and what it serves
-//! (the page; meshes and downloads equal to `isocube extract`'s).
+//! (the page; meshes and downloads equal to `isocube extract`'s, and for labels, cages, contour
+//! stacks and mesh files to `extract --labels`, `subdivide` and `contours` files).
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -21,8 +22,14 @@ impl Drop for Viewer {
 }
 
 fn start(volume: &str) -> Viewer {
+    start_with(&[volume])
+}
+
+fn start_with(args: &[&str]) -> Viewer {
     let mut child = Command::new(env!("CARGO_BIN_EXE_isocube"))
-        .args(["view", volume, "--no-open", "--quiet"])
+        .arg("view")
+        .args(args)
+        .args(["--no-open", "--quiet"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -199,4 +206,157 @@ fn meshes_and_downloads_are_the_commands() {
     let (status, slice) = get(&v, &format!("/api/slice?token={t}&axis=2&index=12"), None);
     assert_eq!(status, 200);
     assert_eq!(slice.len(), 8 + 24 * 24 * 4);
+}
+
+fn isocube(args: &[&str]) -> std::process::Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_isocube"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "isocube {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn data(path: &str) -> String {
+    format!("{}/../../tests/data/{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `/api/volume`'s description of a viewer's surfaces.
+fn describe(v: &Viewer) -> serde_json::Value {
+    let (status, body) = get(v, &format!("/api/volume?token={}", v.token), None);
+    assert_eq!(status, 200);
+    serde_json::from_slice(&body).unwrap()
+}
+
+/// The triangle count of a mesh reply.
+fn triangles_of(mesh: &[u8]) -> usize {
+    assert_eq!(&mesh[..4], b"ICM1");
+    let word = |i: usize| u32::from_le_bytes(mesh[i..i + 4].try_into().unwrap()) as usize;
+    assert_eq!(mesh.len(), 16 + word(12) + word(4) * 24 + word(8) * 12);
+    word(8)
+}
+
+#[test]
+fn labels_cages_stacks_and_meshes_are_the_commands_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+
+    // A segmentation: one surface per label, each `extract --labels`'s file.
+    let labels = data("volumes/labels.nii.gz");
+    isocube(&["extract", &labels, "--labels", "-o", &out("l.ply")]);
+    let v = start_with(&[&labels, "--labels"]);
+    let scene = describe(&v);
+    assert_eq!(scene["kind"], "labels");
+    let parts = scene["parts"].as_array().unwrap();
+    assert!(parts.len() >= 2, "{scene}");
+    for (i, part) in parts.iter().enumerate() {
+        let file = std::fs::read(out(&format!("l-{}.ply", part["number"]))).unwrap();
+        let (status, body) = get(
+            &v,
+            &format!("/api/download?token={}&part={i}", v.token),
+            None,
+        );
+        assert_eq!(status, 200);
+        assert!(
+            body == file,
+            "label {}: the download differs",
+            part["number"]
+        );
+        let (_, mesh) = get(&v, &format!("/api/mesh?token={}&part={i}", v.token), None);
+        assert_eq!(triangles_of(&mesh), part["triangles"]);
+    }
+    let t = &v.token;
+    assert_eq!(
+        get(&v, &format!("/api/mesh?token={t}&part=99"), None).0,
+        400
+    );
+    assert_eq!(
+        get(&v, &format!("/api/slice?token={t}&axis=0&index=0"), None).0,
+        400
+    );
+    drop(v);
+
+    // A cage: its edges as lines, its subdivision at the levels asked for, `subdivide`'s files.
+    let v = start_with(&["sample:cube", "--levels", "1"]);
+    let scene = describe(&v);
+    assert_eq!(scene["kind"], "cage");
+    assert_eq!(scene["levels"], 1);
+    assert_eq!(scene["lines"], 12, "a cube's edges, each once");
+    let t = v.token.clone();
+    for levels in ["2", "3"] {
+        for ext in ["obj", "ply"] {
+            let name = out(&format!("c{levels}.{ext}"));
+            isocube(&["subdivide", "sample:cube", "--levels", levels, "-o", &name]);
+            let (status, body) = get(
+                &v,
+                &format!("/api/download?token={t}&levels={levels}&format={ext}"),
+                None,
+            );
+            assert_eq!(status, 200);
+            assert!(
+                body == std::fs::read(&name).unwrap(),
+                "{levels} levels, {ext}"
+            );
+        }
+    }
+    let (_, mesh) = get(&v, &format!("/api/mesh?token={t}&levels=2"), None);
+    assert_eq!(triangles_of(&mesh), 6 * 16 * 2, "quads split in two");
+    assert_eq!(
+        get(&v, &format!("/api/mesh?token={t}&levels=7"), None).0,
+        400
+    );
+    drop(v);
+
+    // Contour stacks: `contours`'s surface, the contours as lines; an RT Structure Set's
+    // regions each a surface, its POINT regions noted.
+    isocube(&["contours", "sample:orebody", "-o", &out("ore.ply")]);
+    let v = start("sample:orebody");
+    let scene = describe(&v);
+    assert_eq!(scene["kind"], "contours");
+    assert!(scene["lines"].as_u64().unwrap() > 100, "{scene}");
+    let (_, body) = get(&v, &format!("/api/download?token={}", v.token), None);
+    assert!(body == std::fs::read(out("ore.ply")).unwrap());
+    let (status, lines) = get(&v, &format!("/api/lines?token={}", v.token), None);
+    assert_eq!(status, 200);
+    assert_eq!(&lines[..4], b"ICL1");
+    assert_eq!(
+        lines.len(),
+        8 + scene["lines"].as_u64().unwrap() as usize * 24
+    );
+    drop(v);
+    let plan = data("volumes/rtstruct.dcm");
+    isocube(&["contours", &plan, "-o", &out("plan.ply")]);
+    let v = start(&plan);
+    let scene = describe(&v);
+    assert_eq!(scene["kind"], "contours");
+    assert_eq!(scene["parts"][0]["name"], "ring", "{scene}");
+    assert!(
+        scene["notes"][0].as_str().unwrap().contains("'marker'"),
+        "{scene}"
+    );
+    let (_, body) = get(&v, &format!("/api/download?token={}", v.token), None);
+    assert!(body == std::fs::read(out("plan-ring.ply")).unwrap());
+    drop(v);
+
+    // A mesh file: shown as read; converted by the downloads.
+    let v = start(&out("ore.ply"));
+    let scene = describe(&v);
+    assert_eq!(scene["kind"], "mesh");
+    let ply = std::fs::read(out("ore.ply")).unwrap();
+    let header = String::from_utf8_lossy(&ply[..300]).to_string();
+    assert!(
+        header.contains(&format!(
+            "element face {}\n",
+            scene["parts"][0]["triangles"]
+        )),
+        "{header}"
+    );
+    let (status, topology) = get(&v, &format!("/api/topology?token={}", v.token), None);
+    assert_eq!(status, 200);
+    let topology: serde_json::Value = serde_json::from_slice(&topology).unwrap();
+    assert_eq!(topology["watertight"], true);
 }

@@ -357,17 +357,12 @@ fn mesh_stack(
     };
     let cap = args.stack.cap(stack)?;
     let started = Instant::now();
-    let fidelity = if args.plain {
-        Fidelity::Plain
-    } else {
-        Fidelity::Exact
-    };
-    let mut options = ReconstructOptions::new(cap)
-        .with_fidelity(fidelity)
-        .with_triangulation(args.triangulate);
-    if let Some(limit) = MemoryLimit::or_default(args.max_memory) {
-        options = options.with_max_memory(limit);
-    }
+    let options = reconstruct_options(
+        cap,
+        args.plain,
+        args.triangulate,
+        MemoryLimit::or_default(args.max_memory),
+    );
     let r = reconstruct_with(stack, &plane, &options).map_err(|e| match e {
         ExtractError::MemoryLimit { .. } => Failure::input(anyhow::anyhow!(
             "{e}; use a coarser --grid or a larger --cell (or raise --max-memory)"
@@ -399,6 +394,28 @@ fn mesh_stack(
         );
     }
     Ok(())
+}
+
+/// The reconstruction `isocube contours` runs (and `view` shows): these caps, the contour
+/// points inserted unless `plain`, this triangulation, the memory budget.
+pub(crate) fn reconstruct_options(
+    cap: Cap,
+    plain: bool,
+    triangulate: Strategy,
+    max_memory: Option<u64>,
+) -> ReconstructOptions {
+    let fidelity = if plain {
+        Fidelity::Plain
+    } else {
+        Fidelity::Exact
+    };
+    let options = ReconstructOptions::new(cap)
+        .with_fidelity(fidelity)
+        .with_triangulation(triangulate);
+    match max_memory {
+        Some(limit) => options.with_max_memory(limit),
+        None => options,
+    }
 }
 
 /// The plane grid on a reference image's pixel lattice: its pixel spacing, points at its

@@ -1,5 +1,6 @@
-//! `isocube view VOLUME`: a page in the browser to explore a volume — drag the level and see
-//! the surface change at once.
+//! `isocube view INPUT`: a page in the browser to explore a volume — drag the level and see
+//! the surface change at once — or to look at a segmentation's labels, a mesh, a cage and its
+//! subdivision, a contour stack's surface (`view/parts.rs`).
 //!
 //! The binary serves one page (HTML and script embedded, no dependencies) and a small API on
 //! 127.0.0.1. Every request must carry the random token printed in the URL and a `Host` of
@@ -9,21 +10,28 @@
 //! mesh request older than the latest one is answered at once with 409, so a fast slider never
 //! queues work.
 
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
-use isocube::extract::{extract_into, ExtractOptions, SnapPosition};
+use isocube::extract::{extract_into, ExtractError, ExtractOptions, SnapPosition};
 use isocube::field::{Grid, Level, Orientation, ValueSummary};
 use isocube::mesh::Mesh;
 use isocube::quality::{quality_report, Strategy};
 use isocube_io::{write_mesh_to, MeshFormat};
 use tiny_http::{Header, Method as HttpMethod, Request, Response, Server};
 
-use crate::commands::extract::Choices;
+use crate::commands::contours::StackArgs;
+use crate::commands::extract::{parse_labels, Choices};
 use crate::volume::VolumeArgs;
 use crate::Failure;
+use isocube::extract::LabelSelection;
+
+mod parts;
+use parts::{Kind, Parts, MAX_LEVELS};
 
 #[derive(Debug, ClapArgs)]
 pub(crate) struct Args {
@@ -42,22 +50,63 @@ pub(crate) struct Args {
     /// Mesh in grid indices rather than the file's world coordinates.
     #[arg(long)]
     index_space: bool,
+    /// The volume is a labelled image (a segmentation): show every label but the background
+    /// (`--labels`), or the listed ones (`--labels 1,4,7`), each in its own colour, as
+    /// `isocube extract --labels` meshes them.
+    #[arg(long, value_name = "LIST", num_args = 0..=1, default_missing_value = "all", value_parser = parse_labels)]
+    labels: Option<LabelSelection>,
+    /// The label that is not shown (with --labels).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    background: i64,
+    /// Smoothing sweeps for --labels (as `isocube extract --smooth`).
+    #[arg(long, default_value_t = 60)]
+    smooth: usize,
+    /// Cages (.obj polygons, `sample:cube|plate|box-hole|boss`): the subdivision levels the page
+    /// opens at (0 to 6; the page changes them).
+    #[arg(long, default_value_t = 2)]
+    levels: usize,
+    #[command(flatten)]
+    stack: StackArgs,
 }
 
 /// Bins of the value histogram the page draws behind the level slider.
 const BINS: usize = 256;
 /// The longest request line accepted (routes and their parameters are short).
 const MAX_URL: usize = 2048;
+/// Requests admitted and waiting for their answer; more wait in the listening socket.
+const QUEUE: usize = 64;
 
-/// The page: its HTML with the script inlined (so one request brings the whole page).
+/// The page's HTML and script (inlined into it when served).
 const PAGE_HTML: &str = include_str!("view/index.html");
 const PAGE_SCRIPT: &str = include_str!("view/view.js");
 
 pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
-    let (grid, orientation) =
-        crate::volume::in_frame(args.index_space, args.volume.load_oriented()?)?;
-    let summary = ValueSummary::of(grid.values());
-    let level = crate::volume::resolve_level(args.level, &args.volume.volume, || summary.clone())?;
+    let max_memory = crate::volume::MemoryLimit::or_default(args.volume.max_memory);
+    let loaded = parts::load(args, max_memory, quiet)?;
+    let scene = match loaded {
+        Some(parts) => Scene::Parts(parts),
+        None => {
+            if let Some(flag) = args.stack.given() {
+                return Err(Failure::input(anyhow::anyhow!(
+                    "{flag} applies to contour stacks; {} is a volume",
+                    args.volume.volume
+                )));
+            }
+            let (grid, orientation) =
+                crate::volume::in_frame(args.index_space, args.volume.load_oriented()?)?;
+            let summary = ValueSummary::of(grid.values());
+            let level =
+                crate::volume::resolve_level(args.level, &args.volume.volume, || summary.clone())?;
+            Scene::Volume(Volume {
+                grid,
+                orientation,
+                summary,
+                level,
+                cached: None,
+                coarse: None,
+            })
+        }
+    };
     let server = Server::http(("127.0.0.1", args.port)).map_err(|e| {
         Failure::input(anyhow::anyhow!(
             "cannot listen on 127.0.0.1:{}: {e}",
@@ -74,33 +123,65 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     // The URL on stdout (one line, for scripts), the rest on stderr.
     println!("{url}");
     if !quiet {
+        let what = match &scene {
+            Scene::Volume(v) => {
+                let [x, y, z] = v.grid.dims();
+                format!("{x}×{y}×{z}")
+            }
+            Scene::Parts(p) => format!(
+                "{}, {} surface{}",
+                p.kind.name(),
+                p.parts.len(),
+                if p.parts.len() == 1 { "" } else { "s" }
+            ),
+        };
         eprintln!(
-            "isocube view: {} ({}×{}×{}) on {url} — Ctrl-C to stop",
-            args.volume.volume,
-            grid.dims()[0],
-            grid.dims()[1],
-            grid.dims()[2]
+            "isocube view: {} ({what}) on {url} — Ctrl-C to stop",
+            args.volume.volume
         );
+        if let Scene::Parts(p) = &scene {
+            for note in &p.notes {
+                eprintln!("note: {note}");
+            }
+        }
     }
     if !args.no_open {
         open_browser(&url);
     }
-    let mut state = State {
-        name: args.volume.volume.clone(),
-        grid,
-        orientation,
-        summary,
-        level,
-        max_memory: crate::volume::MemoryLimit::or_default(args.volume.max_memory),
+    let gate = Gate {
         token,
         hosts: [format!("127.0.0.1:{port}"), format!("localhost:{port}")],
-        latest: 0,
-        cached: None,
-        coarse: None,
     };
-    for request in server.incoming_requests() {
-        let response = state.answer(&request);
-        // A client that went away is no error of the server's.
+    let newest = Arc::new(AtomicU64::new(0));
+    // One thread takes requests in, refuses what the gate refuses at once, and notes the newest
+    // mesh request as it arrives, so the extraction running for an older one stops; another
+    // answers the admitted ones in turn (an extraction uses every core). At most QUEUE wait.
+    let (send, admitted) = std::sync::mpsc::sync_channel::<(Request, String, Query)>(QUEUE);
+    let noted = newest.clone();
+    std::thread::spawn(move || {
+        for request in server.incoming_requests() {
+            match gate.admit(&request) {
+                Ok((path, query)) => {
+                    if path == "/api/mesh" {
+                        noted.fetch_max(query.seq(), Ordering::SeqCst);
+                    }
+                    if send.send((request, path, query)).is_err() {
+                        break;
+                    }
+                }
+                // A client that went away is no error of the server's.
+                Err(answer) => drop(request.respond(answer)),
+            }
+        }
+    });
+    let mut state = State {
+        name: args.volume.volume.clone(),
+        scene,
+        max_memory,
+        newest,
+    };
+    for (request, path, query) in admitted {
+        let response = state.answer(&path, &query);
         let _ = request.respond(response);
     }
     Ok(())
@@ -145,21 +226,37 @@ struct Settings {
     snap: f32,
 }
 
-struct State {
-    name: String,
+/// What the page shows.
+enum Scene {
+    /// A volume's level set, re-extracted as the level moves.
+    Volume(Volume),
+    /// Fixed surfaces: labels, a mesh, a cage's subdivision, contour stacks.
+    Parts(Parts),
+}
+
+struct Volume {
     grid: Grid,
     orientation: Orientation,
     summary: Option<ValueSummary>,
     level: f32,
-    max_memory: Option<u64>,
-    token: String,
-    hosts: [String; 2],
-    /// The highest `seq` of a mesh request seen.
-    latest: u64,
     /// The last mesh made, and what it was made with.
     cached: Option<(Settings, Arc<Made>)>,
     /// The preview grid, made when first asked for.
     coarse: Option<Grid>,
+}
+
+/// Checks every request before any work: the token, the Host, the method, the size.
+struct Gate {
+    token: String,
+    hosts: [String; 2],
+}
+
+struct State {
+    name: String,
+    scene: Scene,
+    max_memory: Option<u64>,
+    /// The highest `seq` of a mesh request received (set by the thread taking requests in).
+    newest: Arc<AtomicU64>,
 }
 
 /// A mesh and its figures.
@@ -218,6 +315,13 @@ impl Query {
             .find(|(k, _)| k == name)
             .map(|(_, v)| v.as_str())
     }
+
+    /// The mesh request's number (the page counts them; 0 when not given).
+    fn seq(&self) -> u64 {
+        self.get("seq")
+            .and_then(|v| v.parse::<u64>().ok())
+            .unwrap_or(0)
+    }
 }
 
 /// Compares two strings in time independent of where they differ.
@@ -225,68 +329,9 @@ fn same(a: &str, b: &str) -> bool {
     a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |d, (x, y)| d | (x ^ y)) == 0
 }
 
-impl State {
-    fn answer(&mut self, request: &Request) -> Answer {
-        let url = request.url();
-        if url.len() > MAX_URL {
-            return text(414, "request line too long");
-        }
-        if !matches!(request.method(), HttpMethod::Get) {
-            return text(405, "only GET");
-        }
-        if request.body_length().is_some_and(|n| n > 0) {
-            return text(413, "requests carry no body");
-        }
-        let host = request
-            .headers()
-            .iter()
-            .find(|h| h.field.equiv("Host"))
-            .map(|h| h.value.as_str().to_string());
-        // DNS rebinding: a page of another site reaches 127.0.0.1 under its own name.
-        if !host.is_some_and(|h| self.hosts.contains(&h)) {
-            return text(403, "wrong Host");
-        }
-        let (path, query) = url.split_once('?').unwrap_or((url, ""));
-        let query = Query(
-            query
-                .split('&')
-                .filter(|p| !p.is_empty())
-                .map(|p| {
-                    let (k, v) = p.split_once('=').unwrap_or((p, ""));
-                    (decode(k), decode(v))
-                })
-                .collect(),
-        );
-        let get = |name: &str| query.get(name);
-        if !get("token").is_some_and(|t| same(t, &self.token)) {
-            return text(403, "missing or wrong token");
-        }
-        let result = match path {
-            "/" => Ok(self.page()),
-            "/api/volume" => Ok(self.volume()),
-            "/api/mesh" => self.mesh_route(&query),
-            "/api/slice" => self.slice(&query),
-            "/api/topology" => self.topology(&query),
-            "/api/quality" => self.quality(&query),
-            "/api/download" => self.download(&query),
-            _ => Err(text(404, "no such route")),
-        };
-        result.unwrap_or_else(|e| e)
-    }
-
-    fn page(&self) -> Answer {
-        let html = PAGE_HTML.replace("/*SCRIPT*/", PAGE_SCRIPT);
-        bytes(html.into_bytes(), "text/html; charset=utf-8")
-            .with_header(header(
-                "Content-Security-Policy",
-                "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; \
-                 connect-src 'self'; img-src 'self' data: blob:",
-            ))
-            .with_header(header("X-Frame-Options", "DENY"))
-    }
-
+impl Volume {
     /// The volume's size, place, value range and histogram, and the opening level.
-    fn volume(&self) -> Answer {
+    fn describe(&self, name: &str) -> Answer {
         let [nx, ny, nz] = self.grid.dims();
         let (min, max) = self
             .summary
@@ -302,7 +347,8 @@ impl State {
             }
         }
         let json = serde_json::json!({
-            "name": self.name,
+            "kind": "volume",
+            "name": name,
             "dims": [nx, ny, nz],
             "spacing": self.grid.spacing(),
             "origin": self.grid.origin(),
@@ -359,9 +405,8 @@ impl State {
 
     /// The library's options for these settings: those `isocube extract` gives for the same
     /// arguments, so a download is the command's file.
-    fn options(&self, s: &Settings) -> ExtractOptions {
-        let room = self
-            .max_memory
+    fn options(&self, s: &Settings, max_memory: Option<u64>) -> ExtractOptions {
+        let room = max_memory
             .map(|limit| limit.saturating_sub(std::mem::size_of_val(self.grid.values()) as u64));
         // `isocube extract`'s defaults for what the page does not offer.
         Choices {
@@ -379,14 +424,21 @@ impl State {
         .with_max_memory(room)
     }
 
-    /// The mesh for these settings: the last one again, or a new one.
-    fn made(&mut self, s: &Settings) -> Result<Arc<Made>, Answer> {
+    /// The mesh for these settings: the last one again, or a new one. With `cancel` (the
+    /// newest request's number, and this one's), the extraction stops once a newer request
+    /// has arrived, answered 409.
+    fn made(
+        &mut self,
+        s: &Settings,
+        max_memory: Option<u64>,
+        cancel: Option<(&AtomicU64, u64)>,
+    ) -> Result<Arc<Made>, Answer> {
         if let Some((cached, made)) = &self.cached {
             if cached == s {
                 return Ok(made.clone());
             }
         }
-        let options = self.options(s);
+        let options = self.options(s, max_memory);
         let grid = match s.coarse {
             true => match &self.coarse {
                 Some(g) => g,
@@ -399,10 +451,14 @@ impl State {
         let view = grid.view().with_orientation(self.orientation);
         let started = Instant::now();
         let mut mesh = Mesh::new();
-        extract_into(view, &options, &mut mesh, &mut |_, _| {
-            std::ops::ControlFlow::Continue(())
-        })
-        .map_err(|e| text(422, e.to_string()))?;
+        let mut progress = |_, _| match cancel {
+            Some((newest, seq)) if newest.load(Ordering::SeqCst) > seq => ControlFlow::Break(()),
+            _ => ControlFlow::Continue(()),
+        };
+        extract_into(view, &options, &mut mesh, &mut progress).map_err(|e| match e {
+            ExtractError::Cancelled => text(409, "superseded by a later request"),
+            e => text(422, e.to_string()),
+        })?;
         let made = Arc::new(Made {
             mesh,
             millis: started.elapsed().as_secs_f64() * 1e3,
@@ -411,61 +467,34 @@ impl State {
         Ok(made)
     }
 
-    /// The mesh as the page draws it: a little-endian header (`ICM1`, vertices, triangles, the
-    /// length of a JSON block of figures), the JSON padded to 4 bytes, then positions and
-    /// normals (f32 × 3 per vertex) and triangles (u32 × 3).
-    fn mesh_route(&mut self, q: &Query) -> Result<Answer, Answer> {
-        let seq = q
-            .get("seq")
-            .and_then(|v| v.parse::<u64>().ok())
-            .unwrap_or(0);
-        if seq < self.latest {
+    /// The mesh for the page ([`encode`]); a request older than the newest received is
+    /// answered 409 at once, and one overtaken while its extraction runs stops early.
+    fn mesh_route(
+        &mut self,
+        q: &Query,
+        max_memory: Option<u64>,
+        newest: &AtomicU64,
+    ) -> Result<Answer, Answer> {
+        let seq = q.seq();
+        if seq < newest.load(Ordering::SeqCst) {
             return Err(text(409, "superseded by a later request"));
         }
-        self.latest = seq;
         let mut s = self.settings(q)?;
         s.coarse = q.get("coarse") == Some("1");
-        let made = self.made(&s)?;
-        let mesh = &made.mesh;
+        let made = self.made(&s, max_memory, Some((newest, seq)))?;
         // Counts only: the topology (an edge table) waits for /api/topology, so the picture
         // does not.
         let figures = serde_json::json!({
             "coarse": s.coarse,
             "level": s.level,
-            "vertices": mesh.positions.len(),
-            "triangles": mesh.triangles.len(),
+            "vertices": made.mesh.positions.len(),
+            "triangles": made.mesh.triangles.len(),
             "millis": made.millis,
-        })
-        .to_string();
-        let mut json = figures.into_bytes();
-        while json.len() % 4 != 0 {
-            json.push(b' ');
-        }
-        // The normals the writers write: zero ones (flat spots) filled from the triangles.
-        let filled = mesh.filled_normals();
-        let normals: &[[f32; 3]] = match &filled {
-            Some(n) => n,
-            None if mesh.normals.len() == mesh.positions.len() => &mesh.normals,
-            None => &[],
-        };
-        let zeros = vec![[0.0f32; 3]; mesh.positions.len()];
-        let normals = if normals.is_empty() {
-            &zeros[..]
-        } else {
-            normals
-        };
-        let mut out = Vec::with_capacity(
-            16 + json.len() + mesh.positions.len() * 24 + mesh.triangles.len() * 12,
-        );
-        out.extend(b"ICM1");
-        for n in [mesh.positions.len(), mesh.triangles.len(), json.len()] {
-            out.extend((n as u32).to_le_bytes());
-        }
-        out.extend(&json);
-        out.extend(bytemuck::cast_slice::<[f32; 3], u8>(&mesh.positions));
-        out.extend(bytemuck::cast_slice::<[f32; 3], u8>(normals));
-        out.extend(bytemuck::cast_slice::<[u32; 3], u8>(&mesh.triangles));
-        Ok(bytes(out, "application/octet-stream"))
+        });
+        Ok(bytes(
+            encode(&made.mesh, figures),
+            "application/octet-stream",
+        ))
     }
 
     /// One plane of the volume across `axis` (0 x, 1 y, 2 z) at `index`: width and height (u32)
@@ -501,73 +530,285 @@ impl State {
         }
         Ok(bytes(out, "application/octet-stream"))
     }
+}
 
-    /// Whether the mesh for these settings is closed, its components and genus.
-    fn topology(&mut self, q: &Query) -> Result<Answer, Answer> {
-        let s = self.settings(q)?;
-        let made = self.made(&s)?;
-        let report = made.mesh.report();
-        let json = serde_json::json!({
-            "level": s.level,
-            "watertight": report.watertight && report.oriented,
-            "boundary_edges": report.boundary_edges,
-            "nonmanifold_edges": report.nonmanifold_edges,
-            "components": report.components,
-            "genus": report.genus,
-        });
-        Ok(bytes(json.to_string().into_bytes(), "application/json"))
-    }
-
-    fn quality(&mut self, q: &Query) -> Result<Answer, Answer> {
-        let s = self.settings(q)?;
-        let made = self.made(&s)?;
-        let q = quality_report(&made.mesh);
-        let json = serde_json::json!({
-            "triangles": q.triangles,
-            "degenerate": q.degenerate,
-            "min_angle": {"min": q.min_angle.min, "mean": q.min_angle.mean},
-            "max_angle": {"max": q.max_angle.max, "mean": q.max_angle.mean},
-            "below": q.below,
-            "histogram": q.histogram.to_vec(),
-        });
-        Ok(bytes(json.to_string().into_bytes(), "application/json"))
-    }
-
-    /// The mesh as a file, written as `isocube extract -o NAME.FORMAT` writes it.
-    fn download(&mut self, q: &Query) -> Result<Answer, Answer> {
-        let ext = q.get("format").unwrap_or("ply");
-        let format = match ext {
-            "ply" | "stl" | "obj" | "glb" => {
-                MeshFormat::from_path(std::path::Path::new(&format!("m.{ext}")))
-            }
-            _ => None,
+impl Gate {
+    /// The request's route and parameters, or the refusal to send at once.
+    fn admit(&self, request: &Request) -> Result<(String, Query), Answer> {
+        let url = request.url();
+        if url.len() > MAX_URL {
+            return Err(text(414, "request line too long"));
         }
-        .ok_or_else(|| text(400, "format: ply, stl, obj or glb"))?;
-        let s = self.settings(q)?;
-        let made = self.made(&s)?;
-        let mut out = Vec::new();
-        write_mesh_to(
-            &mut out,
-            format,
-            &made.mesh,
-            &crate::write_options(false, true),
-        )
-        .map_err(|e| text(500, e.to_string()))?;
-        let stem = std::path::Path::new(&self.name)
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .map(|s| {
-                s.chars()
-                    .filter(|c| c.is_ascii_alphanumeric() || "-_.".contains(*c))
-                    .collect::<String>()
-            })
-            .filter(|s| !s.is_empty())
-            .unwrap_or_else(|| "isosurface".into());
-        Ok(bytes(out, "application/octet-stream").with_header(header(
-            "Content-Disposition",
-            &format!("attachment; filename=\"{stem}-{}.{ext}\"", s.level),
-        )))
+        if !matches!(request.method(), HttpMethod::Get) {
+            return Err(text(405, "only GET"));
+        }
+        if request.body_length().is_some_and(|n| n > 0) {
+            return Err(text(413, "requests carry no body"));
+        }
+        let host = request
+            .headers()
+            .iter()
+            .find(|h| h.field.equiv("Host"))
+            .map(|h| h.value.as_str().to_string());
+        // DNS rebinding: a page of another site reaches 127.0.0.1 under its own name.
+        if !host.is_some_and(|h| self.hosts.contains(&h)) {
+            return Err(text(403, "wrong Host"));
+        }
+        let (path, query) = url.split_once('?').unwrap_or((url, ""));
+        let query = Query(
+            query
+                .split('&')
+                .filter(|p| !p.is_empty())
+                .map(|p| {
+                    let (k, v) = p.split_once('=').unwrap_or((p, ""));
+                    (decode(k), decode(v))
+                })
+                .collect(),
+        );
+        if !query.get("token").is_some_and(|t| same(t, &self.token)) {
+            return Err(text(403, "missing or wrong token"));
+        }
+        Ok((path.to_string(), query))
     }
+}
+
+/// The page: its HTML with the script inlined (one request brings the whole page).
+fn page() -> Answer {
+    let html = PAGE_HTML.replace("/*SCRIPT*/", PAGE_SCRIPT);
+    bytes(html.into_bytes(), "text/html; charset=utf-8")
+        .with_header(header(
+            "Content-Security-Policy",
+            "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; \
+             connect-src 'self'; img-src 'self' data: blob:",
+        ))
+        .with_header(header("X-Frame-Options", "DENY"))
+}
+
+/// A mesh as the page draws it: a little-endian header (`ICM1`, vertices, triangles, the
+/// length of a JSON block of figures), the JSON padded to 4 bytes, then positions and normals
+/// (f32 × 3 per vertex) and triangles (u32 × 3).
+fn encode(mesh: &Mesh, figures: serde_json::Value) -> Vec<u8> {
+    let mut json = figures.to_string().into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    // The normals the writers write (zero ones, at flat spots, filled from the triangles);
+    // meshes read without normals get the triangles' area-weighted ones.
+    let normals: std::borrow::Cow<[[f32; 3]]> = match mesh.filled_normals() {
+        Some(n) => n.into(),
+        None if mesh.normals.len() == mesh.positions.len() => (&mesh.normals[..]).into(),
+        None => {
+            let mut shaded = Mesh::new();
+            shaded.positions.clone_from(&mesh.positions);
+            shaded.triangles.clone_from(&mesh.triangles);
+            shaded.compute_normals();
+            shaded.normals.into()
+        }
+    };
+    let mut out =
+        Vec::with_capacity(16 + json.len() + mesh.positions.len() * 24 + mesh.triangles.len() * 12);
+    out.extend(b"ICM1");
+    for n in [mesh.positions.len(), mesh.triangles.len(), json.len()] {
+        out.extend((n as u32).to_le_bytes());
+    }
+    out.extend(&json);
+    out.extend(bytemuck::cast_slice::<[f32; 3], u8>(&mesh.positions));
+    out.extend(bytemuck::cast_slice::<[f32; 3], u8>(&normals));
+    out.extend(bytemuck::cast_slice::<[u32; 3], u8>(&mesh.triangles));
+    out
+}
+
+fn json(value: serde_json::Value) -> Answer {
+    bytes(value.to_string().into_bytes(), "application/json")
+}
+
+/// Whether the mesh is closed, its components and genus.
+fn topology_of(mesh: &Mesh) -> serde_json::Value {
+    let report = mesh.report();
+    serde_json::json!({
+        "watertight": report.watertight && report.oriented,
+        "boundary_edges": report.boundary_edges,
+        "nonmanifold_edges": report.nonmanifold_edges,
+        "components": report.components,
+        "genus": report.genus,
+    })
+}
+
+/// `isocube quality`'s figures.
+fn quality_of(mesh: &Mesh) -> serde_json::Value {
+    let q = quality_report(mesh);
+    serde_json::json!({
+        "triangles": q.triangles,
+        "degenerate": q.degenerate,
+        "min_angle": {"min": q.min_angle.min, "mean": q.min_angle.mean},
+        "max_angle": {"max": q.max_angle.max, "mean": q.max_angle.mean},
+        "below": q.below,
+        "histogram": q.histogram.to_vec(),
+    })
+}
+
+/// The file's stem, reduced to characters safe in a download's name.
+fn safe_stem(name: &str) -> String {
+    std::path::Path::new(name)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .map(|s| {
+            s.chars()
+                .filter(|c| c.is_ascii_alphanumeric() || "-_.".contains(*c))
+                .collect::<String>()
+        })
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "isosurface".into())
+}
+
+/// The format a download asks for.
+fn download_format(q: &Query) -> Result<(&str, MeshFormat), Answer> {
+    let ext = q.get("format").unwrap_or("ply");
+    match ext {
+        "ply" | "stl" | "obj" | "glb" => {
+            MeshFormat::from_path(std::path::Path::new(&format!("m.{ext}"))).map(|f| (ext, f))
+        }
+        _ => None,
+    }
+    .ok_or_else(|| text(400, "format: ply, stl, obj or glb"))
+}
+
+/// `mesh` as `isocube extract` (and `contours`, `subdivide` to PLY, STL, GLB) writes it.
+fn mesh_file(mesh: &Mesh, format: MeshFormat) -> Result<Vec<u8>, Answer> {
+    let mut out = Vec::new();
+    write_mesh_to(&mut out, format, mesh, &crate::write_options(false, true))
+        .map_err(|e| text(500, e.to_string()))?;
+    Ok(out)
+}
+
+fn attachment(body: Vec<u8>, file: &str) -> Answer {
+    bytes(body, "application/octet-stream").with_header(header(
+        "Content-Disposition",
+        &format!("attachment; filename=\"{file}\""),
+    ))
+}
+
+impl State {
+    fn answer(&mut self, path: &str, q: &Query) -> Answer {
+        let name = self.name.as_str();
+        let result = match (path, &mut self.scene) {
+            ("/", _) => Ok(page()),
+            ("/api/volume", Scene::Volume(v)) => Ok(v.describe(name)),
+            ("/api/volume", Scene::Parts(p)) => Ok(describe_parts(p, name)),
+            ("/api/mesh", Scene::Volume(v)) => v.mesh_route(q, self.max_memory, &self.newest),
+            ("/api/mesh", Scene::Parts(p)) => part_of(p, q).map(|(_, made)| {
+                let figures = serde_json::json!({
+                    "vertices": made.mesh.positions.len(),
+                    "triangles": made.mesh.triangles.len(),
+                    "millis": made.millis,
+                });
+                bytes(encode(&made.mesh, figures), "application/octet-stream")
+            }),
+            ("/api/slice", Scene::Volume(v)) => v.slice(q),
+            ("/api/lines", Scene::Parts(p)) => {
+                let mut out = Vec::with_capacity(8 + p.lines.len() * 12);
+                out.extend(b"ICL1");
+                out.extend((p.lines.len() as u32).to_le_bytes());
+                out.extend(bytemuck::cast_slice::<[f32; 3], u8>(&p.lines));
+                Ok(bytes(out, "application/octet-stream"))
+            }
+            ("/api/topology" | "/api/quality", scene) => {
+                let made = match scene {
+                    Scene::Volume(v) => match v.settings(q) {
+                        Ok(s) => v
+                            .made(&s, self.max_memory, None)
+                            .map(|m| (Some(s.level), m)),
+                        Err(e) => Err(e),
+                    },
+                    Scene::Parts(p) => part_of(p, q).map(|(_, m)| (None, m)),
+                };
+                made.map(|(level, made)| {
+                    let mut value = if path == "/api/topology" {
+                        topology_of(&made.mesh)
+                    } else {
+                        quality_of(&made.mesh)
+                    };
+                    if let Some(level) = level {
+                        value["level"] = serde_json::json!(level);
+                    }
+                    json(value)
+                })
+            }
+            ("/api/download", Scene::Volume(v)) => download_format(q).and_then(|(ext, format)| {
+                let s = v.settings(q)?;
+                let made = v.made(&s, self.max_memory, None)?;
+                let file = format!("{}-{}.{ext}", safe_stem(name), s.level);
+                Ok(attachment(mesh_file(&made.mesh, format)?, &file))
+            }),
+            ("/api/download", Scene::Parts(p)) => download_format(q).and_then(|(ext, format)| {
+                let (number, made) = part_of(p, q)?;
+                let file = format!("{}-{number}.{ext}", safe_stem(name));
+                // A cage's subdivision as OBJ keeps its polygons and tags, as `isocube
+                // subdivide -o NAME.obj` writes it.
+                let body = match (&p.refined, format) {
+                    (Some((_, fine)), MeshFormat::Obj) => fine.to_obj().into_bytes(),
+                    _ => mesh_file(&made.mesh, format)?,
+                };
+                Ok(attachment(body, &file))
+            }),
+            ("/api/slice" | "/api/lines", _) => Err(text(400, "not a route for this input")),
+            _ => Err(text(404, "no such route")),
+        };
+        result.unwrap_or_else(|e| e)
+    }
+}
+
+/// What the page shows of fixed surfaces: their kind, names and sizes.
+fn describe_parts(p: &Parts, name: &str) -> Answer {
+    let parts: Vec<_> = p
+        .parts
+        .iter()
+        .map(|part| {
+            serde_json::json!({
+                "name": part.name,
+                "number": part.number,
+                "vertices": part.made.mesh.positions.len(),
+                "triangles": part.made.mesh.triangles.len(),
+            })
+        })
+        .collect();
+    json(serde_json::json!({
+        "kind": p.kind.name(),
+        "name": name,
+        "parts": parts,
+        "lines": p.lines.len() / 2,
+        "levels": p.refined.as_ref().map(|(l, _)| *l),
+        "max_levels": MAX_LEVELS,
+        "notes": p.notes,
+    }))
+}
+
+/// The part a request names (`part`, default 0; a cage's `levels` subdivide it again), with
+/// the number its download is named by.
+fn part_of(p: &mut Parts, q: &Query) -> Result<(String, Arc<Made>), Answer> {
+    if p.kind == Kind::Cage {
+        if let Some(v) = q.get("levels") {
+            let levels = v
+                .parse::<usize>()
+                .ok()
+                .filter(|&l| l <= MAX_LEVELS)
+                .ok_or_else(|| text(400, format!("levels: 0 to {MAX_LEVELS}")))?;
+            p.subdivide(levels).map_err(|e| text(422, e))?;
+        }
+    }
+    let index = match q.get("part") {
+        Some(v) => v
+            .parse::<usize>()
+            .ok()
+            .filter(|&i| i < p.parts.len())
+            .ok_or_else(|| text(400, format!("part: 0 to {}", p.parts.len() - 1)))?,
+        None => 0,
+    };
+    let part = &p.parts[index];
+    let number = part
+        .number
+        .map_or_else(|| "mesh".to_string(), |n| n.to_string());
+    Ok((number, part.made.clone()))
 }
 
 /// `%XX` and `+` decoded (the page encodes its parameters with `encodeURIComponent`).

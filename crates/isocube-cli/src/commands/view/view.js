@@ -8,15 +8,25 @@ const api = (route, params = {}) =>
   `/api/${route}?` + new URLSearchParams({ ...params, token }).toString();
 
 // ---- state ----------------------------------------------------------------------------------
-let volume = null;          // /api/volume
+let volume = null;          // /api/volume: a volume, or fixed surfaces ("parts")
 let level = 0;              // the level shown
 let seq = 0;                // mesh requests sent
 let inflight = null;        // AbortController of the newest mesh request
-let drawn = { count: 0, edges: 0, figures: null };
+let selected = 0;           // the surface the figures, quality and downloads are about
+const parts = [];           // drawn surfaces: one for a volume, one per label / region / file
 const latencies = [];       // slider to the first picture of the new level, ms
 const fullLatencies = [];   // slider to the full-resolution picture, ms (large volumes)
+const timings = [];         // where each picture's time went: extraction, request, upload, drawing
 // What a browser test reads and drives.
-window.isocube = { latencies, fullLatencies, figures: () => drawn.figures, setLevel: (l) => setLevel(l, true) };
+window.isocube = {
+  latencies, fullLatencies, timings,
+  figures: () => (parts[selected] ? parts[selected].figures : null),
+  setLevel: (l) => setLevel(l, true),
+  setLevels: (n) => setLevels(n),
+  toggle: (i, on) => { $(`part${i}`).checked = on; parts[i].visible = on; draw(); },
+  parts: () => parts.map((p, i) => ({ name: p.name, number: volume.parts ? volume.parts[i].number : null, visible: p.visible, figures: p.figures })),
+  lines: () => overlay.count / 2,
+};
 
 // ---- WebGL ----------------------------------------------------------------------------------
 const canvas = $("gl");
@@ -52,10 +62,12 @@ const surface = program(
   `#version 300 es
   precision highp float;
   in vec3 n; in vec3 eye; out vec4 color;
+  uniform vec3 front; uniform vec3 back;
   void main() {
     vec3 N = normalize(n);
-    // Two-sided: the side facing increasing values warm, the other cool.
-    vec3 base = gl_FrontFacing ? vec3(0.88, 0.66, 0.25) : vec3(0.35, 0.55, 0.85);
+    // Two-sided: a volume's surface warm on the side facing increasing values, cool on the
+    // other; a label's or a mesh's own colour, darker inside.
+    vec3 base = gl_FrontFacing ? front : back;
     if (!gl_FrontFacing) N = -N;
     vec3 L = normalize(vec3(0.3, 0.5, 1.0));
     float d = max(dot(N, L), 0.0);
@@ -69,29 +81,49 @@ const lines = program(
   in vec3 position; uniform mat4 mvp;
   void main() { gl_Position = mvp * vec4(position, 1.0); gl_Position.z -= 1e-4 * gl_Position.w; }`,
   `#version 300 es
-  precision highp float; out vec4 color;
-  void main() { color = vec4(0.08, 0.08, 0.1, 0.55); }`
+  precision highp float; out vec4 color; uniform vec4 tint;
+  void main() { color = tint; }`
 );
-const buffers = { position: gl.createBuffer(), normal: gl.createBuffer(), index: gl.createBuffer(), edges: gl.createBuffer() };
-const vao = gl.createVertexArray();
-const edgeVao = gl.createVertexArray();
-gl.bindVertexArray(vao);
-for (const [name, buffer] of [["position", buffers.position], ["normal", buffers.normal]]) {
-  const at = gl.getAttribLocation(surface, name);
-  gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+// One surface's buffers: positions, normals, triangles, and its edges for the overlay.
+function makePart(name, front, back) {
+  const p = {
+    name, front, back, visible: true, count: 0, edges: 0, figures: null, tris: null, nv: 0,
+    position: gl.createBuffer(), normal: gl.createBuffer(), index: gl.createBuffer(),
+    edgeIndex: gl.createBuffer(), vao: gl.createVertexArray(), edgeVao: gl.createVertexArray(),
+  };
+  gl.bindVertexArray(p.vao);
+  for (const [attr, buffer] of [["position", p.position], ["normal", p.normal]]) {
+    const at = gl.getAttribLocation(surface, attr);
+    gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+    gl.enableVertexAttribArray(at);
+    gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+  }
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.index);
+  gl.bindVertexArray(p.edgeVao);
+  const at = gl.getAttribLocation(lines, "position");
+  gl.bindBuffer(gl.ARRAY_BUFFER, p.position);
   gl.enableVertexAttribArray(at);
   gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.edgeIndex);
+  gl.bindVertexArray(null);
+  return p;
 }
-gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.index);
-gl.bindVertexArray(edgeVao);
+// Lines over the surfaces: a contour stack's contours, a cage's edges.
+const overlay = { buffer: gl.createBuffer(), vao: gl.createVertexArray(), count: 0 };
+gl.bindVertexArray(overlay.vao);
 {
   const at = gl.getAttribLocation(lines, "position");
-  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.position);
+  gl.bindBuffer(gl.ARRAY_BUFFER, overlay.buffer);
   gl.enableVertexAttribArray(at);
   gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.edges);
 }
 gl.bindVertexArray(null);
+// Distinct colours for labels and regions (front; the back is darker).
+const palette = [
+  [0.89, 0.42, 0.33], [0.38, 0.72, 0.45], [0.36, 0.56, 0.90], [0.93, 0.74, 0.28],
+  [0.68, 0.45, 0.86], [0.32, 0.78, 0.80], [0.95, 0.56, 0.74], [0.62, 0.62, 0.34],
+  [0.55, 0.40, 0.30], [0.80, 0.80, 0.82], [0.20, 0.55, 0.55], [0.85, 0.35, 0.60],
+];
 
 // ---- camera ---------------------------------------------------------------------------------
 const camera = { yaw: 0.6, pitch: 0.45, distance: 3, target: [0, 0, 0], radius: 1 };
@@ -123,7 +155,7 @@ function draw() {
   gl.viewport(0, 0, w, h);
   gl.clearColor(0.07, 0.08, 0.1, 1);
   gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-  if (!drawn.count) return;
+  if (!parts.some((p) => p.count) && !overlay.count) return;
   const r = camera.radius * camera.distance;
   const c = Math.cos(camera.pitch);
   const eye = [
@@ -138,17 +170,31 @@ function draw() {
   gl.useProgram(surface);
   gl.uniformMatrix4fv(gl.getUniformLocation(surface, "mvp"), false, mvp);
   gl.uniformMatrix4fv(gl.getUniformLocation(surface, "view"), false, view);
-  gl.bindVertexArray(vao);
-  gl.drawElements(gl.TRIANGLES, drawn.count, gl.UNSIGNED_INT, 0);
-  if ($("edges").checked && drawn.edges) {
-    gl.enable(gl.BLEND);
-    gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
-    gl.useProgram(lines);
-    gl.uniformMatrix4fv(gl.getUniformLocation(lines, "mvp"), false, mvp);
-    gl.bindVertexArray(edgeVao);
-    gl.drawElements(gl.LINES, drawn.edges, gl.UNSIGNED_INT, 0);
-    gl.disable(gl.BLEND);
+  for (const p of parts) {
+    if (!p.visible || !p.count) continue;
+    gl.uniform3fv(gl.getUniformLocation(surface, "front"), p.front);
+    gl.uniform3fv(gl.getUniformLocation(surface, "back"), p.back);
+    gl.bindVertexArray(p.vao);
+    gl.drawElements(gl.TRIANGLES, p.count, gl.UNSIGNED_INT, 0);
   }
+  gl.enable(gl.BLEND);
+  gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
+  gl.useProgram(lines);
+  gl.uniformMatrix4fv(gl.getUniformLocation(lines, "mvp"), false, mvp);
+  if ($("edges").checked) {
+    gl.uniform4fv(gl.getUniformLocation(lines, "tint"), [0.08, 0.08, 0.1, 0.55]);
+    for (const p of parts) {
+      if (!p.visible || !p.edges) continue;
+      gl.bindVertexArray(p.edgeVao);
+      gl.drawElements(gl.LINES, p.edges, gl.UNSIGNED_INT, 0);
+    }
+  }
+  if ($("lines").checked && overlay.count) {
+    gl.uniform4fv(gl.getUniformLocation(lines, "tint"), [0.95, 0.95, 0.3, 0.9]);
+    gl.bindVertexArray(overlay.vao);
+    gl.drawArrays(gl.LINES, 0, overlay.count);
+  }
+  gl.disable(gl.BLEND);
   gl.bindVertexArray(null);
 }
 let dragging = null;
@@ -169,13 +215,16 @@ canvas.addEventListener("wheel", (e) => {
 window.addEventListener("resize", () => requestAnimationFrame(draw));
 
 // ---- the mesh -------------------------------------------------------------------------------
-const settings = () => ({
+// The parameters naming the surface a request is about: the level and extraction settings
+// of a volume; the part (and a cage's subdivision levels) otherwise.
+const isVolume = () => volume.kind === "volume";
+const settings = (part = selected) => isVolume() ? {
   level: String(level),
   method: $("method").value,
   topology: $("topology").value,
   triangulate: $("triangulate").value,
   snap: $("snap").value,
-});
+} : { part, ...(volume.kind === "cage" ? { levels: $("levels").value } : {}) };
 function edgesOf(tris, vertices) {
   const seen = new Set(), out = [];
   for (let t = 0; t < tris.length; t += 3) {
@@ -187,13 +236,47 @@ function edgesOf(tris, vertices) {
   }
   return new Uint32Array(out);
 }
-let lastTris = null, lastVertices = 0, framed = false;
-function uploadEdges() {
-  if (!$("edges").checked || !lastTris) { drawn.edges = 0; return; }
-  const e = edgesOf(lastTris, lastVertices);
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.edges);
+let framed = false;
+function uploadEdges(p) {
+  if (!$("edges").checked || !p.tris) { p.edges = 0; return; }
+  const e = edgesOf(p.tris, p.nv);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.edgeIndex);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, e, gl.STATIC_DRAW);
-  drawn.edges = e.length;
+  p.edges = e.length;
+}
+// A mesh reply (`ICM1`: counts, figures as JSON, positions, normals, triangles) into a
+// surface's buffers; returns its figures and positions.
+function upload(p, data) {
+  const head = new DataView(data, 0, 16);
+  const nv = head.getUint32(4, true), nt = head.getUint32(8, true), nj = head.getUint32(12, true);
+  const figures = JSON.parse(new TextDecoder().decode(new Uint8Array(data, 16, nj)));
+  const at = 16 + nj;
+  const positions = new Float32Array(data, at, nv * 3);
+  const normals = new Float32Array(data, at + nv * 12, nv * 3);
+  const tris = new Uint32Array(data, at + nv * 24, nt * 3);
+  gl.bindBuffer(gl.ARRAY_BUFFER, p.position);
+  gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, p.normal);
+  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.index);
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, tris, gl.STATIC_DRAW);
+  p.count = tris.length;
+  p.tris = tris;
+  p.nv = nv;
+  p.figures = figures;
+  uploadEdges(p);
+  return positions;
+}
+// The camera orbits the centre of the first surfaces' bounding box.
+function frame(arrays) {
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  for (const positions of arrays) for (let i = 0; i < positions.length; i += 3) for (let a = 0; a < 3; a++) {
+    lo[a] = Math.min(lo[a], positions[i + a]); hi[a] = Math.max(hi[a], positions[i + a]);
+  }
+  if (!(lo[0] <= hi[0])) return;
+  camera.target = lo.map((v, a) => (v + hi[a]) / 2);
+  camera.radius = Math.max(1e-9, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
+  framed = true;
 }
 function show(figures) {
   $("triangles").textContent = figures.triangles.toLocaleString("en");
@@ -204,9 +287,10 @@ function show(figures) {
 // The topology after the picture, for the surface still shown.
 async function showTopology(shown) {
   const reply = await fetch(api("topology", settings()));
-  if (!reply.ok || drawn.figures !== shown) return;
+  const current = () => parts[selected] && parts[selected].figures === shown;
+  if (!reply.ok || !current()) return;
   const t = await reply.json();
-  if (drawn.figures !== shown) return;
+  if (!current()) return;
   $("watertight").textContent = t.watertight ? "yes" : `no (${t.boundary_edges} boundary edges)`;
   $("genus").textContent = `${t.components}, ${t.genus ?? "–"}`;
 }
@@ -237,40 +321,16 @@ async function remesh(started, coarse = false) {
   if (controller !== inflight) return false;
   $("status").textContent = "";
   const t1 = performance.now();
-  const head = new DataView(data, 0, 16);
-  const nv = head.getUint32(4, true), nt = head.getUint32(8, true), nj = head.getUint32(12, true);
-  const figures = JSON.parse(new TextDecoder().decode(new Uint8Array(data, 16, nj)));
-  const at = 16 + nj;
-  const positions = new Float32Array(data, at, nv * 3);
-  const normals = new Float32Array(data, at + nv * 12, nv * 3);
-  const tris = new Uint32Array(data, at + nv * 24, nt * 3);
-  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.position);
-  gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
-  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.normal);
-  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.index);
-  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, tris, gl.STATIC_DRAW);
-  drawn.count = tris.length;
-  lastTris = tris;
-  lastVertices = nv;
-  uploadEdges();
-  if (!framed && nv > 0) {
-    // Frame the first surface: the camera orbits its bounding box's centre.
-    const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
-    for (let i = 0; i < positions.length; i += 3) for (let a = 0; a < 3; a++) {
-      lo[a] = Math.min(lo[a], positions[i + a]); hi[a] = Math.max(hi[a], positions[i + a]);
-    }
-    camera.target = lo.map((v, a) => (v + hi[a]) / 2);
-    camera.radius = Math.max(1e-9, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
-    framed = true;
-  }
+  const positions = upload(parts[0], data);
+  const figures = parts[0].figures;
+  if (!framed) frame([positions]);
   const t2 = performance.now();
   draw();
   gl.finish();
   const t3 = performance.now();
   // Where the time of the last picture went (ms): the request, the upload, the drawing.
   window.isocube.timings = { fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2 };
-  drawn.figures = figures;
+  timings.push({ coarse, extract: figures.millis, fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2, bytes: data.byteLength });
   show(figures);
   if (started !== undefined) {
     const first = !coarse && pendingFull === started ? fullLatencies : latencies;
@@ -334,7 +394,8 @@ $("levelnum").addEventListener("change", () => {
 for (const id of ["method", "topology", "triangulate", "snap"]) {
   $(id).addEventListener("change", () => remesh(performance.now()));
 }
-$("edges").addEventListener("change", () => { uploadEdges(); draw(); });
+$("edges").addEventListener("change", () => { parts.forEach(uploadEdges); draw(); });
+$("lines").addEventListener("change", draw);
 
 // ---- slices: the volume across each axis, the level's contour on it ---------------------------
 const sliceCache = [null, null, null];
@@ -413,12 +474,90 @@ for (const link of document.querySelectorAll("a.dl")) {
   });
 }
 
+// ---- fixed surfaces: labels, a mesh, a cage and its subdivision, contour stacks --------------
+const hex = (c) => "#" + c.map((v) => Math.round(v * 255).toString(16).padStart(2, "0")).join("");
+// Shows surface `i`'s figures, topology and quality, and makes it the one downloads are of.
+function select(i) {
+  selected = i;
+  document.querySelectorAll("#partlist tr").forEach((row, k) => row.classList.toggle("chosen", k === i));
+  const figures = parts[i].figures;
+  show(figures);
+  clearTimeout(topologyTimer);
+  topologyTimer = setTimeout(() => showTopology(figures), 0);
+}
+async function fetchPart(i) {
+  const reply = await fetch(api("mesh", settings(i)));
+  if (!reply.ok) { $("status").textContent = await reply.text(); return null; }
+  return upload(parts[i], await reply.arrayBuffer());
+}
+// A cage's subdivision at `n` levels (the server subdivides the cage again).
+async function setLevels(n) {
+  $("levels").value = String(n);
+  const started = performance.now();
+  await fetchPart(0);
+  $("partlist").rows[0].cells[2].textContent = parts[0].figures.triangles.toLocaleString("en");
+  draw();
+  select(0);
+  latencies.push(performance.now() - started);
+}
+async function loadParts() {
+  $("volumeonly").hidden = true;
+  $("slicebox").hidden = true;
+  $("partsbox").hidden = false;
+  const what = { labels: "labels", mesh: "mesh", cage: "cage", contours: "contour stack" }[volume.kind];
+  $("dims").textContent = `${what}: ${volume.parts.length} surface${volume.parts.length === 1 ? "" : "s"}` +
+    (volume.notes.length ? ` (${volume.notes.join("; ")})` : "");
+  if (volume.kind === "cage") {
+    $("levelsrow").hidden = false;
+    for (let n = 0; n <= volume.max_levels; n++) $("levels").add(new Option(String(n), String(n)));
+    $("levels").value = String(volume.levels);
+    $("levels").addEventListener("change", () => setLevels(Number($("levels").value)));
+  }
+  if (volume.lines) {
+    $("linesrow").hidden = false;
+    $("lineslabel").textContent = volume.kind === "cage" ? "cage" : "contours";
+    $("lines").checked = true;
+  }
+  const list = $("partlist");
+  volume.parts.forEach((info, i) => {
+    const colour = volume.kind === "labels" || volume.kind === "contours" ? palette[i % palette.length] : [0.88, 0.66, 0.25];
+    parts.push(makePart(info.name, colour, colour.map((v) => v * 0.5)));
+    const row = list.insertRow();
+    row.innerHTML = `<td><input type="checkbox" id="part${i}" checked></td>` +
+      `<td><span class="swatch" style="background:${hex(colour)}"></span> </td><td></td>`;
+    row.cells[1].append(info.name);
+    row.cells[2].textContent = info.triangles.toLocaleString("en");
+    row.addEventListener("click", (e) => { if (e.target.tagName !== "INPUT") select(i); });
+    $(`part${i}`).addEventListener("change", (e) => { parts[i].visible = e.target.checked; draw(); });
+  });
+  const arrays = [];
+  for (let i = 0; i < parts.length; i++) arrays.push(await fetchPart(i));
+  if (volume.lines) {
+    const data = await (await fetch(api("lines"))).arrayBuffer();
+    const n = new DataView(data, 0, 8).getUint32(4, true);
+    const points = new Float32Array(data, 8, n * 3);
+    gl.bindBuffer(gl.ARRAY_BUFFER, overlay.buffer);
+    gl.bufferData(gl.ARRAY_BUFFER, points, gl.STATIC_DRAW);
+    overlay.count = n;
+    arrays.push(points);
+  }
+  frame(arrays.filter(Boolean));
+  draw();
+  select(0);
+}
+
 // ---- start ----------------------------------------------------------------------------------
 (async () => {
   volume = await (await fetch(api("volume"))).json();
   $("name").textContent = volume.name;
-  $("dims").textContent = `${volume.dims.join(" × ")} points, values ${volume.min} to ${volume.max}`;
   document.title = `isocube view — ${volume.name}`;
+  if (!isVolume()) {
+    await loadParts();
+    window.isocube.ready = true;
+    return;
+  }
+  parts.push(makePart(volume.name, [0.88, 0.66, 0.25], [0.35, 0.55, 0.85]));
+  $("dims").textContent = `${volume.dims.join(" × ")} points, values ${volume.min} to ${volume.max}`;
   drawHistogram();
   for (const axis of [0, 1, 2]) {
     const input = $(`index${axis}`);
