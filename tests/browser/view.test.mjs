@@ -35,7 +35,12 @@ function serve(...input) {
     child.stdout.on("data", (d) => {
       out += d;
       const line = out.split("\n")[0];
-      if (out.includes("\n")) resolve({ url: line.trim(), stop: () => child.kill() });
+      // The page leaves first: its pending requests would otherwise meet a closed port.
+      const stop = async () => {
+        await page.goto("about:blank");
+        child.kill();
+      };
+      if (out.includes("\n")) resolve({ url: line.trim(), stop });
     });
     child.on("exit", (code) => reject(new Error(`isocube view exited with ${code}`)));
     // No server outlives the test, whatever fails.
@@ -130,7 +135,7 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   await page.click("#measure");
   await page.waitForFunction(() => document.querySelector("#minangle").textContent !== "–");
   await page.screenshot({ path: join(work, "view.png") });
-  server.stop();
+  await server.stop();
 }
 
 // ---- a segmentation's labels, a cage, a contour stack -----------------------------------------
@@ -157,7 +162,7 @@ const shownParts = () => page.evaluate(() => window.isocube.parts());
   assert.ok(all.equals(await page.locator("#gl").screenshot()), "showing the label again did not restore the picture");
   await page.screenshot({ path: join(work, "view-labels.png") });
   console.log(`labels: ${shown.map((p) => `${p.number}: ${p.figures.triangles}`).join(", ")} triangles, as isocube extract --labels; a label toggles`);
-  server.stop();
+  await server.stop();
 }
 {
   const server = await serve("sample:cube", "--levels", "1");
@@ -172,7 +177,7 @@ const shownParts = () => page.evaluate(() => window.isocube.parts());
   }
   await page.screenshot({ path: join(work, "view-cage.png") });
   console.log("cage: the cube's 12 edges, its surface at 2 and 3 levels as isocube subdivide's");
-  server.stop();
+  await server.stop();
 }
 {
   const file = join(work, "orebody.ply");
@@ -189,7 +194,7 @@ const shownParts = () => page.evaluate(() => window.isocube.parts());
   await page.locator("#lines").uncheck();
   assert.ok(!shot.equals(await page.locator("#gl").screenshot()), "the contours are not drawn");
   console.log(`contour stack: ${ore.figures.triangles} triangles as isocube contours, ${contours} contour segments drawn`);
-  server.stop();
+  await server.stop();
 }
 
 // ---- latency on a 256³ volume --------------------------------------------------------------
@@ -241,6 +246,7 @@ if (latency) {
   // (extraction, encoding, transfer), the upload to WebGL, the drawing.
   const breakdown = async (coarse) => {
     const all = (await page.evaluate(() => window.isocube.timings)).filter((t) => t.coarse === coarse);
+    if (process.env.VIEW_TIMINGS) console.log(JSON.stringify(all.map((t) => [t.extract, t.fetch, t.upload, t.draw].map(Math.round))));
     const median = (key) => {
       const v = all.map((t) => t[key]).sort((a, b) => a - b);
       return v[Math.floor(v.length / 2)];
@@ -256,7 +262,7 @@ if (latency) {
   const full = await sweep(3000, 5000, 500, "fullLatencies");
   console.log(`tangle:256, slider to the full surface (after 200 ms at rest) over ${full.length} levels: ${stats(full)}`);
   console.log(`  full surfaces: ${await breakdown(false)}`);
-  server.stop();
+  await server.stop();
 }
 
 assert.deepEqual(errors, [], `errors on the page: ${errors.join("; ")}`);

@@ -30,7 +30,17 @@ window.isocube = {
 
 // ---- WebGL ----------------------------------------------------------------------------------
 const canvas = $("gl");
-const gl = canvas.getContext("webgl2", { antialias: true, preserveDrawingBuffer: true });
+// Without a GPU (SwiftShader, llvmpipe) every sample is shaded on the CPU, which the server's
+// extractions share: no multisampling there.
+const software = (() => {
+  const probe = document.createElement("canvas").getContext("webgl2");
+  const info = probe && probe.getExtension("WEBGL_debug_renderer_info");
+  const renderer = info ? String(probe.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
+  const lose = probe && probe.getExtension("WEBGL_lose_context");
+  if (lose) lose.loseContext();
+  return /swiftshader|llvmpipe|softpipe|software/i.test(renderer);
+})();
+const gl = canvas.getContext("webgl2", { antialias: !software, preserveDrawingBuffer: true });
 if (!gl) {
   $("status").textContent = "WebGL 2 is not available in this browser";
 }
@@ -285,8 +295,17 @@ function show(figures) {
   $("watertight").textContent = $("genus").textContent = "…";
 }
 // The topology after the picture, for the surface still shown.
+// A request made in the background: a server that has stopped (Ctrl-C) is said, not thrown.
+async function quietly(url) {
+  try {
+    return await fetch(url);
+  } catch (e) {
+    $("status").textContent = "the isocube view server does not answer (stopped?)";
+    return { ok: false };
+  }
+}
 async function showTopology(shown) {
-  const reply = await fetch(api("topology", settings()));
+  const reply = await quietly(api("topology", settings()));
   const current = () => parts[selected] && parts[selected].figures === shown;
   if (!reply.ok || !current()) return;
   const t = await reply.json();
@@ -328,8 +347,7 @@ async function remesh(started, coarse = false) {
   draw();
   gl.finish();
   const t3 = performance.now();
-  // Where the time of the last picture went (ms): the request, the upload, the drawing.
-  window.isocube.timings = { fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2 };
+  // Where each picture's time went (ms): the request, the upload, the drawing.
   timings.push({ coarse, extract: figures.millis, fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2, bytes: data.byteLength });
   show(figures);
   if (started !== undefined) {
@@ -401,7 +419,7 @@ $("lines").addEventListener("change", draw);
 const sliceCache = [null, null, null];
 async function loadSlice(axis) {
   const index = Number($(`index${axis}`).value);
-  const reply = await fetch(api("slice", { axis, index }));
+  const reply = await quietly(api("slice", { axis, index }));
   if (!reply.ok) return;
   const data = await reply.arrayBuffer();
   const head = new DataView(data, 0, 8);
