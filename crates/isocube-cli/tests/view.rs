@@ -165,10 +165,8 @@ fn meshes_and_downloads_are_the_commands() {
             None,
         );
         assert_eq!(status, 200);
-        assert_eq!(&mesh[..4], b"ICM1");
-        let word = |i: usize| u32::from_le_bytes(mesh[i..i + 4].try_into().unwrap()) as usize;
-        let (vertices, triangles, json) = (word(4), word(8), word(12));
-        assert_eq!(mesh.len(), 16 + json + vertices * 24 + triangles * 12);
+        let triangles = triangles_of(&mesh);
+        let json = u32::from_le_bytes(mesh[12..16].try_into().unwrap()) as usize;
         let figures: serde_json::Value = serde_json::from_slice(&mesh[16..16 + json]).unwrap();
         assert_eq!(figures["triangles"], triangles);
         let summary = String::from_utf8_lossy(&out.stderr).to_string();
@@ -180,6 +178,32 @@ fn meshes_and_downloads_are_the_commands() {
             summary.contains(" watertight "),
             "{summary}"
         );
+        // Quantised for the picture: within half a step of the command's vertices and
+        // normals (same vertex order).
+        let exact = isocube_io::read_mesh(&cli).unwrap();
+        let origin: Vec<f32> = serde_json::from_value(figures["origin"].clone()).unwrap();
+        let scale: Vec<f32> = serde_json::from_value(figures["scale"].clone()).unwrap();
+        let vertices = exact.positions.len();
+        assert_eq!(figures["vertices"], vertices);
+        let at = 16 + json;
+        let normals_at = at + (vertices * 6).next_multiple_of(4);
+        for (i, (p, n)) in exact.positions.iter().zip(&exact.normals).enumerate() {
+            for a in 0..3 {
+                let q =
+                    u16::from_le_bytes([mesh[at + 6 * i + 2 * a], mesh[at + 6 * i + 2 * a + 1]]);
+                let decoded = origin[a] + scale[a] * f32::from(q);
+                assert!(
+                    (decoded - p[a]).abs() <= 0.5001 * scale[a] + 1e-6,
+                    "vertex {i}"
+                );
+                let m = f32::from(mesh[normals_at + 4 * i + a] as i8) / 127.0;
+                assert!(
+                    (m - n[a]).abs() <= 0.5 / 127.0 + 1e-6,
+                    "normal {i}: {m} {}",
+                    n[a]
+                );
+            }
+        }
         let file = std::fs::read(&cli).unwrap();
         let header = String::from_utf8_lossy(&file[..300]).to_string();
         assert!(
@@ -232,12 +256,17 @@ fn describe(v: &Viewer) -> serde_json::Value {
     serde_json::from_slice(&body).unwrap()
 }
 
-/// The triangle count of a mesh reply.
+/// The triangle count of a mesh reply, its size checked: the header, the JSON, positions
+/// (u16 × 3, padded to 4 bytes), normals (i8 × 4), triangles (u32 × 3).
 fn triangles_of(mesh: &[u8]) -> usize {
-    assert_eq!(&mesh[..4], b"ICM1");
+    assert_eq!(&mesh[..4], b"ICM2");
     let word = |i: usize| u32::from_le_bytes(mesh[i..i + 4].try_into().unwrap()) as usize;
-    assert_eq!(mesh.len(), 16 + word(12) + word(4) * 24 + word(8) * 12);
-    word(8)
+    let (vertices, triangles) = (word(4), word(8));
+    assert_eq!(
+        mesh.len(),
+        16 + word(12) + (vertices * 6).next_multiple_of(4) + vertices * 4 + triangles * 12
+    );
+    triangles
 }
 
 #[test]

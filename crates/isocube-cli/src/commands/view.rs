@@ -584,10 +584,21 @@ fn page() -> Answer {
         .with_header(header("X-Frame-Options", "DENY"))
 }
 
-/// A mesh as the page draws it: a little-endian header (`ICM1`, vertices, triangles, the
-/// length of a JSON block of figures), the JSON padded to 4 bytes, then positions and normals
-/// (f32 × 3 per vertex) and triangles (u32 × 3).
-fn encode(mesh: &Mesh, figures: serde_json::Value) -> Vec<u8> {
+/// A mesh as the page draws it, quantised (the picture needs no more, and the bytes are
+/// what a slider move waits for): a little-endian header (`ICM2`, vertices, triangles, the
+/// length of a JSON block of figures), the JSON padded to 4 bytes, then positions as u16 × 3
+/// on the mesh's bounding box (`origin + scale × q`, both in the JSON; padded to 4 bytes),
+/// normals as i8 × 4 (× 1/127; the fourth byte 0) and triangles as u32 × 3. Downloads are
+/// the exact files.
+fn encode(mesh: &Mesh, mut figures: serde_json::Value) -> Vec<u8> {
+    let (lo, hi) = mesh.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
+    let scale: [f32; 3] = std::array::from_fn(|a| match (hi[a] - lo[a]) / 65535.0 {
+        s if s > 0.0 && s.is_finite() => s,
+        _ => 1.0,
+    });
+    figures["origin"] = serde_json::json!(lo);
+    figures["scale"] = serde_json::json!(scale);
+    figures["bounds"] = serde_json::json!([lo, hi]);
     let mut json = figures.to_string().into_bytes();
     while json.len() % 4 != 0 {
         json.push(b' ');
@@ -605,15 +616,29 @@ fn encode(mesh: &Mesh, figures: serde_json::Value) -> Vec<u8> {
             shaded.normals.into()
         }
     };
+    let n = mesh.positions.len();
+    let positions_len = (n * 6).next_multiple_of(4);
     let mut out =
-        Vec::with_capacity(16 + json.len() + mesh.positions.len() * 24 + mesh.triangles.len() * 12);
-    out.extend(b"ICM1");
-    for n in [mesh.positions.len(), mesh.triangles.len(), json.len()] {
-        out.extend((n as u32).to_le_bytes());
+        Vec::with_capacity(16 + json.len() + positions_len + n * 4 + mesh.triangles.len() * 12);
+    out.extend(b"ICM2");
+    for count in [n, mesh.triangles.len(), json.len()] {
+        out.extend((count as u32).to_le_bytes());
     }
     out.extend(&json);
-    out.extend(bytemuck::cast_slice::<[f32; 3], u8>(&mesh.positions));
-    out.extend(bytemuck::cast_slice::<[f32; 3], u8>(&normals));
+    let start = out.len();
+    for p in &mesh.positions {
+        for a in 0..3 {
+            let q = ((p[a] - lo[a]) / scale[a]).round().clamp(0.0, 65535.0) as u16;
+            out.extend(q.to_le_bytes());
+        }
+    }
+    out.resize(start + positions_len, 0);
+    for v in normals.iter() {
+        for c in v {
+            out.push(((c * 127.0).round().clamp(-127.0, 127.0) as i8) as u8);
+        }
+        out.push(0);
+    }
     out.extend(bytemuck::cast_slice::<[u32; 3], u8>(&mesh.triangles));
     out
 }

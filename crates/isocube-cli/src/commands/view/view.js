@@ -62,12 +62,13 @@ const program = (vs, fs) => {
 const surface = program(
   `#version 300 es
   in vec3 position; in vec3 normal;
-  uniform mat4 mvp; uniform mat4 view;
+  uniform mat4 mvp; uniform mat4 view; uniform vec3 origin; uniform vec3 scale;
   out vec3 n; out vec3 eye;
   void main() {
+    vec3 p = origin + scale * position;  // positions arrive quantised on the bounding box
     n = mat3(view) * normal;
-    eye = (view * vec4(position, 1.0)).xyz;
-    gl_Position = mvp * vec4(position, 1.0);
+    eye = (view * vec4(p, 1.0)).xyz;
+    gl_Position = mvp * vec4(p, 1.0);
   }`,
   `#version 300 es
   precision highp float;
@@ -88,8 +89,11 @@ const surface = program(
 );
 const lines = program(
   `#version 300 es
-  in vec3 position; uniform mat4 mvp;
-  void main() { gl_Position = mvp * vec4(position, 1.0); gl_Position.z -= 1e-4 * gl_Position.w; }`,
+  in vec3 position; uniform mat4 mvp; uniform vec3 origin; uniform vec3 scale;
+  void main() {
+    gl_Position = mvp * vec4(origin + scale * position, 1.0);
+    gl_Position.z -= 1e-4 * gl_Position.w;
+  }`,
   `#version 300 es
   precision highp float; out vec4 color; uniform vec4 tint;
   void main() { color = tint; }`
@@ -98,22 +102,26 @@ const lines = program(
 function makePart(name, front, back) {
   const p = {
     name, front, back, visible: true, count: 0, edges: 0, figures: null, tris: null, nv: 0,
+    origin: [0, 0, 0], scale: [1, 1, 1],
     position: gl.createBuffer(), normal: gl.createBuffer(), index: gl.createBuffer(),
     edgeIndex: gl.createBuffer(), vao: gl.createVertexArray(), edgeVao: gl.createVertexArray(),
   };
+  // Positions as u16 × 3 (scaled in the shader), normals as normalised i8 × 4.
   gl.bindVertexArray(p.vao);
-  for (const [attr, buffer] of [["position", p.position], ["normal", p.normal]]) {
-    const at = gl.getAttribLocation(surface, attr);
-    gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
-    gl.enableVertexAttribArray(at);
-    gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
-  }
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.index);
-  gl.bindVertexArray(p.edgeVao);
-  const at = gl.getAttribLocation(lines, "position");
+  let at = gl.getAttribLocation(surface, "position");
   gl.bindBuffer(gl.ARRAY_BUFFER, p.position);
   gl.enableVertexAttribArray(at);
-  gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+  gl.vertexAttribPointer(at, 3, gl.UNSIGNED_SHORT, false, 6, 0);
+  at = gl.getAttribLocation(surface, "normal");
+  gl.bindBuffer(gl.ARRAY_BUFFER, p.normal);
+  gl.enableVertexAttribArray(at);
+  gl.vertexAttribPointer(at, 3, gl.BYTE, true, 4, 0);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.index);
+  gl.bindVertexArray(p.edgeVao);
+  at = gl.getAttribLocation(lines, "position");
+  gl.bindBuffer(gl.ARRAY_BUFFER, p.position);
+  gl.enableVertexAttribArray(at);
+  gl.vertexAttribPointer(at, 3, gl.UNSIGNED_SHORT, false, 6, 0);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, p.edgeIndex);
   gl.bindVertexArray(null);
   return p;
@@ -158,8 +166,10 @@ const lookAt = (eye, at, up) => {
   const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
   return new Float32Array([x[0], y[0], z[0], 0, x[1], y[1], z[1], 0, x[2], y[2], z[2], 0, -dot(x, eye), -dot(y, eye), -dot(z, eye), 1]);
 };
+// Previews on software WebGL are drawn at half resolution: the CPU rasterises every pixel.
+let sketch = false;
 function draw() {
-  const dpr = window.devicePixelRatio || 1;
+  const dpr = (window.devicePixelRatio || 1) * (sketch && software ? 0.5 : 1);
   const w = Math.max(1, Math.floor(canvas.clientWidth * dpr)), h = Math.max(1, Math.floor(canvas.clientHeight * dpr));
   if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
   gl.viewport(0, 0, w, h);
@@ -182,6 +192,8 @@ function draw() {
   gl.uniformMatrix4fv(gl.getUniformLocation(surface, "view"), false, view);
   for (const p of parts) {
     if (!p.visible || !p.count) continue;
+    gl.uniform3fv(gl.getUniformLocation(surface, "origin"), p.origin);
+    gl.uniform3fv(gl.getUniformLocation(surface, "scale"), p.scale);
     gl.uniform3fv(gl.getUniformLocation(surface, "front"), p.front);
     gl.uniform3fv(gl.getUniformLocation(surface, "back"), p.back);
     gl.bindVertexArray(p.vao);
@@ -195,12 +207,16 @@ function draw() {
     gl.uniform4fv(gl.getUniformLocation(lines, "tint"), [0.08, 0.08, 0.1, 0.55]);
     for (const p of parts) {
       if (!p.visible || !p.edges) continue;
+      gl.uniform3fv(gl.getUniformLocation(lines, "origin"), p.origin);
+      gl.uniform3fv(gl.getUniformLocation(lines, "scale"), p.scale);
       gl.bindVertexArray(p.edgeVao);
       gl.drawElements(gl.LINES, p.edges, gl.UNSIGNED_INT, 0);
     }
   }
   if ($("lines").checked && overlay.count) {
     gl.uniform4fv(gl.getUniformLocation(lines, "tint"), [0.95, 0.95, 0.3, 0.9]);
+    gl.uniform3fv(gl.getUniformLocation(lines, "origin"), [0, 0, 0]);
+    gl.uniform3fv(gl.getUniformLocation(lines, "scale"), [1, 1, 1]);
     gl.bindVertexArray(overlay.vao);
     gl.drawArrays(gl.LINES, 0, overlay.count);
   }
@@ -254,16 +270,16 @@ function uploadEdges(p) {
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, e, gl.STATIC_DRAW);
   p.edges = e.length;
 }
-// A mesh reply (`ICM1`: counts, figures as JSON, positions, normals, triangles) into a
-// surface's buffers; returns its figures and positions.
+// A mesh reply (`ICM2`: counts, figures as JSON, quantised positions and normals, triangles)
+// into a surface's buffers; returns its bounding box's corners (for framing).
 function upload(p, data) {
   const head = new DataView(data, 0, 16);
   const nv = head.getUint32(4, true), nt = head.getUint32(8, true), nj = head.getUint32(12, true);
   const figures = JSON.parse(new TextDecoder().decode(new Uint8Array(data, 16, nj)));
-  const at = 16 + nj;
-  const positions = new Float32Array(data, at, nv * 3);
-  const normals = new Float32Array(data, at + nv * 12, nv * 3);
-  const tris = new Uint32Array(data, at + nv * 24, nt * 3);
+  const at = 16 + nj, normalsAt = at + Math.ceil((nv * 6) / 4) * 4;
+  const positions = new Uint16Array(data, at, nv * 3);
+  const normals = new Int8Array(data, normalsAt, nv * 4);
+  const tris = new Uint32Array(data, normalsAt + nv * 4, nt * 3);
   gl.bindBuffer(gl.ARRAY_BUFFER, p.position);
   gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
   gl.bindBuffer(gl.ARRAY_BUFFER, p.normal);
@@ -273,9 +289,11 @@ function upload(p, data) {
   p.count = tris.length;
   p.tris = tris;
   p.nv = nv;
+  p.origin = figures.origin;
+  p.scale = figures.scale;
   p.figures = figures;
   uploadEdges(p);
-  return positions;
+  return nv ? figures.bounds.flat() : null;
 }
 // The camera orbits the centre of the first surfaces' bounding box.
 function frame(arrays) {
@@ -340,16 +358,20 @@ async function remesh(started, coarse = false) {
   if (controller !== inflight) return false;
   $("status").textContent = "";
   const t1 = performance.now();
-  const positions = upload(parts[0], data);
+  const corners = upload(parts[0], data);
   const figures = parts[0].figures;
-  if (!framed) frame([positions]);
+  if (!framed && corners) frame([corners]);
   const t2 = performance.now();
+  sketch = coarse;
   draw();
-  gl.finish();
-  const t3 = performance.now();
-  // Where each picture's time went (ms): the request, the upload, the drawing.
-  timings.push({ coarse, extract: figures.millis, fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2, bytes: data.byteLength });
   show(figures);
+  // The picture counts as shown once the browser has produced the frame after it (two
+  // animation frames: the canvas is composited in the first).
+  await new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve)));
+  const t3 = performance.now();
+  // Where each picture's time went (ms): the request, the upload, drawing until shown.
+  timings.push({ coarse, extract: figures.millis, fetch: t1 - t0, upload: t2 - t1, draw: t3 - t2, bytes: data.byteLength });
+  if (controller !== inflight) return false;
   if (started !== undefined) {
     const first = !coarse && pendingFull === started ? fullLatencies : latencies;
     first.push(performance.now() - started);
