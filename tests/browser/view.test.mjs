@@ -134,6 +134,9 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   await page.selectOption("#method", "mc");
   await page.click("#measure");
   await page.waitForFunction(() => document.querySelector("#minangle").textContent !== "–");
+  // The README's picture: the panel from its top, the topology in.
+  await page.waitForFunction(() => document.querySelector("#watertight").textContent !== "…");
+  await page.evaluate(() => { document.querySelector("#side").scrollTop = 0; });
   await page.screenshot({ path: join(work, "view.png") });
   await server.stop();
 }
@@ -160,6 +163,7 @@ const shownParts = () => page.evaluate(() => window.isocube.parts());
   assert.ok(!all.equals(without), "hiding a label did not change the picture");
   await page.evaluate(() => window.isocube.toggle(0, true));
   assert.ok(all.equals(await page.locator("#gl").screenshot()), "showing the label again did not restore the picture");
+  await page.waitForFunction(() => document.querySelector("#watertight").textContent !== "…");
   await page.screenshot({ path: join(work, "view-labels.png") });
   console.log(`labels: ${shown.map((p) => `${p.number}: ${p.figures.triangles}`).join(", ")} triangles, as isocube extract --labels; a label toggles`);
   await server.stop();

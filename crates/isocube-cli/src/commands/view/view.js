@@ -597,7 +597,8 @@ async function loadParts() {
     return;
   }
   parts.push(makePart(volume.name, [0.88, 0.66, 0.25], [0.35, 0.55, 0.85]));
-  $("dims").textContent = `${volume.dims.join(" × ")} points, values ${volume.min} to ${volume.max}`;
+  const short = (v) => String(Number(v.toPrecision(6)));
+  $("dims").textContent = `${volume.dims.join(" × ")} points, values ${short(volume.min)} to ${short(volume.max)}`;
   drawHistogram();
   for (const axis of [0, 1, 2]) {
     const input = $(`index${axis}`);
