@@ -389,3 +389,31 @@ fn labels_cages_stacks_and_meshes_are_the_commands_files() {
     let topology: serde_json::Value = serde_json::from_slice(&topology).unwrap();
     assert_eq!(topology["watertight"], true);
 }
+
+#[test]
+fn an_extraction_overtaken_by_a_newer_request_stops() {
+    let v = start("sample:tangle:256");
+    let (port, t) = (v.port, v.token.clone());
+    let target = |level: &str, seq: u32| format!("/api/mesh?token={t}&level={level}&seq={seq}");
+    // Warm: the volume's first extraction, alone, is served.
+    assert_eq!(get(&v, &target("0.5", 1), None).0, 200);
+    let older = {
+        let head = format!(
+            "GET {} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n",
+            target("0.7", 2)
+        );
+        std::thread::spawn(move || {
+            let status = request(port, &head).0;
+            (status, std::time::Instant::now())
+        })
+    };
+    std::thread::sleep(std::time::Duration::from_millis(15));
+    let sent = std::time::Instant::now();
+    assert_eq!(get(&v, &target("0.9", 3), None).0, 200);
+    let (status, answered) = older.join().unwrap();
+    // Stopped (or refused on arrival) once the newer one came in, unless it was done before.
+    assert!(
+        status == 409 || (status == 200 && answered < sent),
+        "the older request got {status} after the newer one was sent"
+    );
+}

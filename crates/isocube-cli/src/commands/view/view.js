@@ -589,8 +589,11 @@ async function loadParts() {
 // ---- start ----------------------------------------------------------------------------------
 (async () => {
   volume = await (await fetch(api("volume"))).json();
-  $("name").textContent = volume.name;
-  document.title = `isocube view — ${volume.name}`;
+  // The file's name; its path on hover.
+  const base = volume.name.split(/[\\/]/).pop() || volume.name;
+  $("name").textContent = base;
+  $("name").title = volume.name;
+  document.title = `isocube view — ${base}`;
   if (!isVolume()) {
     await loadParts();
     window.isocube.ready = true;
