@@ -213,8 +213,8 @@ if (latency) {
   await page.goto(server.url);
   await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 120000 });
   // Slider positions from 20 % to 60 % of the range, one at a time as a slow drag gives them:
-  // each waits for the first picture of its level (a half-resolution preview on a volume this
-  // large); then a few positions each left to rest, waiting for the full surface.
+  // each waits for the first picture of its level (a preview on a coarser grid on a volume
+  // this large); then a few positions each left to rest, waiting for the full surface.
   const sweep = (from, to, step, list) =>
     page.evaluate(
       async ([from, to, step, list]) => {
@@ -260,8 +260,8 @@ if (latency) {
       `upload ${median("upload").toFixed(0)} ms, drawing ${median("draw").toFixed(0)} ms, ${(median("bytes") / 1e6).toFixed(1)} MB`;
   };
   await page.evaluate(() => { window.isocube.timings.length = 0; });
-  const previews = await sweep(2000, 6000, 200, "latencies");
-  console.log(`tangle:256, slider to the first picture (half-resolution preview) over ${previews.length} levels: ${stats(previews)}`);
+  const previews = await sweep(2000, 6000, 100, "latencies");
+  console.log(`tangle:256, slider to the first picture (a preview on every k-th point, k = ${await page.evaluate(() => window.isocube.previewStride())}) over ${previews.length} levels: ${stats(previews)}`);
   console.log(`  previews: ${await breakdown(true)}`);
   const full = await sweep(3000, 5000, 500, "fullLatencies");
   console.log(`tangle:256, slider to the full surface (after 200 ms at rest) over ${full.length} levels: ${stats(full)}`);

@@ -216,9 +216,9 @@ type Answer = Response<std::io::Cursor<Vec<u8>>>;
 /// What the mesh routes are asked for.
 #[derive(Clone, Debug, PartialEq)]
 struct Settings {
-    /// The preview: every other grid point along each axis (about a quarter the triangles),
-    /// for the picture while the slider moves.
-    coarse: bool,
+    /// The preview while the slider moves: every `coarse`-th grid point along each axis (2:
+    /// about a quarter of the triangles); 1 for the full surface.
+    coarse: usize,
     level: f32,
     method: String,
     topology: Topology,
@@ -241,8 +241,8 @@ struct Volume {
     level: f32,
     /// The last mesh made, and what it was made with.
     cached: Option<(Settings, Arc<Made>)>,
-    /// The preview grid, made when first asked for.
-    coarse: Option<Grid>,
+    /// The preview grid (its stride and points), made when first asked for.
+    coarse: Option<(usize, Grid)>,
 }
 
 /// Checks every request before any work: the token, the Host, the method, the size.
@@ -285,20 +285,20 @@ fn bytes(body: Vec<u8>, kind: &str) -> Answer {
         .with_header(header("Cache-Control", "no-store"))
 }
 
-/// Every other grid point along each axis (spacing doubled, an eighth of the cells): the same
-/// box, less the last layer of cells where an axis has an even number of points.
-fn every_other(grid: &Grid) -> Result<Grid, String> {
+/// Every `n`-th grid point along each axis (spacing × n, 1/n³ of the cells): the same box, less
+/// the last cells of an axis whose point count is not 1 more than a multiple of n.
+fn every_nth(grid: &Grid, n: usize) -> Result<Grid, String> {
     let [nx, ny, nz] = grid.dims();
-    let dims = [nx.div_ceil(2), ny.div_ceil(2), nz.div_ceil(2)];
+    let dims = [nx.div_ceil(n), ny.div_ceil(n), nz.div_ceil(n)];
     let mut values = Vec::with_capacity(dims.iter().product());
     for k in 0..dims[2] {
         for j in 0..dims[1] {
             for i in 0..dims[0] {
-                values.push(grid.value(2 * i, 2 * j, 2 * k));
+                values.push(grid.value(n * i, n * j, n * k));
             }
         }
     }
-    let spacing = grid.spacing().map(|s| 2.0 * s);
+    let spacing = grid.spacing().map(|s| n as f64 * s);
     Grid::new(dims, values)
         .and_then(|g| g.with_spacing(spacing))
         .and_then(|g| g.with_origin(grid.origin()))
@@ -394,7 +394,7 @@ impl Volume {
             None => 0.3,
         };
         Ok(Settings {
-            coarse: false,
+            coarse: 1,
             level,
             method,
             topology,
@@ -439,14 +439,13 @@ impl Volume {
             }
         }
         let options = self.options(s, max_memory);
-        let grid = match s.coarse {
-            true => match &self.coarse {
-                Some(g) => g,
-                None => self
-                    .coarse
-                    .insert(every_other(&self.grid).map_err(|e| text(500, e))?),
-            },
-            false => &self.grid,
+        if s.coarse > 1 && self.coarse.as_ref().is_none_or(|(k, _)| *k != s.coarse) {
+            let grid = every_nth(&self.grid, s.coarse).map_err(|e| text(500, e))?;
+            self.coarse = Some((s.coarse, grid));
+        }
+        let grid = match &self.coarse {
+            Some((_, g)) if s.coarse > 1 => g,
+            _ => &self.grid,
         };
         let view = grid.view().with_orientation(self.orientation);
         let started = Instant::now();
@@ -480,12 +479,19 @@ impl Volume {
             return Err(text(409, "superseded by a later request"));
         }
         let mut s = self.settings(q)?;
-        s.coarse = q.get("coarse") == Some("1");
+        s.coarse = match q.get("coarse") {
+            None => 1,
+            Some(v) => v
+                .parse::<usize>()
+                .ok()
+                .filter(|k| (1..=8).contains(k))
+                .ok_or_else(|| text(400, "coarse: a stride from 1 to 8"))?,
+        };
         let made = self.made(&s, max_memory, Some((newest, seq)))?;
         // Counts only: the topology (an edge table) waits for /api/topology, so the picture
         // does not.
         let figures = serde_json::json!({
-            "coarse": s.coarse,
+            "coarse": s.coarse > 1,
             "level": s.level,
             "vertices": made.mesh.positions.len(),
             "triangles": made.mesh.triangles.len(),

@@ -23,6 +23,7 @@ window.isocube = {
   figures: () => (parts[selected] ? parts[selected].figures : null),
   setLevel: (l) => setLevel(l, true),
   setLevels: (n) => setLevels(n),
+  previewStride: () => previewStride(),
   toggle: (i, on) => { $(`part${i}`).checked = on; parts[i].visible = on; draw(); },
   parts: () => parts.map((p, i) => ({ name: p.name, number: volume.parts ? volume.parts[i].number : null, visible: p.visible, figures: p.figures })),
   lines: () => overlay.count / 2,
@@ -345,7 +346,7 @@ async function remesh(started, coarse = false) {
   const t0 = performance.now();
   let reply, data;
   try {
-    const params = { ...settings(), seq, ...(coarse ? { coarse: 1 } : {}) };
+    const params = { ...settings(), seq, ...(coarse ? { coarse: previewStride() } : {}) };
     reply = await fetch(api("mesh", params), { signal: controller.signal });
     if (reply.status === 409) return false;
     if (!reply.ok) { $("status").textContent = await reply.text(); return false; }
@@ -394,9 +395,17 @@ let topologyTimer = 0;
 // ---- the level: slider over the value range, histogram behind --------------------------------
 const toSlider = (l) => Math.round(((l - volume.min) / (volume.max - volume.min || 1)) * 10000);
 const fromSlider = (s) => volume.min + (s / 10000) * (volume.max - volume.min);
-// Volumes above 4 M points show a half-resolution preview while the slider moves, and the
+// Volumes above 4 M points show a preview on a coarser grid while the slider moves, and the
 // full surface once it rests for 200 ms.
-const large = () => volume.dims[0] * volume.dims[1] * volume.dims[2] > 1 << 22;
+const points = () => volume.dims[0] * volume.dims[1] * volume.dims[2];
+const large = () => points() > 1 << 22;
+// The preview takes every k-th point along each axis: every other one (a quarter of the
+// triangles), or on software WebGL as many as keep it within a million points.
+const previewStride = () => {
+  let k = 2;
+  while (software && k < 8 && points() / k ** 3 > 1 << 20) k += 1;
+  return k;
+};
 let restTimer = 0, pendingFull = null;
 function setLevel(l, fromCode) {
   level = l;
