@@ -84,6 +84,22 @@ function watch(p) {
 }
 watch(page);
 
+/** Waits for the page to have shown its first surfaces; says what it was doing if it does not. */
+async function ready(timeout = 60000) {
+  try {
+    await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout, polling: 50 });
+  } catch (e) {
+    const state = await page
+      .evaluate(() => ({
+        status: document.querySelector("#status").textContent,
+        triangles: document.querySelector("#triangles").textContent,
+        pictures: window.isocube ? window.isocube.timings.length : null,
+      }))
+      .catch((err) => `the page does not answer: ${err}`);
+    console.log(`page state at the timeout: ${JSON.stringify(state)}`);
+    throw e;
+  }
+}
 const figures = () => page.evaluate(() => window.isocube.figures());
 const countShown = async () => Number((await page.locator("#triangles").textContent()).replace(/,/g, ""));
 
@@ -92,7 +108,7 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   const volume = "sample:tangle:128";
   const server = await serve(volume);
   await page.goto(server.url);
-  await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 60000 });
+  await ready();
   const info = await page.evaluate(() => ({ min: Number(document.querySelector("#level").min) }));
   const shots = [];
   for (const level of [-2, 0, 5]) {
@@ -111,7 +127,7 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   await page.waitForFunction(() => {
     const f = window.isocube.figures();
     return f && Math.abs(f.level - Number(document.querySelector("#levelnum").value)) < 1e-3;
-  });
+  }, null, { polling: 50 });
   // The canvas is a picture, and a different one at another level.
   const distinct = (png) => new Set(png.subarray(0, png.length).toString("base64").match(/.{1,8}/g)).size;
   assert.ok(shots[0].length > 5000 && distinct(shots[0]) > 500, "the canvas looks blank");
@@ -119,7 +135,7 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   // Ternary.
   await page.evaluate((l) => window.isocube.setLevel(l), 0);
   await page.selectOption("#method", "ternary");
-  await page.waitForFunction(() => window.isocube.figures() && document.querySelector("#method").value === "ternary");
+  await page.waitForFunction(() => window.isocube.figures() && document.querySelector("#method").value === "ternary", null, { polling: 50 });
   await page.waitForTimeout(200);
   await page.evaluate((l) => window.isocube.setLevel(l), 0);
   const ternaryFile = extract(volume, 0, ["--method", "ternary"]);
@@ -133,16 +149,15 @@ const countShown = async () => Number((await page.locator("#triangles").textCont
   console.log(`downloaded PLY (${readFileSync(saved).length} bytes) equals isocube extract's file`);
   await page.selectOption("#method", "mc");
   await page.click("#measure");
-  await page.waitForFunction(() => document.querySelector("#minangle").textContent !== "–");
+  await page.waitForFunction(() => document.querySelector("#minangle").textContent !== "–", null, { polling: 50 });
   // The README's picture: the panel from its top, the topology in.
-  await page.waitForFunction(() => document.querySelector("#watertight").textContent !== "…");
+  await page.waitForFunction(() => document.querySelector("#watertight").textContent !== "…", null, { polling: 50 });
   await page.evaluate(() => { document.querySelector("#side").scrollTop = 0; });
   await page.screenshot({ path: join(work, "view.png") });
   await server.stop();
 }
 
 // ---- a segmentation's labels, a cage, a contour stack -----------------------------------------
-const ready = () => page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 60000 });
 const shownParts = () => page.evaluate(() => window.isocube.parts());
 {
   const labels = join(repo, "tests/data/volumes/labels.nii.gz");
@@ -163,7 +178,7 @@ const shownParts = () => page.evaluate(() => window.isocube.parts());
   assert.ok(!all.equals(without), "hiding a label did not change the picture");
   await page.evaluate(() => window.isocube.toggle(0, true));
   assert.ok(all.equals(await page.locator("#gl").screenshot()), "showing the label again did not restore the picture");
-  await page.waitForFunction(() => document.querySelector("#watertight").textContent !== "…");
+  await page.waitForFunction(() => document.querySelector("#watertight").textContent !== "…", null, { polling: 50 });
   await page.screenshot({ path: join(work, "view-labels.png") });
   console.log(`labels: ${shown.map((p) => `${p.number}: ${p.figures.triangles}`).join(", ")} triangles, as isocube extract --labels; a label toggles`);
   await server.stop();
@@ -211,7 +226,7 @@ if (latency) {
   page = await context.newPage();
   watch(page);
   await page.goto(server.url);
-  await page.waitForFunction(() => window.isocube && window.isocube.ready === true, null, { timeout: 120000 });
+  await ready(120000);
   // Slider positions from 20 % to 60 % of the range, one at a time as a slow drag gives them:
   // each waits for the first picture of its level (a preview on a coarser grid on a volume
   // this large); then a few positions each left to rest, waiting for the full surface.
