@@ -77,19 +77,8 @@ pub(crate) struct Args {
     /// outside it. For .ply, .glb, .vtp, .vtk and .msh.
     #[arg(long, value_name = "VOLUME")]
     values: Option<String>,
-    /// The volume is a labelled image (a segmentation): mesh every label but the background
-    /// (`--labels`), or the listed ones (`--labels 1,4,7`), each as its own closed surface with
-    /// the same triangles where two labels touch. One file per label: OUTPUT's name with
-    /// `-LABEL` before the extension.
-    #[arg(long, value_name = "LIST", num_args = 0..=1, default_missing_value = "all", value_parser = parse_labels)]
-    labels: Option<LabelSelection>,
-    /// The label that is not meshed (with --labels).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    background: i64,
-    /// Smoothing sweeps for --labels (0 keeps the voxels' staircase); vertices never move more
-    /// than one cell, and shared interfaces stay shared.
-    #[arg(long, default_value_t = 60)]
-    smooth: usize,
+    #[command(flatten)]
+    label: LabelArgs,
     /// Keep the mesh in grid index coordinates (point (i, j, k) at (i, j, k)) instead of the
     /// file's world coordinates (its spacing, origin and direction).
     #[arg(long)]
@@ -141,7 +130,7 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             &[(std::path::Path::new(values), "--values volume")],
         )?;
     }
-    if let Some(selection) = &args.labels {
+    if let Some(selection) = &args.label.labels {
         return run_labels(args, selection, quiet);
     }
     // A file stored uncompressed is mapped, not read: `f32` values are meshed where they lie,
@@ -430,6 +419,35 @@ fn parse_chunk(s: &str) -> Result<[usize; 3], String> {
     }
 }
 
+/// A segmentation's labels, each its own surface (`extract --labels`, `view --labels`).
+#[derive(Debug, ClapArgs)]
+pub(crate) struct LabelArgs {
+    /// The volume is a labelled image (a segmentation): mesh every label but the background
+    /// (`--labels`), or the listed ones (`--labels 1,4,7`), each as its own closed surface with
+    /// the same triangles where two labels touch. `extract` writes one file per label:
+    /// OUTPUT's name with `-LABEL` before the extension.
+    #[arg(long, value_name = "LIST", num_args = 0..=1, default_missing_value = "all", value_parser = parse_labels)]
+    pub labels: Option<LabelSelection>,
+    /// The label that is not meshed (with --labels).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub background: i64,
+    /// Smoothing sweeps for --labels (0 keeps the voxels' staircase); vertices never move more
+    /// than one cell, and shared interfaces stay shared.
+    #[arg(long, default_value_t = 60)]
+    pub smooth: usize,
+}
+
+impl LabelArgs {
+    /// The library's options for these arguments and the labels `selection`.
+    pub(crate) fn options(&self, selection: &LabelSelection) -> LabelOptions {
+        let mut options = LabelOptions::default();
+        options.background = self.background;
+        options.labels = selection.clone();
+        options.smoothing = self.smooth;
+        options
+    }
+}
+
 pub(crate) fn parse_labels(s: &str) -> Result<LabelSelection, String> {
     if s == "all" {
         return Ok(LabelSelection::All);
@@ -456,10 +474,7 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
     let (grid, orientation) = in_frame(args, args.volume.load_oriented()?)?;
     let view = grid.view().with_orientation(orientation);
     let started = Instant::now();
-    let mut options = LabelOptions::default();
-    options.background = args.background;
-    options.labels = selection.clone();
-    options.smoothing = args.smooth;
+    let options = args.label.options(selection);
     let surfaces = match args.chunk {
         Some(size) => {
             let points = label_cells(grid.dims()).max.map(|c| c + 1);
@@ -474,7 +489,7 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         let mut present: Vec<i64> = Vec::new();
         for &v in grid.values() {
             let label = v.round() as i64;
-            if v.is_finite() && label != args.background && !present.contains(&label) {
+            if v.is_finite() && label != args.label.background && !present.contains(&label) {
                 present.push(label);
                 if present.len() > 20 {
                     break;
@@ -497,7 +512,7 @@ fn run_labels(args: &Args, selection: &LabelSelection, quiet: bool) -> Result<()
         return Err(Failure::input(anyhow::anyhow!(
             "{}: no label to mesh (background {}{}): {held}",
             args.volume.volume,
-            args.background,
+            args.label.background,
             match selection {
                 LabelSelection::All => String::new(),
                 LabelSelection::Only(list) => format!(", asked for {list:?}"),
@@ -604,7 +619,7 @@ fn slab_obstacle(args: &Args) -> Option<&'static str> {
         Some("ternary extraction needs the whole volume")
     } else if args.relax > 0 {
         Some("relaxation needs the whole mesh")
-    } else if args.labels.is_some() {
+    } else if args.label.labels.is_some() {
         Some("labels are meshed in memory")
     } else if args.chunk.is_some() {
         Some("--chunk meshes boxes in memory")

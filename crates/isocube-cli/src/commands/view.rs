@@ -25,10 +25,9 @@ use isocube_io::{write_mesh_to, MeshFormat};
 use tiny_http::{Header, Method as HttpMethod, Request, Response, Server};
 
 use crate::commands::contours::StackArgs;
-use crate::commands::extract::{parse_labels, Choices};
+use crate::commands::extract::{Choices, LabelArgs};
 use crate::volume::VolumeArgs;
 use crate::Failure;
-use isocube::extract::LabelSelection;
 
 mod parts;
 use parts::{Kind, Parts, MAX_LEVELS};
@@ -50,17 +49,8 @@ pub(crate) struct Args {
     /// Mesh in grid indices rather than the file's world coordinates.
     #[arg(long)]
     index_space: bool,
-    /// The volume is a labelled image (a segmentation): show every label but the background
-    /// (`--labels`), or the listed ones (`--labels 1,4,7`), each in its own colour, as
-    /// `isocube extract --labels` meshes them.
-    #[arg(long, value_name = "LIST", num_args = 0..=1, default_missing_value = "all", value_parser = parse_labels)]
-    labels: Option<LabelSelection>,
-    /// The label that is not shown (with --labels).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    background: i64,
-    /// Smoothing sweeps for --labels (as `isocube extract --smooth`).
-    #[arg(long, default_value_t = 60)]
-    smooth: usize,
+    #[command(flatten)]
+    label: LabelArgs,
     /// Cages (.obj polygons, `sample:cube|plate|box-hole|boss`): the subdivision levels the page
     /// opens at (0 to 6; the page changes them).
     #[arg(long, default_value_t = 2)]

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use isocube::contours::{reconstruct_with, SectionStack};
-use isocube::extract::{extract_labels, LabelOptions, LabelSelection};
+use isocube::extract::{extract_labels, LabelSelection};
 use isocube::mesh::Mesh;
 use isocube::quality::Strategy;
 use isocube::subdiv::{samples, subdivide, PolyMesh, SubdivOptions};
@@ -81,7 +81,7 @@ pub(super) fn load(
 ) -> Result<Option<Parts>, Failure> {
     let input = args.volume.volume.as_str();
     let (levels, stack) = (args.levels, &args.stack);
-    if let Some(selection) = &args.labels {
+    if let Some(selection) = &args.label.labels {
         return labelled(args, selection).map(Some);
     }
     if let Some(cage) = cage_sample(input) {
@@ -167,10 +167,7 @@ fn labelled(args: &super::Args, selection: &LabelSelection) -> Result<Parts, Fai
     let volume = &args.volume;
     let (grid, orientation) = crate::volume::in_frame(args.index_space, volume.load_oriented()?)?;
     let view = grid.view().with_orientation(orientation);
-    let mut options = LabelOptions::default();
-    options.background = args.background;
-    options.labels = selection.clone();
-    options.smoothing = args.smooth;
+    let options = args.label.options(selection);
     let started = Instant::now();
     let surfaces = extract_labels(view, &options).map_err(Failure::input)?;
     let millis = started.elapsed().as_secs_f64() * 1e3;
@@ -178,7 +175,7 @@ fn labelled(args: &super::Args, selection: &LabelSelection) -> Result<Parts, Fai
         return Err(Failure::input(anyhow::anyhow!(
             "{}: no label to show (background {})",
             volume.volume,
-            args.background
+            args.label.background
         )));
     }
     // A DICOM segmentation names its segments.
