@@ -72,7 +72,12 @@ let browser = await launch();
 let context = await browser.newContext({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });
 let page = await context.newPage();
 const errors = [];
+// Requests the page has sent and not seen answered, for the diagnosis of a timeout.
+const pending = new Set();
 function watch(p) {
+  p.on("request", (r) => pending.add(r));
+  p.on("requestfinished", (r) => pending.delete(r));
+  p.on("requestfailed", (r) => pending.delete(r));
   p.on("pageerror", (e) => {
     errors.push(String(e));
     console.log(`page error: ${e}`);
@@ -97,6 +102,8 @@ async function ready(timeout = 60000) {
       }))
       .catch((err) => `the page does not answer: ${err}`);
     console.log(`page state at the timeout: ${JSON.stringify(state)}`);
+    const routes = [...pending].map((r) => r.url().replace(/token=[0-9a-f]+/, "token=…"));
+    console.log(`requests unanswered: ${routes.join(", ") || "none"}`);
     throw e;
   }
 }
