@@ -24,6 +24,8 @@ import numpy as np
 
 from . import contours
 from ._arrays import ArrayLike, _labels, _matrix, _triple, _volume
+from ._errors import EmptySurfaceError, LevelOutsideError
+from ._errors import empty_surface as _empty_surface
 from ._isocube import Error, FormatError, InputError, MemoryLimitError, __version__
 from ._isocube import extract as _extract
 from ._isocube import label_surfaces as _label_surfaces
@@ -37,9 +39,11 @@ from ._tables import tables
 from ._tets import TetMesh, tetmesh
 
 __all__ = [
+    "EmptySurfaceError",
     "Error",
     "FormatError",
     "InputError",
+    "LevelOutsideError",
     "MemoryLimitError",
     "Mesh",
     "PolyMesh",
@@ -77,6 +81,7 @@ def extract(
     max_memory: int | None = None,
     direction: ArrayLike | None = None,
     progress: bool | Callable[[int, int], object] = False,
+    allow_empty: bool = False,
 ) -> Mesh:
     """Extracts the isosurface of `volume` at `level`.
 
@@ -126,6 +131,9 @@ def extract(
         is called as ``progress(cells_done, cells_total)`` a few times a second while the work
         runs (an exception it raises stops the work and is raised here). Ctrl-C stops the work
         within a fraction of a second either way (``KeyboardInterrupt``).
+    allow_empty : bool
+        Return an empty mesh when no cell crosses the level, instead of raising
+        :class:`EmptySurfaceError` (as ``isocube extract --allow-empty``).
 
     Returns
     -------
@@ -133,6 +141,10 @@ def extract(
 
     Raises
     ------
+    EmptySurfaceError
+        No cell crosses the level (unless `allow_empty`); the message gives the values' range.
+        Also a ``RuntimeError``; :class:`LevelOutsideError` (also a ``ValueError``) when the
+        level lies outside the values.
     InputError
         A bad option or a volume that cannot be meshed.
     MemoryLimitError
@@ -173,6 +185,7 @@ def extract(
             progress=report,
             relax=int(relax),
             chunk=None if chunk is None else _chunk(chunk),
+            allow_empty=bool(allow_empty),
         )
     return Mesh(v, t, n, vals, stats)
 
@@ -191,8 +204,9 @@ class Volume:
     Attributes
     ----------
     values : (X, Y, Z) float32 ndarray
-        Fortran-ordered (``x`` fastest, as most volume files store it), owning the reader's
-        buffer.
+        In the file's memory order (``x`` fastest, as most volume files store it; a ``.npy``
+        saved in C order as a view with ``z`` fastest), owning the reader's buffer: meshed in
+        that order, as ``isocube extract`` meshes the file, so :meth:`extract` writes its bytes.
     spacing, origin : tuple of three floats
     direction : (3, 3) list
         Column ``a`` is the world vector of axis ``a`` (identity for files without one).
@@ -376,6 +390,9 @@ def marching_cubes(
         p = verts[faces].astype(np.float64)
         area2 = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
         keep = area2 > 0 if keep is None else keep & (area2 > 0)
+    if mask is not None and keep is not None and not keep.any():
+        # scikit-image finds no vertex in the cubes the mask keeps and raises.
+        raise EmptySurfaceError(_masked_out(volume, level))
     if keep is not None and not keep.all():
         verts, faces, normals, values = _compact(verts, faces[keep], normals, values)
     if step_size > 1:
@@ -384,6 +401,16 @@ def marching_cubes(
         # As scikit-image: scaled after meshing (float64 results for float64 spacings).
         verts = verts * np.r_[spacing]
     return verts, faces, normals, values
+
+
+def _masked_out(volume: np.ndarray, level: float | None) -> EmptySurfaceError:
+    """Why a mask left no surface, in the words of the unmasked case."""
+    a = _volume(volume)
+    lo, hi = np.nanmin(a), np.nanmax(a)
+    used = float(np.float32(0.5) * (lo + hi)) if level is None else float(level)
+    e = _empty_surface(used, lo, hi, lead="No surface found at the given iso value: ", hint=".")
+    # Inside the range (scikit-image checked that): a surface the mask leaves out.
+    return EmptySurfaceError(str(e).replace("no cell crosses", "no cube the mask keeps crosses"))
 
 
 def _cubes_kept(verts: np.ndarray, faces: np.ndarray, mask: np.ndarray) -> np.ndarray:

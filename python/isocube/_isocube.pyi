@@ -32,6 +32,7 @@ def extract(
     progress: Callable[[int, int], object] | None = None,
     relax: int = 0,
     chunk: tuple[int, int, int] | None = None,
+    allow_empty: bool = True,
 ) -> tuple[
     npt.NDArray[np.float32],
     npt.NDArray[np.uint32],

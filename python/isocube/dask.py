@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from ._arrays import ArrayLike, _matrix, _triple
+from ._errors import empty_surface
 from ._isocube import FormatError, InputError
 from ._isocube import assemble_pieces as _assemble_pieces
 from ._isocube import block_halo as _block_halo
@@ -295,6 +296,7 @@ def extract(
     split_every: int = 4,
     compute: bool = True,
     scheduler: Any = None,
+    allow_empty: bool = False,
 ) -> Any:
     """Extracts the isosurface of a chunked volume on Dask: :func:`isocube.extract`'s mesh.
 
@@ -322,11 +324,20 @@ def extract(
     scheduler : optional
         Passed to Dask's ``compute`` (``"threads"``, ``"processes"``, ``"sync"``, a
         ``distributed.Client``); by default Dask's current one (a ``Client``'s once made).
+    allow_empty : bool
+        As :func:`isocube.extract`: without it, a mesh computed empty raises
+        :class:`~isocube.EmptySurfaceError` naming the values' range (found then, in one more
+        pass over the chunks). A delayed result (``compute=False``) is returned as computed.
 
     Returns
     -------
     Mesh, or dask.delayed.Delayed of one
         Its ``stats`` hold the counts summed over the chunks and ``seconds``, the wall time.
+
+    Raises
+    ------
+    EmptySurfaceError
+        No cell crosses the level (unless `allow_empty`), as :func:`isocube.extract`.
 
     Examples
     --------
@@ -377,8 +388,23 @@ def extract(
     if not compute:
         return result
     mesh: Mesh = result.compute(scheduler=scheduler)
+    if len(mesh.triangles) == 0 and not allow_empty:
+        raise _why_empty(array, component, strict, float(level), scheduler)
     mesh.stats["seconds"] = time.perf_counter() - started
     return mesh
+
+
+def _why_empty(
+    array: Any, component: str | None, strict: bool, level: float, scheduler: Any
+) -> InputError:
+    """The error :func:`isocube.extract` raises for an empty surface, from the chunks' range."""
+    import dask.array as da
+    from dask.base import compute
+
+    if isinstance(array, (str, os.PathLike)):
+        array = _zarr_array(os.fspath(array), component, strict=strict)
+    lo, hi = compute(da.nanmin(array), da.nanmax(array), scheduler=scheduler)
+    return empty_surface(level, lo, hi, hint=" (pass allow_empty=True for the empty mesh)")
 
 
 def write_ply(

@@ -13,11 +13,11 @@ use isocube::extract::{
     extract_boxes_into, extract_into, extract_labels, CellBox, ExtractError, ExtractOptions,
     ExtractStats, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
 };
-use isocube::field::{GridView, Orientation};
+use isocube::field::{GridView, Orientation, PlaneSource};
 use isocube::mesh::Mesh;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
@@ -401,7 +401,7 @@ fn run(
 #[pyo3(signature = (
     volume, level, *, spacing, origin, method, topology, triangulate, snap, zero_threshold,
     snap_position, flip, normals, values, max_memory, direction=None, progress=None, relax=0,
-    chunk=None
+    chunk=None, allow_empty=true
 ))]
 #[allow(clippy::too_many_arguments)]
 fn extract<'py>(
@@ -424,6 +424,7 @@ fn extract<'py>(
     progress: Option<Py<PyAny>>,
     relax: usize,
     chunk: Option<[usize; 3]>,
+    allow_empty: bool,
 ) -> PyResult<Extracted<'py>> {
     let (grid, order) = view_of(&volume, spacing, origin)?;
     let turn = direction_of(direction)?;
@@ -443,6 +444,11 @@ fn extract<'py>(
         values,
         seconds,
     } = run(py, grid, order, &options, values, progress, chunk)?;
+    if mesh.triangles.is_empty() && !allow_empty {
+        let (why, outside) = why_empty(py, &grid, f64::from(level));
+        let message = format!("{why} (pass allow_empty=True for the empty mesh)");
+        return Err(empty_surface(py, outside, message));
+    }
     // Turned into the world after the values are found in the array's frame.
     if let Some(turn) = turn {
         turn.orient_mesh(&mut mesh, origin);
@@ -462,6 +468,37 @@ fn extract<'py>(
         values.map(|v| PyArray1::from_vec(py, v)),
         stats_dict(py, &stats, seconds)?,
     ))
+}
+
+/// Why the surface at `level` is empty (the library's words, with the values' range), and
+/// whether the level lies outside that range (or no value is finite).
+fn why_empty(py: Python<'_>, grid: &GridView<'_>, level: f64) -> (ExtractError, bool) {
+    let (lo, hi) = py.detach(|| value_range(grid));
+    let range = (lo <= hi).then_some((lo, hi));
+    let outside = range.is_none_or(|(lo, hi)| level < f64::from(lo) || level > f64::from(hi));
+    let why = ExtractError::EmptySurface {
+        level: level as f32,
+        range,
+    };
+    (why, outside)
+}
+
+/// `isocube.LevelOutsideError` (`outside`) or `isocube.EmptySurfaceError`: both an
+/// `isocube.InputError` and a `RuntimeError`, the first a `ValueError` too, so that code
+/// written for scikit-image and for isocube both catch them (see `isocube/_errors.py`).
+fn empty_surface(py: Python<'_>, outside: bool, message: String) -> PyErr {
+    let class = match outside {
+        true => "LevelOutsideError",
+        false => "EmptySurfaceError",
+    };
+    match py
+        .import("isocube._errors")
+        .and_then(|m| m.getattr(class))
+        .and_then(|c| c.call1((message,)))
+    {
+        Ok(error) => PyErr::from_value(error),
+        Err(e) => e,
+    }
 }
 
 /// The smallest and largest value of a view, over all threads (NaNs left out).
@@ -512,7 +549,6 @@ fn marching_cubes<'py>(
     descent: bool,
 ) -> PyResult<McOutput<'py>> {
     let (grid, order) = view_of(&volume, [1.0; 3], [0.0; 3])?;
-    let out_of_range = || PyValueError::new_err("Surface level must be within volume data range.");
     // A level outside the value range meets no cell, so its mesh is empty: the range (a pass
     // over the whole volume) is needed first only to find the default level, and otherwise only
     // when nothing was found, to say why.
@@ -537,15 +573,14 @@ fn marching_cubes<'py>(
         mut mesh, values, ..
     } = run(py, grid, order, &options, true, None, None)?;
     if mesh.triangles.is_empty() {
-        let (lo, hi) = py.detach(|| value_range(&grid));
-        // The level as given (in double precision, as scikit-image compares it).
-        let asked = requested.unwrap_or(f64::from(level));
-        if asked < f64::from(lo) || asked > f64::from(hi) {
-            return Err(out_of_range());
-        }
-        return Err(PyRuntimeError::new_err(
-            "No surface found at the given iso value.",
-        ));
+        // The level as given (in double precision, as scikit-image compares it), and
+        // scikit-image's words first: code matching them keeps working.
+        let (why, outside) = why_empty(py, &grid, requested.unwrap_or(f64::from(level)));
+        let lead = match outside {
+            true => "Surface level must be within volume data range",
+            false => "No surface found at the given iso value",
+        };
+        return Err(empty_surface(py, outside, format!("{lead}: {why}.")));
     }
     let n = mesh.positions.len();
     if mesh.normals.len() != n {
@@ -676,15 +711,47 @@ fn read_volume<'py>(
     options.npy_axes = npy_axes
         .parse()
         .map_err(|e: String| InputError::new_err(e))?;
-    let read = py.detach(|| isocube_io::read_volume_oriented(&path, &options));
-    let (grid, orientation) = read.map_err(|e| match e {
+    let failed = |e: isocube_io::IoError| match e {
         isocube_io::IoError::TooLarge { .. } => MemoryLimitError::new_err(e.to_string()),
         e => FormatError::new_err(e.to_string()),
-    })?;
-    let (dims, spacing, origin) = (grid.dims(), grid.spacing(), grid.origin());
-    let values = numpy::PyArray1::from_vec(py, grid.into_values())
+    };
+    // A file that maps is read as the command line walks it (its memory order: a `.npy` saved
+    // in C order has `x` slowest), so that `extract` on the array, which meshes arrays in
+    // their memory order, makes the command line's file; the array is then indexed `[x, y, z]`
+    // by a transposed view, with no copy.
+    let read = py.detach(|| {
+        Ok::<_, isocube_io::IoError>(match isocube_io::MappedVolume::try_open(&path, &options)? {
+            Some(volume) => {
+                let grid = volume.read_whole(options.max_memory)?;
+                (grid, volume.orientation(), volume.file_axes())
+            }
+            None => {
+                let (grid, orientation) = isocube_io::read_volume_oriented(&path, &options)?;
+                (grid, orientation, [0, 1, 2])
+            }
+        })
+    });
+    let (grid, orientation, axes) = read.map_err(failed)?;
+    let (dims, walked_spacing, origin) = (grid.dims(), grid.spacing(), grid.origin());
+    let walked = numpy::PyArray1::from_vec(py, grid.into_values())
         .reshape_with_order(dims, numpy::npyffi::NPY_ORDER::NPY_FORTRANORDER)?;
-    Ok((values, spacing, origin, orientation.direction()))
+    // Grid axis `a` walks the file's axis `axes[a]`: the index-order array's axis `w` is the
+    // grid's axis `a` with `axes[a] == w`.
+    let mut order = [0usize; 3];
+    let mut spacing = [0.0; 3];
+    let turned = orientation.direction();
+    let mut direction = [[0.0; 3]; 3];
+    for (a, &w) in axes.iter().enumerate() {
+        order[w] = a;
+        spacing[w] = walked_spacing[a];
+        for (row, turned_row) in direction.iter_mut().zip(&turned) {
+            row[w] = turned_row[a];
+        }
+    }
+    let values = walked
+        .call_method1("transpose", (order.to_vec(),))?
+        .cast_into::<numpy::PyArray3<f32>>()?;
+    Ok((values, spacing, origin, direction))
 }
 
 /// The level `spec` names for `volume`'s values: a number, `auto` (Otsu's threshold of the

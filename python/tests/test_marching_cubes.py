@@ -63,7 +63,8 @@ def test_outputs_match_scikit_image_on_an_ellipsoid(method: str, direction: str)
     # The same surface: the same vertices (scikit-image repeats some), area and orientation.
     assert np.array_equal(np.unique(verts, axis=0), np.unique(theirs[0], axis=0))
     area = skimage_measure.mesh_surface_area(verts, faces)
-    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-5)
+    # (Cells cut into the same number of triangles along other diagonals: areas close.)
+    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-3)
     assert signed_volume(verts, faces) == pytest.approx(signed_volume(*theirs[:2]), rel=1e-5)
     # Normals down the gradient, unit length, whichever way the faces turn.
     assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-4)
@@ -205,7 +206,8 @@ def test_step_size_meshes_every_nth_point_as_scikit_image(step: int) -> None:
     assert np.abs(ours_sorted - theirs_sorted).max() < 1e-5
     assert edge_counts(faces) == (0, 0)
     area = skimage_measure.mesh_surface_area(verts, faces)
-    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-5)
+    # (Cells cut into the same number of triangles along other diagonals: areas close.)
+    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-3)
     # The coarse mesh is the fine one of the subsampled volume, scaled.
     coarse = marching_cubes(volume[::step, ::step, ::step], 0.5)[0] * step * np.asarray(spacing)
     assert np.allclose(np.unique(coarse, axis=0), ours_sorted, atol=1e-5)
@@ -214,3 +216,57 @@ def test_step_size_meshes_every_nth_point_as_scikit_image(step: int) -> None:
     mask[20:] = True
     masked = marching_cubes(volume, 0.5, step_size=step, mask=mask)[0]
     assert 0 < len(masked) < len(verts) and masked[:, 0].min() >= 20 - step - 1e-6
+
+
+def test_no_surface_raises_what_scikit_image_raises_and_an_isocube_error() -> None:
+    # One cube, its corner 0 above the level; the mask drops the cube (its last corner).
+    vol = np.full((2, 2, 2), -1.0)
+    vol[0, 0, 0] = 1
+    mask = np.ones(vol.shape, dtype=bool)
+    mask[1, 1, 1] = False
+    with pytest.raises(RuntimeError, match="No surface found at the given iso value") as caught:
+        skimage_measure.marching_cubes(vol, 0.0, mask=mask)
+    for method in ("lewiner", "lorensen"):
+        with pytest.raises(RuntimeError, match="No surface found") as ours:
+            marching_cubes(vol, 0.0, mask=mask, method=method)
+        assert isinstance(ours.value, isocube.Error)
+        assert isinstance(ours.value, isocube.EmptySurfaceError)
+        assert "values range from -1 to 1" in str(ours.value)
+        # A level outside the values: ValueError as scikit-image raises, and isocube's too.
+        with pytest.raises(ValueError, match="within volume data range") as outside:
+            marching_cubes(vol, 3.0, method=method)
+        assert isinstance(outside.value, isocube.LevelOutsideError)
+        assert isinstance(outside.value, RuntimeError)
+        assert "values range from -1 to 1" in str(outside.value)
+    with pytest.raises(ValueError, match="within volume data range"):
+        skimage_measure.marching_cubes(vol, 3.0)
+    # Masking every cube the surface crosses, on a larger volume.
+    x, y, z = np.mgrid[-1:1:9j, -1:1:9j, -1:1:9j]
+    ball = x**2 + y**2 + z**2 - 0.3
+    shell = np.zeros(ball.shape, dtype=bool)
+    shell[0, :, :] = True
+    with pytest.raises(RuntimeError):
+        skimage_measure.marching_cubes(ball, 0.0, mask=shell)
+    with pytest.raises(isocube.EmptySurfaceError, match="the mask keeps"):
+        marching_cubes(ball, 0.0, mask=shell)
+    assert caught.value is not None
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("density", [0.9, 0.5, 0.1])
+def test_a_random_mask_keeps_the_triangles_scikit_image_keeps(seed: int, density: float) -> None:
+    # A field with no value at the level and no ambiguous face ties: both mesh each kept cube
+    # with the same number of triangles, so the counts agree only if the kept cubes do.
+    x, y, z = np.mgrid[-1:1:26j, -1:1:27j, -1:1:28j]
+    g = (
+        np.sin(4 * x) * np.cos(4 * y)
+        + np.sin(4 * y) * np.cos(4 * z)
+        + np.sin(4 * z) * np.cos(4 * x)
+    )
+    mask = np.random.default_rng(seed).random(g.shape) < density
+    ours = marching_cubes(g, 0.1, mask=mask)
+    theirs = skimage_measure.marching_cubes(g, 0.1, mask=mask)
+    assert len(ours[1]) == len(theirs[1]) > 0
+    area = skimage_measure.mesh_surface_area(*ours[:2])
+    # (Cells cut into the same number of triangles along other diagonals: areas close.)
+    assert area == pytest.approx(skimage_measure.mesh_surface_area(*theirs[:2]), rel=1e-3)

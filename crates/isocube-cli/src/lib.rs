@@ -142,13 +142,53 @@ pub(crate) fn check_mesh_output(path: &std::path::Path) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The command line's definition, with every typed value free to start with a minus:
+/// `--origin -1.25,-1.25,-1.25` as users type it (clap takes a lone negative number, but reads
+/// `-1.25,…` as an unknown flag `-1`). A value that names a file or is free text keeps clap's
+/// rule, so `-o --level 2` is an error rather than a file named `--level`; an option taking
+/// several values (`--cap extend DIST`) takes negative numbers, and one whose value is optional
+/// (`--labels [LIST]`) a value starting with a minus after `=` (`--labels=-1,2`).
+pub fn command() -> clap::Command {
+    fn free(arg: clap::Arg) -> clap::Arg {
+        let named = arg.get_long().is_some() || arg.get_short().is_some();
+        if !named || !arg.get_action().takes_values() {
+            return arg;
+        }
+        let kind = arg.get_value_parser().type_id();
+        let text = kind == std::any::TypeId::of::<std::path::PathBuf>()
+            || kind == std::any::TypeId::of::<String>();
+        match arg.get_num_args().map(|n| (n.min_values(), n.max_values())) {
+            None | Some((1, 1)) if !text => arg.allow_hyphen_values(true),
+            // Several values (`--cap extend DIST`): only what reads as a negative number is a
+            // value, so a following option stays an option.
+            Some((1, _)) => arg.allow_negative_numbers(true),
+            // An optional value (`--labels [LIST]`): clap would take the next option for it.
+            _ => arg,
+        }
+    }
+    fn walk(command: clap::Command) -> clap::Command {
+        command.mut_args(free).mut_subcommands(walk)
+    }
+    walk(<Cli as clap::CommandFactory>::command())
+}
+
+/// Parses a command line with [`command`]'s rules.
+fn parse<I, T>(args: I) -> Result<Cli, clap::Error>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let mut matches = command().try_get_matches_from(args)?;
+    <Cli as clap::FromArgMatches>::from_arg_matches_mut(&mut matches)
+}
+
 /// Runs the command line and returns the process exit code.
 pub fn run<I, T>(args: I) -> ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
-    let cli = match Cli::try_parse_from(args) {
+    let cli = match parse(args) {
         Ok(cli) => cli,
         Err(e) => {
             let _ = e.print();
@@ -211,6 +251,77 @@ mod tests {
     #[test]
     fn command_definitions_are_valid() {
         Cli::command().debug_assert();
+        command().debug_assert();
+    }
+
+    /// Every option of every command that takes a typed value (a number, a list of numbers, a
+    /// level, a size) takes one starting with a minus as users type it: clap must not read it
+    /// as a flag. What the value means is each option's own check, not tested here.
+    #[test]
+    fn every_typed_option_takes_a_leading_minus() {
+        let root = command();
+        let mut checked = Vec::new();
+        for sub in root.get_subcommands() {
+            // The command's required arguments, so that only the option under test can fail.
+            let mut base = vec!["isocube".to_string(), sub.get_name().to_string()];
+            for arg in sub.get_arguments().filter(|a| a.is_required_set()) {
+                if let Some(long) = arg.get_long() {
+                    base.push(format!("--{long}"));
+                }
+                base.push("x".to_string());
+            }
+            for arg in sub.get_arguments() {
+                let Some(long) = arg.get_long() else { continue };
+                let typed = arg.get_value_parser().type_id();
+                let text = typed == std::any::TypeId::of::<std::path::PathBuf>()
+                    || typed == std::any::TypeId::of::<String>();
+                let optional = arg.get_num_args().is_some_and(|n| n.min_values() == 0);
+                if !arg.get_action().takes_values() || text || optional {
+                    continue;
+                }
+                for value in ["-1", "-1.25,-2.5,-3", "-2x3", "-.5"] {
+                    let mut line = base.clone();
+                    line.push(format!("--{long}"));
+                    line.push(value.to_string());
+                    if let Err(e) = parse(&line) {
+                        use clap::error::ErrorKind;
+                        assert!(
+                            !matches!(e.kind(), ErrorKind::UnknownArgument | ErrorKind::NoEquals)
+                                && !e.to_string().contains("a value is required"),
+                            "{line:?}: {e}"
+                        );
+                    }
+                }
+                checked.push(format!("{} --{long}", sub.get_name()));
+            }
+        }
+        for option in [
+            "extract --origin",
+            "extract --spacing",
+            "extract --level",
+            "extract --background",
+            "tetmesh --origin",
+            "tetmesh --layer-spacing",
+            "view --origin",
+            "view --level",
+            "quality --level",
+            "contours --cell",
+        ] {
+            assert!(checked.iter().any(|c| c == option), "{option} not checked");
+        }
+        // After an option taking an optional value or several, an option stays an option.
+        for line in [
+            "isocube extract v.npy -o o.ply --labels --quiet",
+            "isocube contours c.csv -o o.ply --cap flat --quiet",
+            "isocube contours c.csv -o o.ply --cap extend -2.5 --quiet",
+        ] {
+            let args: Vec<&str> = line.split_whitespace().collect();
+            let cli = parse(args).unwrap_or_else(|e| panic!("{line}: {e}"));
+            assert!(cli.quiet, "{line}");
+        }
+        // A file name is not taken from the next option.
+        let args = ["isocube", "extract", "v.npy", "-o", "--level", "2"];
+        assert!(parse(args).is_err());
     }
 
     #[test]
@@ -230,7 +341,7 @@ mod tests {
             "isocube --quiet demo",
         ] {
             let args: Vec<&str> = line.split_whitespace().collect();
-            Cli::try_parse_from(args).unwrap_or_else(|e| panic!("{line}: {e}"));
+            parse(args).unwrap_or_else(|e| panic!("{line}: {e}"));
         }
         for bad in [
             "isocube tables --binary --ternary",
@@ -238,7 +349,7 @@ mod tests {
             "isocube tables --group odd",
         ] {
             let args: Vec<&str> = bad.split_whitespace().collect();
-            assert!(Cli::try_parse_from(args).is_err(), "{bad}");
+            assert!(parse(args).is_err(), "{bad}");
         }
     }
 }

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use clap::Args;
-use isocube::field::{Grid, Orientation, SampleSpec};
+use isocube::field::{Grid, Orientation, PlaneSource, SampleSpec};
 use isocube_io::{
     read_volume_oriented, Endian, InflatingVolume, IoError, MappedVolume, NpyAxes, RawOptions,
     ScalarType, VolumeOptions, ZarrVolume,
@@ -142,6 +142,138 @@ impl VolumeArgs {
         }
         let options = self.file_options()?;
         read_volume_oriented(Path::new(&self.volume), &options).map_err(volume_failure)
+    }
+}
+
+impl VolumeArgs {
+    /// The volume whole, in the frame every slab-wise path walks it: a file that maps (any value
+    /// type), a Zarr store and a gzipped NIfTI are read through the same plane reader that
+    /// `extract` streams from, so a command that needs the whole volume (ternary snapping,
+    /// relaxation, `--chunk`, `tetmesh`, `view`) meshes the cells in the same order and cuts
+    /// them the same way: one file, one mesh, whichever path its options take. In index space
+    /// (spacing 1, origin 0, no direction) with `index_space`.
+    pub(crate) fn load_walked(&self, index_space: bool) -> Result<(Grid, Orientation), Failure> {
+        fn walked(
+            volume: impl SlabInput,
+            index_space: bool,
+            limit: Option<u64>,
+        ) -> Result<(Grid, Orientation), Failure> {
+            let volume = volume.framed(index_space);
+            Ok((volume.whole(limit)?, volume.orientation()))
+        }
+        let limit = MemoryLimit::or_default(self.max_memory);
+        if let Some(volume) = self.try_map()? {
+            return walked(volume, index_space, limit);
+        }
+        if isocube_io::is_zarr_store(Path::new(&self.volume)) {
+            if let Some(volume) = self.try_zarr()? {
+                return walked(volume, index_space, limit);
+            }
+        }
+        if let Some(volume) = self.try_inflating()? {
+            return walked(volume, index_space, limit);
+        }
+        in_frame(index_space, self.load_oriented()?)
+    }
+}
+
+/// A volume read plane by plane: a mapped file (converted as it is read when its values are
+/// not `f32`), a Zarr store decoded a layer of chunks at a time, or a gzipped NIfTI inflated
+/// as it goes (whose read errors surface once the planes are read). Slab-wise extraction
+/// walks it; whole-volume work reads it whole ([`SlabInput::whole`]) in the same frame.
+pub(crate) trait SlabInput: PlaneSource + Sized {
+    fn failure(&self) -> Option<IoError> {
+        None
+    }
+
+    fn path(&self) -> &Path;
+
+    /// What the summary should add about the input, and what `--strict` refuses.
+    fn caveat(&self) -> Option<String> {
+        None
+    }
+
+    /// The same volume in grid index space: spacing 1, origin 0, the file's own axes.
+    fn into_index_space(self) -> Self;
+
+    /// The volume in index space when `index_space` (`--index-space`), else as it is.
+    fn framed(self, index_space: bool) -> Self {
+        match index_space {
+            true => self.into_index_space(),
+            false => self,
+        }
+    }
+
+    /// Every value, within `limit` bytes, or the reader's first error (it reads what it cannot
+    /// decode as NaN and keeps the error).
+    fn whole(&self, limit: Option<u64>) -> Result<Grid, Failure> {
+        let points = self.dims().iter().map(|&d| d as u64).product::<u64>();
+        let needed = points.saturating_mul(4);
+        if let Some(limit) = limit.filter(|&l| needed > l) {
+            return Err(volume_failure(IoError::TooLarge {
+                path: self.path().to_path_buf(),
+                position: isocube_io::Position::File,
+                needed,
+                limit,
+            }));
+        }
+        let grid = Grid::from_source(self).map_err(Failure::input)?;
+        match self.failure() {
+            Some(e) => Err(crate::io_failure(e, true)),
+            None => Ok(grid),
+        }
+    }
+}
+
+impl SlabInput for MappedVolume {
+    fn path(&self) -> &Path {
+        MappedVolume::path(self)
+    }
+
+    fn into_index_space(self) -> Self {
+        MappedVolume::into_index_space(self)
+    }
+
+    /// Decoded in parallel straight from the map.
+    fn whole(&self, limit: Option<u64>) -> Result<Grid, Failure> {
+        self.read_whole(limit).map_err(volume_failure)
+    }
+}
+
+impl SlabInput for InflatingVolume {
+    fn failure(&self) -> Option<IoError> {
+        self.take_error()
+    }
+
+    fn path(&self) -> &Path {
+        InflatingVolume::path(self)
+    }
+
+    fn into_index_space(self) -> Self {
+        InflatingVolume::into_index_space(self)
+    }
+}
+
+impl SlabInput for ZarrVolume {
+    fn failure(&self) -> Option<IoError> {
+        self.take_error()
+    }
+
+    fn path(&self) -> &Path {
+        ZarrVolume::path(self)
+    }
+
+    fn caveat(&self) -> Option<String> {
+        let first = self.first_absent_chunk()?;
+        let n = self.absent_chunks();
+        Some(format!(
+            "{n} chunk{} absent (the first '{first}'), read as the array's fill value",
+            if n == 1 { "" } else { "s" }
+        ))
+    }
+
+    fn into_index_space(self) -> Self {
+        ZarrVolume::into_index_space(self)
     }
 }
 

@@ -2,27 +2,9 @@
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
-use std::process::{Command, Output};
 
 mod common;
-
-fn isocube(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_isocube"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = isocube(dir, args);
-    assert!(
-        out.status.success(),
-        "isocube {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
+use common::{isocube, ok};
 
 fn info(dir: &Path, mesh: &str) -> serde_json::Value {
     serde_json::from_str(&ok(dir, &["info", mesh, "--json"])).unwrap()

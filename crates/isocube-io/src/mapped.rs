@@ -227,6 +227,65 @@ impl MappedVolume {
         out
     }
 
+    /// The file's axis (x, y, z as the axis convention names them) that each grid axis walks,
+    /// fastest first: `[0, 1, 2]` for every format but `.npy` files stored with `x` slowest.
+    ///
+    /// ```no_run
+    /// use isocube_io::{MappedVolume, VolumeOptions};
+    /// use std::path::Path;
+    /// // An array saved by NumPy in C order: its last axis (z) is the fastest.
+    /// let volume = MappedVolume::open(Path::new("ct.npy"), &VolumeOptions::default())?;
+    /// assert_eq!(volume.file_axes(), [2, 1, 0]);
+    /// # Ok::<(), isocube_io::IoError>(())
+    /// ```
+    pub fn file_axes(&self) -> [usize; 3] {
+        self.axes
+    }
+
+    /// Every value as `f32` in a grid that walks the file as slab-wise extraction does (in the
+    /// file's memory order, see [`MappedVolume::file_axes`]), with the volume's spacing and
+    /// origin; the orientation ([`PlaneSource::orientation`]) turns it into the world. Meshing
+    /// this grid, slab by slab from the map, or the map in place gives one mesh, to the byte:
+    /// whole-volume work (ternary snapping, relaxation, boxes of cells) on a converted file
+    /// must start here, not from the file read in its index order, whose frame cuts cells and
+    /// orders vertices otherwise.
+    ///
+    /// Refused with [`IoError::TooLarge`] before anything is allocated when the values need
+    /// more than `max_memory` bytes.
+    ///
+    /// ```no_run
+    /// use isocube::extract::{extract, extract_streamed, ExtractOptions};
+    /// use isocube::field::PlaneSource;
+    /// use isocube::mesh::Mesh;
+    /// use isocube_io::{MappedVolume, VolumeOptions};
+    /// use std::path::Path;
+    /// let volume = MappedVolume::open(Path::new("ct.npy"), &VolumeOptions::default())?;
+    /// let grid = volume.read_whole(None)?;
+    /// let options = ExtractOptions::default().with_level(300.0);
+    /// let (whole, _) = extract(grid.view().with_orientation(volume.orientation()), &options)?;
+    /// let mut slabs = Mesh::new();
+    /// extract_streamed(&volume, &options, &mut slabs, &mut isocube::no_progress)?;
+    /// assert_eq!(whole, slabs);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn read_whole(&self, max_memory: Option<u64>) -> Result<Grid, IoError> {
+        let count = Grid::point_count(self.dims).map_err(|e| IoError::grid(&self.path, e))?;
+        super::Budget::new(max_memory).check_values(&self.path, Position::File, 0, count)?;
+        let mut values = vec![0.0f32; count];
+        let plane = self.dims[0] * self.dims[1];
+        // A few planes per task: decoding is the work, and it splits cleanly along z.
+        let batch = ((1 << 20) / plane.max(1)).max(1);
+        use rayon::prelude::*;
+        values
+            .par_chunks_mut(plane * batch)
+            .enumerate()
+            .for_each(|(n, out)| self.read_planes(n * batch, out));
+        Grid::new(self.dims, values)
+            .and_then(|g| g.with_spacing(self.spacing))
+            .and_then(|g| g.with_origin(self.origin))
+            .map_err(|e| IoError::grid(&self.path, e))
+    }
+
     /// A volume a header placed (in the header's own file or a data file beside it), its size
     /// checked against the dimensions; `--spacing` and `--origin` override the header's.
     fn placed(
@@ -430,8 +489,17 @@ mod tests {
     }
 
     fn npy(shape: [usize; 3], fortran: bool, data: &[u16]) -> Vec<u8> {
+        let mut out = npy_header("<u2", shape, fortran);
+        for v in data {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    /// A version 1.0 `.npy` header, padded so the data start on a 64-byte boundary.
+    fn npy_header(descr: &str, shape: [usize; 3], fortran: bool) -> Vec<u8> {
         let dict = format!(
-            "{{'descr': '<u2', 'fortran_order': {}, 'shape': ({}, {}, {}), }}",
+            "{{'descr': '{descr}', 'fortran_order': {}, 'shape': ({}, {}, {}), }}",
             if fortran { "True" } else { "False" },
             shape[0],
             shape[1],
@@ -445,9 +513,6 @@ mod tests {
         let mut out = b"\x93NUMPY\x01\x00".to_vec();
         out.extend_from_slice(&(header.len() as u16).to_le_bytes());
         out.extend_from_slice(&header);
-        for v in data {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
         out
     }
 
@@ -711,6 +776,91 @@ mod tests {
         assert!(MappedVolume::open(&npy_path, &VolumeOptions::default()).is_err());
         let missing = dir.path().join("missing.raw");
         assert!(MappedVolume::open(&missing, &options).is_err());
+    }
+
+    /// A `.npy` of `values` (x fastest in `values`) stored as `descr`, C order `a[x, y, z]`
+    /// (`fortran`: x fastest) — small integers plus `offset`.
+    fn npy_of(
+        descr: &str,
+        dims: [usize; 3],
+        values: &[i32],
+        offset: i32,
+        fortran: bool,
+    ) -> Vec<u8> {
+        let mut out = npy_header(descr, dims, fortran);
+        let [nx, ny, nz] = dims;
+        let mut put = |v: i32| match descr {
+            "|u1" => out.push(v as u8),
+            "<i2" => out.extend((v as i16).to_le_bytes()),
+            ">i4" => out.extend(v.to_be_bytes()),
+            "<f4" => out.extend((v as f32).to_le_bytes()),
+            _ => out.extend(f64::from(v).to_le_bytes()),
+        };
+        if fortran {
+            values.iter().for_each(|&v| put(v + offset));
+        } else {
+            for i in 0..nx {
+                for j in 0..ny {
+                    for k in 0..nz {
+                        put(values[i + nx * (j + ny * k)] + offset);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 48, ..Default::default() })]
+
+        /// The same tied integers stored as any type, C or Fortran order: the file read in
+        /// place (`f32`), converted slab by slab, read whole and cut into any boxes, and read
+        /// whole for ternary snapping all give one mesh — the frame and the tie rule are the
+        /// same on every path.
+        #[test]
+        fn converted_types_mesh_as_the_file_in_place_on_every_path(
+            nx in 2usize..8, ny in 2usize..8, nz in 2usize..8, seed: u64, fortran: bool,
+            level in -1i32..2, sizes in proptest::array::uniform3(1usize..5),
+        ) {
+            let dims = [nx, ny, nz];
+            let mut state = seed | 1;
+            let values: Vec<i32> = (0..nx * ny * nz)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state % 5) as i32 - 2
+                })
+                .collect();
+            let dir = tempfile::tempdir().unwrap();
+            let options = VolumeOptions::default();
+            let open = |descr: &str, offset: i32| {
+                let path = dir.path().join(format!("{}.npy", descr.replace(['<', '>', '|'], "")));
+                std::fs::write(&path, npy_of(descr, dims, &values, offset, fortran)).unwrap();
+                MappedVolume::open(&path, &options).unwrap()
+            };
+            let float = open("<f4", 0);
+            let view = float.view().expect("f32 is read in place");
+            let mc = ExtractOptions::default().with_level(level as f32);
+            let ternary = mc.with_method(isocube::extract::Method::Ternary(Default::default()));
+            let in_place = extract(view, &mc).unwrap().0;
+            let in_place_ternary = extract(view, &ternary).unwrap().0;
+            let boxes = isocube::extract::CellBox::tile(view.dims(), sizes).unwrap();
+            for (descr, offset) in [("|u1", 2), ("<i2", 0), (">i4", 0), ("<f8", 0), ("<f4", 0)] {
+                let volume = open(descr, offset);
+                let mc = mc.with_level((level + offset) as f32);
+                let ternary = ternary.with_level((level + offset) as f32);
+                let mut slabs = isocube::mesh::Mesh::new();
+                extract_streamed(&volume, &mc, &mut slabs, &mut isocube::no_progress).unwrap();
+                proptest::prop_assert_eq!(&slabs, &in_place, "{} slab by slab", descr);
+                let grid = volume.read_whole(None).unwrap();
+                let whole = grid.view().with_orientation(volume.orientation());
+                let cut = isocube::extract::extract_boxes(whole, &mc, &boxes).unwrap().0;
+                proptest::prop_assert_eq!(&cut, &in_place, "{} boxes {:?}", descr, sizes);
+                let snapped = extract(whole, &ternary).unwrap().0;
+                proptest::prop_assert_eq!(&snapped, &in_place_ternary, "{} ternary", descr);
+            }
+        }
     }
 
     /// A failed stream (the writer dropped before `finish`) leaves the target as it was.

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::volume::SlabInput;
 use clap::Args as ClapArgs;
 use isocube::cube::Topology;
 use isocube::extract::{
@@ -14,10 +15,7 @@ use isocube::field::SampleSpec;
 use isocube::field::{Grid, Level, Orientation, PlaneSource, ValueSummary};
 use isocube::mesh::Mesh;
 use isocube::quality::{Field, Strategy, Trilinear};
-use isocube_io::{
-    write_mesh_with_values, InflatingVolume, MappedVolume, MeshFormat, PlyWriter, VertexValues,
-    ZarrVolume,
-};
+use isocube_io::{write_mesh_with_values, MeshFormat, PlyWriter, VertexValues};
 
 use crate::progress::Progress;
 use crate::volume::VolumeArgs;
@@ -135,17 +133,11 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
     }
     // A file stored uncompressed is mapped, not read: `f32` values are meshed where they lie,
     // in whatever order its axes are stored; other types are converted slab by slab.
-    let mapped = args.volume.try_map()?.map(|v| match args.index_space {
-        true => v.into_index_space(),
-        false => v,
-    });
+    let mapped = args.volume.try_map()?.map(|v| v.framed(args.index_space));
     // A Zarr store is decoded a layer of chunks at a time as the slabs need them.
     if mapped.is_none() && isocube_io::is_zarr_store(std::path::Path::new(&args.volume.volume)) {
         if let Some(volume) = args.volume.try_zarr()? {
-            let volume = match args.index_space {
-                true => volume.into_index_space(),
-                false => volume,
-            };
+            let volume = volume.framed(args.index_space);
             if let Some(volume) = streamable(args, Some(&volume))? {
                 return run_streamed(args, volume, quiet);
             }
@@ -167,23 +159,23 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             // A gzipped NIfTI is inflated plane by plane as the slabs need them: never whole.
             None => {
                 if let Some(volume) = args.volume.try_inflating()? {
-                    let volume = match args.index_space {
-                        true => volume.into_index_space(),
-                        false => volume,
-                    };
+                    let volume = volume.framed(args.index_space);
                     return run_slabs_in_memory(args, volume, quiet);
                 }
             }
         }
     }
     // The view carries the file's direction, and a built-in sample its exact function: the
-    // library orients the mesh and relaxes on the right field.
+    // library orients the mesh and relaxes on the right field. Values that need converting are
+    // read whole through the plane reader the slab paths use, so the cells are walked and cut
+    // in the same frame: the same file makes the same mesh whichever path its options take.
     let mapped_view = mapped.as_ref().and_then(|v| v.view());
     let mut loaded = None;
     let view = match mapped_view {
         Some(view) => view,
         None => {
-            let (grid, orientation) = loaded.insert(in_frame(args, args.volume.load_oriented()?)?);
+            let walked = args.volume.load_walked(args.index_space)?;
+            let (grid, orientation) = loaded.insert(walked);
             grid.view().with_orientation(*orientation)
         }
     };
@@ -302,56 +294,6 @@ fn write_and_report(
         );
     }
     Ok(())
-}
-
-/// A volume meshed slab by slab in memory: a mapped file whose values need converting, or a
-/// compressed one inflated as it goes (whose read errors surface once the slabs are done).
-trait SlabInput: PlaneSource {
-    fn failure(&self) -> Option<isocube_io::IoError> {
-        None
-    }
-
-    fn path(&self) -> &std::path::Path;
-
-    /// What the summary should add about the input, and what `--strict` refuses.
-    fn caveat(&self) -> Option<String> {
-        None
-    }
-}
-
-impl SlabInput for MappedVolume {
-    fn path(&self) -> &std::path::Path {
-        MappedVolume::path(self)
-    }
-}
-
-impl SlabInput for InflatingVolume {
-    fn failure(&self) -> Option<isocube_io::IoError> {
-        self.take_error()
-    }
-
-    fn path(&self) -> &std::path::Path {
-        InflatingVolume::path(self)
-    }
-}
-
-impl SlabInput for ZarrVolume {
-    fn failure(&self) -> Option<isocube_io::IoError> {
-        self.take_error()
-    }
-
-    fn path(&self) -> &std::path::Path {
-        ZarrVolume::path(self)
-    }
-
-    fn caveat(&self) -> Option<String> {
-        let first = self.first_absent_chunk()?;
-        let n = self.absent_chunks();
-        Some(format!(
-            "{n} chunk{} absent (the first '{first}'), read as the array's fill value",
-            if n == 1 { "" } else { "s" }
-        ))
-    }
 }
 
 /// The input's failure, or `--strict` refusing what its caveat says; else the caveat to print.
@@ -580,7 +522,7 @@ fn sample_at_vertices(args: &Args, spec: &str, mesh: &Mesh) -> Result<(String, V
         volume: spec.to_string(),
         ..args.volume.clone()
     };
-    let (grid, orientation) = in_frame(args, volume.load_oriented()?)?;
+    let (grid, orientation) = volume.load_walked(args.index_space)?;
     let field = Trilinear(grid.view());
     let dims = grid.dims();
     let (h, o) = (grid.spacing(), grid.origin());
@@ -729,14 +671,13 @@ fn resolve_level(
 
 /// No cell crosses the level: the error names the volume's value range.
 fn empty_failure(args: &Args, level: f32, summary: Option<ValueSummary>) -> Failure {
-    let range = match summary {
-        Some(s) => format!("its values range from {} to {}", s.min, s.max),
-        None => "it has no finite value".to_string(),
+    let empty = ExtractError::EmptySurface {
+        level,
+        range: summary.map(|s| (s.min, s.max)),
     };
     Failure::input(anyhow::anyhow!(
-        "{}: no cell crosses the level {level}: {range}; give a level inside (`--level auto` \
-         picks Otsu's threshold, `--level 50%` the middle of the range), or --allow-empty to \
-         write the empty mesh; nothing written",
+        "{}: {empty}; give a level inside (`--level auto` picks Otsu's threshold, `--level 50%` \
+         the middle of the range), or --allow-empty to write the empty mesh; nothing written",
         args.volume.volume
     ))
 }

@@ -9,7 +9,7 @@ use isocube::cube::Topology;
 use isocube::extract::{
     ExtractOptions, LabelOptions, LabelSelection, Method, SnapPosition, Snapping,
 };
-use isocube::field::{Grid, Level, Orientation, PlaneSource, SampleSpec, ValueSummary};
+use isocube::field::{Level, SampleSpec, ValueSummary};
 use isocube::quality::Strategy;
 use isocube::volume::{tetmesh, tetmesh_labels, TetError};
 use isocube_io::{write_tet_mesh_as, TetFormat};
@@ -28,8 +28,8 @@ pub(crate) struct Args {
     /// linearly (the cut by every section stays the same), so elements are about as tall as
     /// wide. `sections` keeps the sections only (the surface is then `contours --plain`'s, and
     /// the elements as long as the sections are apart). [default: the plane grid's cell]
-    #[arg(long, value_name = "DIST")]
-    layer_spacing: Option<String>,
+    #[arg(long, value_name = "DIST", value_parser = parse_layer_spacing)]
+    layer_spacing: Option<LayerSpacing>,
     /// Output: .msh (Gmsh 4.1), .vtu (VTK unstructured grid, quality as cell data), .mesh
     /// (MEDIT) or .inp (Abaqus: C3D4 in REGION, element surfaces SURFACE and WALLS). Physical
     /// groups: 1 the region, 2 the isosurface, 3 the grid's outer faces; with --labels, one per
@@ -139,28 +139,19 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         Some(_) => None,
         None => args.volume.try_map()?,
     };
-    let mapped = mapped.map(|v| match args.index_space {
-        true => v.into_index_space(),
-        false => v,
-    });
+    let mapped = mapped.map(|v| crate::volume::SlabInput::framed(v, args.index_space));
     let mut loaded_grid = None;
-    let view = match (mapped.as_ref().and_then(|v| v.view()), &mapped) {
-        (Some(view), _) => view,
-        // Other stored types are converted whole, in the same order.
-        (None, Some(volume)) => {
-            let (grid, orientation) = converted(volume, args.volume.max_memory)?;
-            loaded_grid
-                .insert(grid)
-                .view()
-                .with_orientation(orientation)
-        }
-        (None, None) => {
-            let loaded = args.volume.load_oriented()?;
-            let (grid, orientation) = crate::volume::in_frame(args.index_space, loaded)?;
-            loaded_grid
-                .insert(grid)
-                .view()
-                .with_orientation(orientation)
+    let view = match mapped.as_ref().and_then(|v| v.view()) {
+        Some(view) => view,
+        None => {
+            // Other stored types are converted whole, walked as `extract` walks them; labels
+            // in their index order, as by `extract --labels`.
+            let loaded = match args.labels {
+                Some(_) => crate::volume::in_frame(args.index_space, args.volume.load_oriented()?)?,
+                None => args.volume.load_walked(args.index_space)?,
+            };
+            let (grid, orientation) = loaded_grid.insert(loaded);
+            grid.view().with_orientation(*orientation)
         }
     };
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory)
@@ -214,17 +205,10 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
     let stack = super::contours::load_stack(&args.volume.volume, &args.output, &args.stack, quiet)?;
     let plane = args.stack.plane(&stack)?;
     let cap = args.stack.cap(&stack)?;
-    let layer_spacing = match args.layer_spacing.as_deref() {
+    let layer_spacing = match args.layer_spacing {
         None => Some(plane.spacing),
-        Some("sections") => None,
-        Some(d) => match d.parse::<f64>() {
-            Ok(v) if v.is_finite() && v > 0.0 => Some(v),
-            _ => {
-                return Err(Failure::input(anyhow::anyhow!(
-                    "--layer-spacing {d}: expected a distance > 0 or `sections`"
-                )))
-            }
-        },
+        Some(LayerSpacing::Sections) => None,
+        Some(LayerSpacing::At(d)) => Some(d),
     };
     let room = crate::volume::MemoryLimit::or_default(args.volume.max_memory);
     let Level::Value(level) = args.level else {
@@ -252,30 +236,21 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A mapped volume's values as `f32`, in the order its planes are stored (the order `extract`
-/// meshes it in), within `--max-memory`.
-fn converted(
-    volume: &isocube_io::MappedVolume,
-    max_memory: Option<crate::volume::MemoryLimit>,
-) -> Result<(Grid, Orientation), Failure> {
-    let dims = volume.dims();
-    let count = dims.iter().product::<usize>();
-    let needed = count as u64 * 4;
-    if let Some(limit) = crate::volume::MemoryLimit::or_default(max_memory).filter(|&l| needed > l)
-    {
-        return Err(Failure::input(anyhow::anyhow!(
-            "{}: its values need {needed} bytes as f32, more than the limit of {limit} (raise it \
-             with --max-memory)",
-            volume.path().display()
-        )));
+/// `--layer-spacing`: a distance between planes, or the sections only.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LayerSpacing {
+    At(f64),
+    Sections,
+}
+
+fn parse_layer_spacing(s: &str) -> Result<LayerSpacing, String> {
+    if s.trim() == "sections" {
+        return Ok(LayerSpacing::Sections);
     }
-    let mut values = vec![0.0f32; count];
-    volume.read_planes(0, &mut values);
-    let grid = Grid::new(dims, values)
-        .and_then(|g| g.with_spacing(volume.spacing()))
-        .and_then(|g| g.with_origin(volume.origin()))
-        .map_err(Failure::input)?;
-    Ok((grid, volume.orientation()))
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(LayerSpacing::At(v)),
+        _ => Err(format!("'{s}': expected a distance > 0 or `sections`")),
+    }
 }
 
 /// The volume mesher's options from the command line.

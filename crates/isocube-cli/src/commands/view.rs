@@ -83,8 +83,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
                     args.volume.volume
                 )));
             }
-            let (grid, orientation) =
-                crate::volume::in_frame(args.index_space, args.volume.load_oriented()?)?;
+            // Walked as `extract` walks the file, so downloads are its files.
+            let (grid, orientation) = args.volume.load_walked(args.index_space)?;
             let summary = ValueSummary::of(grid.values());
             let level =
                 crate::volume::resolve_level(args.level, &args.volume.volume, || summary.clone())?;

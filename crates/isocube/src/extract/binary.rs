@@ -21,6 +21,7 @@ use super::window::Window;
 use super::{cell_config, choose_tunnel, face_decisions, ExtractError, ExtractOptions};
 use crate::cube::triangulate::{may_join, safe_triangulation_where};
 use crate::cube::{CaseTable, CellTriangles, Corner, Topology, EDGES, EDGE_AXIS, VERTICES};
+use crate::field::is_above;
 use crate::mesh::Mesh;
 use crate::quality::{triangulate_polygon, Chords, Strategy, MAX_CORNERS};
 
@@ -184,7 +185,7 @@ fn pack_row(row: &[f32], level: f32, out: &mut [u64]) -> bool {
     if !tail.is_empty() {
         let mut bits = 0u64;
         for (b, &v) in tail.iter().enumerate() {
-            bits |= u64::from(v >= level) << b;
+            bits |= u64::from(is_above(v, level)) << b;
             invalid |= !v.is_finite();
         }
         out[out.len() - 1] = bits;
@@ -228,7 +229,7 @@ fn pack_above(values: &[f32], level: f32) -> (u64, bool) {
     let mut bytes = [0u8; 64];
     let mut bad = 0u32;
     for (o, &v) in bytes.iter_mut().zip(values) {
-        *o = u8::from(v >= level);
+        *o = u8::from(is_above(v, level));
         bad |= u32::from(v.to_bits() & EXPONENT == EXPONENT);
     }
     let mut bits = 0u64;

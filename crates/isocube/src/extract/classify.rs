@@ -1,13 +1,14 @@
 //! Classification: the cell's binary configuration and the asymptotic decider on its faces.
 
 use crate::cube::{FaceDecisions, FACES};
+use crate::field::is_above;
 
 /// The binary configuration: bit `i` set when vertex `i` is at or above the level.
 #[inline]
 pub(crate) fn cell_config(v: &[f32; 8], level: f32) -> u8 {
     let mut config = 0u8;
     for (i, &x) in v.iter().enumerate() {
-        config |= u8::from(x >= level) << i;
+        config |= u8::from(is_above(x, level)) << i;
     }
     config
 }

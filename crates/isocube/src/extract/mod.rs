@@ -384,6 +384,26 @@ pub enum ExtractError {
         /// Points needed beyond the cells ([`block_halo`]).
         halo: usize,
     },
+    /// No cell crosses the level, so the surface is empty: what every front end says when it
+    /// refuses an empty mesh (the command line unless `--allow-empty`, Python unless
+    /// `allow_empty=True`), with the range of the values so the user can pick a level inside.
+    ///
+    /// ```
+    /// use isocube::extract::ExtractError;
+    /// let e = ExtractError::EmptySurface { level: 5.0, range: Some((-1.0, 2.5)) };
+    /// assert_eq!(e.to_string(), "no cell crosses the level 5: its values range from -1 to 2.5");
+    /// assert!(e.outside_values());
+    /// ```
+    #[error("no cell crosses the level {level}: {}", match range {
+        Some((lo, hi)) => format!("its values range from {lo} to {hi}"),
+        None => "it has no finite value".to_string(),
+    })]
+    EmptySurface {
+        /// The level asked for.
+        level: f32,
+        /// The smallest and largest finite value, `None` when no value is finite.
+        range: Option<(f32, f32)>,
+    },
     /// The progress callback asked to stop.
     #[error("stopped before the end (cancelled)")]
     Cancelled,
@@ -395,6 +415,19 @@ pub enum ExtractError {
         /// Its value.
         value: f32,
     },
+}
+
+impl ExtractError {
+    /// Whether this is [`ExtractError::EmptySurface`] with the level outside the values' range
+    /// (or no finite value): no level set there at all, rather than one the cells miss.
+    pub fn outside_values(&self) -> bool {
+        match *self {
+            ExtractError::EmptySurface { level, range } => {
+                range.is_none_or(|(lo, hi)| level < lo || level > hi)
+            }
+            _ => false,
+        }
+    }
 }
 
 /// Extracts the isosurface into a new mesh.

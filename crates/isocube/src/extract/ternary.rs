@@ -54,7 +54,7 @@ use crate::cube::{CaseTable, Corner, Topology, EDGES, EDGE_AXIS};
 use std::borrow::Cow;
 
 use super::window::Window;
-use crate::field::GridView;
+use crate::field::{is_above, GridView};
 use crate::quality::{triangulate, Strategy};
 
 use super::chunk::{CellBox, ChunkMesh, VertexKey};
@@ -1103,7 +1103,7 @@ impl<'a> Ternary<'a> {
                     let trit = if self.zero_point(q) {
                         2
                     } else {
-                        u64::from(v >= self.level)
+                        u64::from(is_above(v, self.level))
                     };
                     pattern |= trit << bit;
                     bit += 2;
@@ -1408,7 +1408,8 @@ impl<'a> Ternary<'a> {
                     _ => continue,
                 };
                 let w = f64::from(values[q]);
-                if !w.is_finite() || (v >= level) == (w >= level) {
+                let side = |x: f32| is_above(x, self.level);
+                if !w.is_finite() || side(values[p]) == side(values[q]) {
                     continue;
                 }
                 let t = (level - v) / (w - v);

@@ -1,6 +1,6 @@
 use thiserror::Error;
 
-use super::{GridView, Sample};
+use super::{GridView, PlaneSource, Sample};
 
 /// Why a grid could not be built.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -130,6 +130,32 @@ impl Grid {
         self.origin = origin;
         self.exact = None;
         Ok(self)
+    }
+
+    /// Every value of a volume read plane by plane ([`PlaneSource`]: a mapped file, a stream
+    /// inflated as it goes, a chunked store), in the order the source walks it, with its spacing
+    /// and origin; its orientation stays the source's to give. The grid is the frame slab-wise
+    /// extraction meshes the source in, so whole-volume work on it (ternary snapping, relaxation,
+    /// boxes of cells) makes the mesh [`crate::extract::extract_streamed`] makes, to the bit.
+    /// Planes are asked for in order, a few at a time: a stream need not go back.
+    ///
+    /// ```
+    /// use isocube::field::{Grid, Sample};
+    /// let sample = Sample::Gyroid.grid(9);
+    /// assert_eq!(Grid::from_source(&sample).unwrap(), sample);
+    /// ```
+    pub fn from_source(source: &dyn PlaneSource) -> Result<Grid, GridError> {
+        let dims = source.dims();
+        let count = Self::point_count(dims)?;
+        let mut values = vec![0.0f32; count];
+        let plane = dims[0] * dims[1];
+        let batch = ((1 << 22) / plane).max(1);
+        for (n, out) in values.chunks_mut(plane * batch).enumerate() {
+            source.read_planes(n * batch, out);
+        }
+        Grid::new(dims, values)?
+            .with_spacing(source.spacing())?
+            .with_origin(source.origin())
     }
 
     /// Samples `f` at every point. Panics if some dimension is below 2 or spacing is not

@@ -5,6 +5,23 @@ use rayon::prelude::*;
 
 use super::PlaneSource;
 
+/// The tie rule, one for every path: a value at or above the level counts as **above**. Every
+/// extraction path — in place, converted slab by slab, streamed, boxes of cells, ternary
+/// snapping, the volume mesher's inside test — classifies points through this function, so a
+/// value exactly at the level (integer data, mostly) falls on the same side everywhere. (The
+/// face and interior deciders compare exact offsets from the level, `v − level ≥ 0` in `f64`,
+/// which is the same test: the difference of two `f32` values has the sign of the exact one.)
+///
+/// ```
+/// use isocube::field::is_above;
+/// assert!(is_above(0.0, 0.0) && is_above(1.0, 0.0) && !is_above(-1.0, 0.0));
+/// assert!(!is_above(f32::NAN, 0.0));
+/// ```
+#[inline(always)]
+pub fn is_above(value: f32, level: f32) -> bool {
+    value >= level
+}
+
 /// The iso-value to extract at, as a user gives it: a number, `auto` (Otsu's threshold of the
 /// values' histogram: the level that best splits them in two classes) or a fraction of the
 /// value range (`40%`: min + 0.4 · (max − min)).

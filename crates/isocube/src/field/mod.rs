@@ -13,7 +13,7 @@ mod source;
 mod view;
 
 pub use grid::{Grid, GridError};
-pub use level::{Level, ValueSummary};
+pub use level::{is_above, Level, ValueSummary};
 pub use orientation::Orientation;
 pub use samples::{sphere_packing, Ball, Sample, SampleSpec};
 pub use source::PlaneSource;

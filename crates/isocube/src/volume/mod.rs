@@ -230,7 +230,7 @@ pub fn tetmesh_with_progress<'a>(
     }
     let level = options.level;
     let flip = options.flip;
-    let inside = move |v: f32| if flip { v >= level } else { v < level };
+    let inside = move |v: f32| crate::field::is_above(v, level) == flip;
 
     // The surface, and every vertex's key.
     let surface_options = ExtractOptions {
