@@ -1,7 +1,7 @@
-"""One file, one mesh: the same tied integer volume stored as u8, i16, i32, f32 and f64 meshes to
-the command line's bytes through every Python path (isocube.extract in one pass and in boxes,
-ternary, Volume.extract from read_volume, isocube.dask) — and an empty surface is an error
-naming the values' range unless asked for."""
+"""One file, one mesh: the same tied integer volume stored as u8, i16, i32, f32 (also with its
+zeros as -0.0) and f64 meshes to the command line's bytes through every Python path
+(isocube.extract in one pass and in boxes, ternary, Volume.extract from read_volume,
+isocube.dask) — and an empty surface is an error naming the values' range unless asked for."""
 
 from __future__ import annotations
 
@@ -24,8 +24,13 @@ def tied(seed: int, shape: tuple[int, int, int] = (17, 19, 23)) -> np.ndarray:
     return np.random.default_rng(seed).integers(-2, 3, size=shape)
 
 
-def stored(values: np.ndarray, dtype: type) -> tuple[np.ndarray, int]:
-    """The values as `dtype` (shifted by 2 for unsigned types) and the shift."""
+def stored(values: np.ndarray, dtype: type | str) -> tuple[np.ndarray, int]:
+    """The values as `dtype` (shifted by 2 for unsigned types) and the shift; `"-0"`: float32
+    with every zero stored as ``-0.0``, as rounding negative floats leaves them."""
+    if dtype == "-0":
+        a = values.astype(np.float32)
+        a[a == 0] = -0.0
+        return a, 0
     shift = 2 if np.dtype(dtype).kind == "u" else 0
     return (values + shift).astype(dtype), shift
 
@@ -50,9 +55,10 @@ def test_every_type_and_path_is_the_command_lines_file(
     # Relaxation is the slow one on so rough a surface: one level is enough for it.
     for level in (0,) if "relax" in options else (-1, 0, 1):
         want: bytes | None = None
-        for dtype in TYPES:
+        kinds: list[type | str] = [*TYPES, "-0"]
+        for dtype in kinds:
             a, shift = stored(values, dtype)
-            npy = tmp_path / f"v-{np.dtype(dtype).name}.npy"
+            npy = tmp_path / f"v-{a.dtype.name}{'-neg' if dtype == '-0' else ''}.npy"
             np.save(npy, a)
             theirs = tmp_path / "cli.ply"
             chunked = tmp_path / "cli-chunk.ply"

@@ -52,21 +52,22 @@ check relax sample:tangle:64 --relax 2
 check zyx "$work/in/blobs-zyx.npy" --axes zyx
 check zyx-ternary "$work/in/blobs-zyx.npy" --axes zyx --method ternary --snap 0.5
 check labels "$here/../data/volumes/labels.nii.gz" --labels
-# Integers exactly at the level, stored as u8 (shifted by 2), i16, i32, f32 and f64 in C order:
+# Integers exactly at the level, stored as u8 (shifted by 2), i16, i32, f32 (also with -0.0 for
+# its zeros) and f64 in C order:
 # every type, with and without --chunk, writes the f32 file's bytes (mapped f32 read in place,
 # the others converted slab by slab or read whole for boxes and ternary snapping).
 types=0
 for level in -1 0 1; do
   for variant in "" "--method ternary" "--method ternary --snap 0.5 --triangulate optimal" "--relax 1"; do
     rm -rf "$work/types" && mkdir -p "$work/types"
-    for type in u8 i16 i32 f32 f64; do
+    for type in u8 i16 i32 f32 f64 f32neg; do
       at=$level
       [ $type = u8 ] && at=$((level + 2))
       # shellcheck disable=SC2086
       check "tied-$type" "$work/in/tied-$type.npy" --level "$at" $variant
       cp "$work/whole/tied-$type.ply" "$work/types/$type.ply"
     done
-    for type in u8 i16 i32 f64; do
+    for type in u8 i16 i32 f64 f32neg; do
       types=$((types + 1))
       if ! cmp -s "$work/types/f32.ply" "$work/types/$type.ply"; then
         echo "DIFFERENT from f32: $type at level $level $variant"

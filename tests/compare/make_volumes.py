@@ -32,7 +32,8 @@ def npy_typed(path: Path, shape: tuple[int, int, int], code: str, values: list[i
 
 def tied(path_stem: Path) -> None:
     """Random integers in -2..2, saved a[x, y, z] (C order: z fastest) as u8 (shifted by 2),
-    i16, i32, f32 and f64: most points lie exactly on the levels -1, 0 and 1."""
+    i16, i32, f32 (also with -0.0 for its zeros) and f64: most points lie exactly on the levels
+    -1, 0 and 1."""
     shape = (17, 19, 23)
     state = 49
     values = []
@@ -41,6 +42,8 @@ def tied(path_stem: Path) -> None:
         values.append((state >> 33) % 5 - 2)
     for name, code, shift in (("u8", "B", 2), ("i16", "h", 0), ("i32", "i", 0), ("f32", "f", 0), ("f64", "d", 0)):
         npy_typed(path_stem.with_name(f"{path_stem.name}-{name}.npy"), shape, code, [v + shift for v in values])
+    # f32 with its zeros stored as -0.0, as rounding negative floats leaves them: the same values.
+    npy_typed(path_stem.with_name(f"{path_stem.name}-f32neg.npy"), shape, "f", [v if v else -0.0 for v in values])
 
 
 def field(x: float, y: float, z: float) -> float:

@@ -82,6 +82,7 @@ mod layout;
 mod place;
 
 pub(crate) use classify::{cell_config, face_decisions};
+pub(crate) use place::unsigned_zero;
 mod patch_check;
 mod stream;
 mod ternary;

@@ -133,7 +133,7 @@ impl<'a> Placer<'a> {
             // Normals of the corners already carry the flip.
             let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
             mesh.normals.push(if len > 0.0 {
-                g.map(|c| (c / len) as f32)
+                g.map(|c| unsigned_zero((c / len) as f32))
             } else {
                 [0.0; 3]
             });
@@ -144,7 +144,7 @@ impl<'a> Placer<'a> {
     fn unit(&self, g: [f64; 3]) -> [f32; 3] {
         let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
         let s = if self.flip { -1.0 / len } else { 1.0 / len };
-        g.map(|c| (c * s) as f32)
+        g.map(|c| unsigned_zero((c * s) as f32))
     }
 
     /// Central differences in world units; one-sided at the grid boundary or next to a
@@ -261,4 +261,14 @@ pub(super) fn centroid_in(
 
 pub(super) fn clamp_into(p: [f64; 3], (lo, hi): &Bounds) -> [f64; 3] {
     std::array::from_fn(|d| p[d].clamp(lo[d], hi[d]))
+}
+
+/// `x`, with a zero always `+0.0`. A normal component is zero where the gradient is flat along
+/// an axis, and its sign then depends on how the values' zeros were signed (`-0.0` in a float
+/// file, `0` in an integer one) and on the order of the sums: the same field must give the same
+/// bytes, so zeros leave without a sign.
+#[inline(always)]
+pub(crate) fn unsigned_zero(x: f32) -> f32 {
+    // IEEE addition: −0 + +0 = +0, and every other value is unchanged.
+    x + 0.0
 }

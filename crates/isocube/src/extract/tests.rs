@@ -1441,3 +1441,58 @@ fn sheets_in_a_face_take_one_diagonal() {
         }
     }
 }
+
+/// The bits of a mesh: positions and normals compared as stored (`-0.0` is not `0.0` here).
+fn mesh_bits(mesh: &Mesh) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+    let bits = |v: &[[f32; 3]]| v.iter().map(|p| p.map(f32::to_bits)).collect();
+    (
+        bits(&mesh.positions),
+        bits(&mesh.normals),
+        mesh.triangles.clone(),
+    )
+}
+
+/// A float file's zeros may be `-0.0` (rounded negatives) where an integer file's are `0`: the
+/// same field, so the same bytes — normals where the gradient is flat along an axis included —
+/// for every method, orientation and flip, on grids with many values exactly at the level.
+#[test]
+fn signed_zeros_in_the_values_give_the_same_bytes() {
+    let mirror =
+        crate::field::Orientation::new([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+            .unwrap();
+    let mut compared = 0;
+    for seed in 0..6u64 {
+        let dims = [9, 8, 7];
+        let plain: Vec<f32> = quantised_values(dims, seed)
+            .iter()
+            .map(|v| (v * 4.0).round() / 2.0)
+            .collect();
+        let signed: Vec<f32> = plain
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| if v == 0.0 && i % 2 == 0 { -0.0 } else { v })
+            .collect();
+        assert!(signed.iter().any(|v| v.to_bits() == (-0.0f32).to_bits()));
+        let a = Grid::new(dims, plain).unwrap();
+        let b = Grid::new(dims, signed).unwrap();
+        for options in [
+            ExtractOptions::default(),
+            ExtractOptions::default().with_flip(true),
+            ExtractOptions::default().with_method(Method::Ternary(Snapping::default())),
+            ExtractOptions::default().with_level(0.5),
+        ] {
+            for turn in [crate::field::Orientation::IDENTITY, mirror] {
+                let one = extract(a.view().with_orientation(turn), &options)
+                    .unwrap()
+                    .0;
+                let two = extract(b.view().with_orientation(turn), &options)
+                    .unwrap()
+                    .0;
+                assert!(!one.triangles.is_empty());
+                assert_eq!(mesh_bits(&one), mesh_bits(&two), "seed {seed} {options:?}");
+                compared += 1;
+            }
+        }
+    }
+    assert_eq!(compared, 48);
+}

@@ -137,7 +137,9 @@ impl Grid {
     /// and origin; its orientation stays the source's to give. The grid is the frame slab-wise
     /// extraction meshes the source in, so whole-volume work on it (ternary snapping, relaxation,
     /// boxes of cells) makes the mesh [`crate::extract::extract_streamed`] makes, to the bit.
-    /// Planes are asked for in order, a few at a time: a stream need not go back.
+    /// Planes are asked for in order, a few at a time, and released once read
+    /// ([`PlaneSource::release_before`]): a stream need not go back, nor a reader hold what it
+    /// decoded beside the grid.
     ///
     /// ```
     /// use isocube::field::{Grid, Sample};
@@ -152,6 +154,7 @@ impl Grid {
         let batch = ((1 << 22) / plane).max(1);
         for (n, out) in values.chunks_mut(plane * batch).enumerate() {
             source.read_planes(n * batch, out);
+            source.release_before(((n + 1) * batch).min(dims[2]));
         }
         Grid::new(dims, values)?
             .with_spacing(source.spacing())?

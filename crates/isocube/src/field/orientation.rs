@@ -177,7 +177,7 @@ impl Orientation {
                 std::array::from_fn(|c| (0..3).map(|r| inv[r][c] * f64::from(n[r])).sum());
             let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
             if len > 0.0 {
-                *n = v.map(|x| (x / len) as f32);
+                *n = v.map(|x| crate::extract::unsigned_zero((x / len) as f32));
             }
         }
         if self.determinant() < 0.0 {
