@@ -1442,8 +1442,11 @@ fn sheets_in_a_face_take_one_diagonal() {
     }
 }
 
+/// Positions, normals (as their bits) and triangles.
+type MeshBits = (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<[u32; 3]>);
+
 /// The bits of a mesh: positions and normals compared as stored (`-0.0` is not `0.0` here).
-fn mesh_bits(mesh: &Mesh) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+fn mesh_bits(mesh: &Mesh) -> MeshBits {
     let bits = |v: &[[f32; 3]]| v.iter().map(|p| p.map(f32::to_bits)).collect();
     (
         bits(&mesh.positions),
