@@ -185,12 +185,12 @@ def tetmesh(
     spacing: ArrayLike = (1.0, 1.0, 1.0),
     origin: ArrayLike = (0.0, 0.0, 0.0),
     direction: ArrayLike | None = None,
-    method: str = "mc",
+    method: str = "ternary",
     topology: str = "mc33",
     triangulate: str = "fan",
     snap: float = 0.3,
     zero_threshold: float = 0.0,
-    snap_position: str = "grid",
+    snap_position: str = "crossing",
     flip: bool = False,
     labels: bool | Iterable[int] = False,
     background: int = 0,
@@ -216,10 +216,11 @@ def tetmesh(
     spacing, origin : three floats
     direction : (3, 3) array_like, optional
         Columns: the world directions of the array's axes (as :func:`read_volume` gives).
-    method : {'mc', 'ternary'}
-        Ternary snapping (`snap`, `zero_threshold`, `snap_position` as in :func:`extract`;
-        points snap onto the grid point by default, as the command's) gives much better
-        elements: no boundary triangle is a sliver.
+    method : {'ternary', 'mc'}
+        Ternary snapping (the default; `snap`, `zero_threshold`, `snap_position` as in
+        :func:`extract`, snapped points on the nearest crossing by default, as the command's)
+        gives good elements with the boundary on the level set: no boundary triangle is a
+        sliver. ``'mc'`` keeps Marching Cubes' surface and its slivers.
     topology, triangulate, flip
         As in :func:`extract`.
     labels : bool or iterable of int
@@ -246,7 +247,7 @@ def tetmesh(
     >>> import numpy as np
     >>> import isocube
     >>> x, y, z = np.mgrid[-1:1:24j, -1:1:24j, -1:1:24j]
-    >>> ball = isocube.tetmesh(np.sqrt(x**2 + y**2 + z**2), 0.8, method="ternary")
+    >>> ball = isocube.tetmesh(np.sqrt(x**2 + y**2 + z**2), 0.8)
     >>> ball.tets.shape[1], ball.check()["conforming"]
     (4, True)
     """

@@ -258,7 +258,7 @@ impl<'a> Ternary<'a> {
             0,
             &self.values,
         )
-        .with_base(g.base())
+        .with_base(g.base(), g.whole())
     }
 
     /// Number of point `(i, j, k)`: its place in [`Ternary::values`].
@@ -1401,6 +1401,11 @@ impl<'a> Ternary<'a> {
         let dims = self.grid.dims();
         let mut best = (c, 0, 0.0, f64::INFINITY);
         for (axis, &stride) in self.strides.iter().enumerate() {
+            // A point on the grid's outer face stays in it: the surface's rim stays on the
+            // box, and the cells' faces there flat (a volume mesh's walls stay the box's).
+            if self.grid.on_outer_face(c, axis) {
+                continue;
+            }
             for forward in [false, true] {
                 let q = match forward {
                     true if c[axis] + 1 < dims[axis] => p + stride,

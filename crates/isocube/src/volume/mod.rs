@@ -122,6 +122,9 @@ pub struct TetStats {
     pub grid_points: usize,
     /// Points added inside cut cells (one per connected part).
     pub steiner_points: usize,
+    /// Cut cells filled together with a neighbour, because the surface in one passes through
+    /// their shared face, bent by corners snapped onto crossings (counted in `cut_cells` too).
+    pub grouped_cells: usize,
     /// The surface extraction's counts.
     pub extract: ExtractStats,
     /// What the improvement after filling the cells did (flips, Steiner points moved).
@@ -159,6 +162,22 @@ pub enum TetError {
         cell: [usize; 3],
         /// What went wrong.
         reason: &'static str,
+    },
+    /// Marching Cubes' surface of values equal to the level has triangles of no area (crossings
+    /// on grid points), and a cell's region around them could not be filled.
+    #[error(
+        "cell {cell:?}: {ties} values equal the level {level}, so Marching Cubes puts crossings \
+         on grid points and its surface has triangles of no area that bound no region here; \
+         ternary extraction (`--method ternary`, the command's default) makes such points the \
+         surface's vertices and meshes this volume"
+    )]
+    TiedValues {
+        /// The cell that could not be filled.
+        cell: [usize; 3],
+        /// How many grid values equal the level.
+        ties: usize,
+        /// The level.
+        level: f32,
     },
     /// The mesh would take more memory than allowed.
     #[error("the volume mesh needs about {bytes} bytes, more than the limit of {limit}")]
@@ -219,6 +238,36 @@ pub fn tetmesh_with_progress<'a>(
     progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<TetMesh, TetError> {
     let grid = grid.into();
+    match mesh_region(grid, options, progress) {
+        Err(TetError::Cell { cell, reason }) if options.method == Method::MarchingCubes => {
+            let [nx, ny, nz] = grid.dims();
+            let level = options.level;
+            let ties = (0..nz)
+                .into_par_iter()
+                .map(|k| {
+                    let mut ties = 0;
+                    for j in 0..ny {
+                        for i in 0..nx {
+                            ties += usize::from(grid.value(i, j, k) == level);
+                        }
+                    }
+                    ties
+                })
+                .sum();
+            Err(match ties {
+                0 => TetError::Cell { cell, reason },
+                ties => TetError::TiedValues { cell, ties, level },
+            })
+        }
+        result => result,
+    }
+}
+
+fn mesh_region(
+    grid: GridView<'_>,
+    options: &ExtractOptions,
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
+) -> Result<TetMesh, TetError> {
     if options.relax > 0 {
         return Err(TetError::Unsupported(
             "relaxation moves surface vertices off the cell faces: a volume mesh cannot keep it",
@@ -411,7 +460,7 @@ pub fn tetmesh_with_progress<'a>(
         &mut || asked(cells),
     )?;
 
-    let ctx = Context {
+    let mut ctx = Context {
         grid,
         dims,
         rank: &rank,
@@ -424,7 +473,9 @@ pub fn tetmesh_with_progress<'a>(
         base,
         flip,
         shape: ternary,
+        grouped: Vec::new(),
     };
+    asked(cells)?;
     // The layers of cells are meshed in parallel a batch at a time and appended in order, each
     // freed once copied: the tetrahedra are held about once (all the layers first, then their
     // concatenation, held them twice, the allocator keeping the freed layers for a while).
@@ -447,11 +498,62 @@ pub fn tetmesh_with_progress<'a>(
     let mut tets = Vec::with_capacity(6 * inside_points.len() + 8 * surface.triangles.len());
     let mut walls = Vec::new();
     let layer_cells = cell_dims[0] * cell_dims[1];
-    let filled = in_batches(
-        cell_dims[2],
-        |k| ctx.layer(k),
-        |layers| asked(cells + layers * layer_cells),
-        |layer| {
+    // Snapped onto crossings, zero points carry the cells' corners off the grid: a cell face
+    // bends, and the surface of the cell on one side may pass through it into the other. The
+    // layers report such cells instead of filling them; then the layers are meshed again with
+    // those cells left out, each filled together with its neighbours across the faces it
+    // passes through (which then bound nothing).
+    let mut crossed = Vec::new();
+    let mut groups: Vec<Vec<[usize; 3]>> = Vec::new();
+    let filled = loop {
+        let filled = in_batches(
+            cell_dims[2],
+            |k| ctx.layer(k),
+            |layers| asked(cells + layers * layer_cells),
+            |layer| {
+                if positions.len() + layer.steiner.len() >= STEINER as usize {
+                    return Err(TetError::TooManyVertices);
+                }
+                let map = steiner_map(positions.len() as u32);
+                walls.extend(layer.walls.iter().map(|t| t.map(map)));
+                tets.extend(layer.tets.iter().map(|t| t.map(map)));
+                positions.extend_from_slice(&layer.steiner);
+                stats.steiner_points += layer.steiner.len();
+                stats.lattice_cells += layer.lattice_cells;
+                stats.cut_cells += layer.cut_cells;
+                crossed.extend(layer.crossed);
+                Ok(())
+            },
+        );
+        if filled.is_err() || crossed.is_empty() || !ctx.grouped.is_empty() {
+            break filled;
+        }
+        groups = match ctx.groups(std::mem::take(&mut crossed)) {
+            Ok(groups) => groups,
+            Err((cell, reason)) => break Err(TetError::Cell { cell, reason }),
+        };
+        ctx.grouped = groups.iter().flatten().map(|&c| ctx.cell_index(c)).collect();
+        ctx.grouped.sort_unstable();
+        tets.clear();
+        walls.clear();
+        positions.truncate(steiner_base);
+        stats.steiner_points = 0;
+        stats.lattice_cells = 0;
+        stats.cut_cells = 0;
+    };
+    debug_assert!(crossed.is_empty());
+    // The groups of cells last, in order.
+    let filled = filled.and_then(|()| {
+        let layers: Vec<Layer> = groups
+            .par_iter()
+            .map(|cells| {
+                ctx.fill_group(cells).map_err(|reason| TetError::Cell {
+                    cell: cells[0],
+                    reason,
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        for layer in layers {
             if positions.len() + layer.steiner.len() >= STEINER as usize {
                 return Err(TetError::TooManyVertices);
             }
@@ -460,11 +562,11 @@ pub fn tetmesh_with_progress<'a>(
             tets.extend(layer.tets.iter().map(|t| t.map(map)));
             positions.extend_from_slice(&layer.steiner);
             stats.steiner_points += layer.steiner.len();
-            stats.lattice_cells += layer.lattice_cells;
             stats.cut_cells += layer.cut_cells;
-            Ok(())
-        },
-    );
+            stats.grouped_cells += layer.cut_cells;
+        }
+        Ok(())
+    });
     // The look-ups the cells were filled from are done with: a million small allocations, freed
     // while the work goes on (or the stop returns at once).
     release((segments, crossings, by_cell, keys, rank, inside_points));
@@ -736,6 +838,9 @@ struct Layer {
     steiner: Vec<[f32; 3]>,
     lattice_cells: usize,
     cut_cells: usize,
+    /// Cells left unfilled because their boundary passes through one of their faces (bent by
+    /// corners off their grid points), with that face.
+    crossed: Vec<([usize; 3], Side)>,
 }
 
 impl Layer {
@@ -784,7 +889,27 @@ struct Context<'a> {
     /// whose crossings keep away from the corners. Marching Cubes' surface has needles and
     /// slivers next to corners that no cone point can lift, and the search would only cost time.
     shape: bool,
+    /// Cells filled together with neighbours ([`Context::groups`]), by index, sorted: the layers
+    /// leave them out.
+    grouped: Vec<u64>,
 }
+
+/// A cell's boundary triangle: the surface's, or one of a cell face's inside part (the cell and
+/// its face `2 · axis + side`, side 1 the upper face).
+type Side = Option<([usize; 3], usize)>;
+
+/// How a cell is filled.
+enum CellFill {
+    /// Not at all: no part of the region in it.
+    Empty,
+    /// With the six Kuhn tetrahedra over these corners.
+    Whole([u32; 8]),
+    /// Along the surface and its faces' inside parts.
+    Cut,
+}
+
+/// The most cells filled together ([`Context::groups`]).
+const MAX_GROUP: usize = 8;
 
 /// Where a cell corner lies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -861,57 +986,257 @@ impl Context<'_> {
         })
     }
 
+    /// The cell's index among the cells (as in `by_cell`).
+    fn cell_index(&self, cell: [usize; 3]) -> u64 {
+        let [cx, cy] = [self.dims[0] - 1, self.dims[1] - 1];
+        (cell[0] + cx * (cell[1] + cy * cell[2])) as u64
+    }
+
+    /// The vertices of the cell's corners ([`Context::point_id`]), in corner-offset order.
+    fn corner_ids(&self, [i, j, k]: [usize; 3]) -> [u32; 8] {
+        std::array::from_fn(|o| {
+            self.point_id([i + (o & 1), j + (o >> 1 & 1), k + (o >> 2 & 1)])
+        })
+    }
+
+    /// How the cell is filled.
+    fn cell_fill(&self, cell: [usize; 3]) -> CellFill {
+        let ids = self.corner_ids(cell);
+        let outside = ids.iter().filter(|&&v| v == u32::MAX).count();
+        let zero = ids.iter().filter(|&&v| (v as usize) < self.base).count();
+        let inside = 8 - outside - zero;
+        // Zero corners (ternary): the surface passes through them. The cell is whole
+        // when the rest are inside and the surface only touches it at those points;
+        // with zero corners only, it lies on the side where `g`, the level, counts.
+        let owns = zero > 0 && !self.cell_triangles(cell).is_empty();
+        // Snapped onto a crossing, a zero corner has left its grid point: the cell's
+        // Kuhn tetrahedra are checked like any other.
+        let whole = outside == 0
+            && (zero == 0
+                || ((inside > 0 || self.flip)
+                    && !owns
+                    && !self.touches_faces(cell)
+                    && KUHN.iter().all(|t| {
+                        let p = t.map(|o| self.position(ids[usize::from(o)]).map(f64::from));
+                        check::positive(p[0], p[1], p[2], p[3])
+                    })));
+        if whole {
+            CellFill::Whole(ids)
+        } else if inside > 0 || owns || (outside == 0 && self.flip) {
+            CellFill::Cut
+        } else {
+            CellFill::Empty
+        }
+    }
+
     fn layer(&self, k: usize) -> Result<Layer, TetError> {
         let [nx, ny, _] = self.dims;
         let mut out = Layer::default();
         let mut scratch = face::Scratch::default();
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
-                let corner = |o: u8| {
-                    self.point_id([
-                        i + usize::from(o & 1),
-                        j + usize::from(o >> 1 & 1),
-                        k + usize::from(o >> 2 & 1),
-                    ])
-                };
-                let ids: [u32; 8] = std::array::from_fn(|o| corner(o as u8));
-                let outside = ids.iter().filter(|&&v| v == u32::MAX).count();
-                let zero = ids.iter().filter(|&&v| (v as usize) < self.base).count();
-                let inside = 8 - outside - zero;
-                // Zero corners (ternary): the surface passes through them. The cell is whole
-                // when the rest are inside and the surface only touches it at those points;
-                // with zero corners only, it lies on the side where `g`, the level, counts.
-                let owns = zero > 0 && !self.cell_triangles([i, j, k]).is_empty();
-                // Snapped onto a crossing, a zero corner has left its grid point: the cell's
-                // Kuhn tetrahedra are checked like any other.
-                let whole = outside == 0
-                    && (zero == 0
-                        || ((inside > 0 || self.flip)
-                            && !owns
-                            && !self.touches_faces([i, j, k])
-                            && KUHN.iter().all(|t| {
-                                let p =
-                                    t.map(|o| self.position(ids[usize::from(o)]).map(f64::from));
-                                check::positive(p[0], p[1], p[2], p[3])
-                            })));
-                if whole {
-                    out.lattice_cells += 1;
-                    out.tets
-                        .extend(KUHN.iter().map(|t| t.map(|o| ids[usize::from(o)])));
-                    self.cell_walls([i, j, k], &mut out.walls, &mut scratch)
-                        .map_err(|reason| TetError::Cell {
-                            cell: [i, j, k],
-                            reason,
-                        })?;
-                } else if inside > 0 || owns || (outside == 0 && self.flip) {
-                    out.cut_cells += 1;
-                    self.cut_cell([i, j, k], &mut out, &mut scratch)
-                        .map_err(|reason| TetError::Cell {
-                            cell: [i, j, k],
-                            reason,
-                        })?;
+                let cell = [i, j, k];
+                if !self.grouped.is_empty()
+                    && self.grouped.binary_search(&self.cell_index(cell)).is_ok()
+                {
+                    continue;
+                }
+                let failed = |reason| TetError::Cell { cell, reason };
+                match self.cell_fill(cell) {
+                    CellFill::Whole(ids) => {
+                        out.lattice_cells += 1;
+                        out.tets
+                            .extend(KUHN.iter().map(|t| t.map(|o| ids[usize::from(o)])));
+                        self.cell_walls(cell, &mut out.walls, &mut scratch)
+                            .map_err(failed)?;
+                    }
+                    CellFill::Cut => {
+                        out.cut_cells += 1;
+                        self.cut_cell(cell, &mut out, &mut scratch)
+                            .map_err(failed)?;
+                    }
+                    CellFill::Empty => {}
                 }
             }
+        }
+        Ok(out)
+    }
+
+    /// The closed boundary of the region in a set of cells (sorted by index): the surface's
+    /// triangles in them and their faces' inside parts, outward, but for the faces two of them
+    /// share; with the side of each. The parts of the grid's outer faces go to `walls` too.
+    fn boundary(
+        &self,
+        cells: &[[usize; 3]],
+        mut walls: Option<&mut Vec<[u32; 3]>>,
+        scratch: &mut face::Scratch,
+    ) -> Result<(Vec<[u32; 3]>, Vec<Side>), &'static str> {
+        let mut boundary: Vec<[u32; 3]> = Vec::new();
+        let mut sides: Vec<Side> = Vec::new();
+        for &cell in cells {
+            boundary.extend(
+                self.cell_triangles(cell)
+                    .iter()
+                    .map(|&(_, t)| self.surface[t as usize]),
+            );
+            sides.resize(boundary.len(), None);
+            for dir in 0..6 {
+                if self
+                    .across(cell, dir)
+                    .is_some_and(|next| cells.contains(&next))
+                {
+                    continue;
+                }
+                let (n, upper) = (dir / 2, dir % 2 == 1);
+                let start = boundary.len();
+                let mut q = cell;
+                q[n] += usize::from(upper);
+                self.face_triangles(q, n, &mut boundary, scratch)?;
+                if !upper {
+                    for t in &mut boundary[start..] {
+                        t.swap(1, 2);
+                    }
+                }
+                let outer = if upper { cell[n] + 2 == self.dims[n] } else { cell[n] == 0 };
+                if let Some(walls) = walls.as_deref_mut().filter(|_| outer) {
+                    walls.extend_from_slice(&boundary[start..]);
+                }
+                sides.resize(boundary.len(), Some((cell, dir)));
+            }
+        }
+        Ok((boundary, sides))
+    }
+
+    /// The cell across face `dir` (`2 · axis + side`) of `cell`, if the grid has one.
+    fn across(&self, cell: [usize; 3], dir: usize) -> Option<[usize; 3]> {
+        let n = dir / 2;
+        let mut next = cell;
+        if dir % 2 == 1 {
+            next[n] += 1;
+            (next[n] + 1 < self.dims[n]).then_some(next)
+        } else {
+            next[n] = next[n].checked_sub(1)?;
+            Some(next)
+        }
+    }
+
+    /// Where a boundary passes through itself: `Some(face)` when one of the triangles that
+    /// meet lies in a face of the cells (the face to open), `Some(None)` when only the surface's
+    /// do, `None` when nothing crosses (or where vertices meet, which only touch).
+    fn crossing(&self, boundary: &[[u32; 3]], sides: &[Side], bent: u8) -> Option<Side> {
+        let position = |v: u32| self.position(v).map(f64::from);
+        if boundary
+            .iter()
+            .any(|t| check::collinear(t.map(position)))
+            || shared_points(boundary, &position)
+        {
+            return None;
+        }
+        // Only a bent face can be crossed: the cell's surface lies on the inside of every flat
+        // face's plane (its vertices leave the cell only along a face's normal, bending it).
+        let at = |t: [u32; 3]| t.map(|v| (v, position(v)));
+        let surface = (0..boundary.len()).filter(|&i| sides[i].is_none());
+        let faces: Vec<usize> = (0..boundary.len())
+            .filter(|&i| sides[i].is_some_and(|(_, dir)| bent >> dir & 1 == 1))
+            .collect();
+        for i in surface {
+            for &j in &faces {
+                if crate::mesh::intersect::triangles_cross(at(boundary[i]), at(boundary[j])) {
+                    return Some(sides[j]);
+                }
+            }
+        }
+        None
+    }
+
+    /// The cells to fill together: each cell whose boundary passes through itself (`crossed`,
+    /// with the face it passes through, from the layers), with its neighbour across that face,
+    /// grown the same way until the group's boundary is clear ([`MAX_GROUP`] cells at most;
+    /// a grid point is never left inside a group, where no tetrahedron would hold it).
+    fn groups(
+        &self,
+        crossed: Vec<([usize; 3], Side)>,
+    ) -> Result<Vec<Vec<[usize; 3]>>, ([usize; 3], &'static str)> {
+        let mut groups: Vec<Vec<[usize; 3]>> = Vec::new();
+        let mut member: HashMap<u64, usize> = HashMap::default();
+        let mut scratch = face::Scratch::default();
+        for (cell, side) in crossed {
+            if member.contains_key(&self.cell_index(cell)) {
+                continue;
+            }
+            let g = groups.len();
+            groups.push(vec![cell]);
+            member.insert(self.cell_index(cell), g);
+            let mut side: Option<Side> = Some(side);
+            // Grow across the face the boundary passes through until it passes through none.
+            while let Some(Some((at, dir))) = side {
+                let Some(next) = self.across(at, dir) else { break };
+                let joined = match member.get(&self.cell_index(next)) {
+                    Some(&h) if h == g => break,
+                    Some(&h) => std::mem::take(&mut groups[h]),
+                    None => vec![next],
+                };
+                if groups[g].len() + joined.len() > MAX_GROUP
+                    || self.encloses_point(&groups[g], &joined)
+                {
+                    // Back where it was: filling the group reports the cell.
+                    if let Some(&h) = member.get(&self.cell_index(joined[0])) {
+                        groups[h] = joined;
+                    }
+                    break;
+                }
+                for &c in &joined {
+                    member.insert(self.cell_index(c), g);
+                }
+                groups[g].extend(joined);
+                groups[g].sort_unstable_by_key(|&c| self.cell_index(c));
+                let (boundary, sides) = self
+                    .boundary(&groups[g], None, &mut scratch)
+                    .map_err(|reason| (cell, reason))?;
+                let bent = groups[g].iter().fold(0, |b, &c| b | self.bent_faces(c));
+                side = if bent == 0 { None } else { self.crossing(&boundary, &sides, 0x3f) };
+            }
+        }
+        groups.retain(|g| !g.is_empty());
+        groups.sort_unstable_by_key(|g| self.cell_index(g[0]));
+        Ok(groups)
+    }
+
+    /// The grid point of corner `o` of the cell (linear index).
+    fn corner_point(&self, [i, j, k]: [usize; 3], o: usize) -> usize {
+        let c = [i + (o & 1), j + (o >> 1 & 1), k + (o >> 2 & 1)];
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    /// Whether joining `more` to the cells `group` would put a grid point inside the union
+    /// (all eight cells around it in it).
+    fn encloses_point(&self, group: &[[usize; 3]], more: &[[usize; 3]]) -> bool {
+        let all: Vec<[usize; 3]> = group.iter().chain(more).copied().collect();
+        more.iter().any(|&cell| {
+            (0..8).any(|o| {
+                let c = [cell[0] + (o & 1), cell[1] + (o >> 1 & 1), cell[2] + (o >> 2 & 1)];
+                (0..8).all(|r| {
+                    let around = [0, 1, 2].map(|d| c[d].checked_sub((r >> d) & 1));
+                    around
+                        .iter()
+                        .all(|x| x.is_some())
+                        .then(|| around.map(|x| x.unwrap_or(0)))
+                        .is_some_and(|a| all.contains(&a))
+                })
+            })
+        })
+    }
+
+    /// Fills a group of cells ([`Context::groups`]) as one region.
+    fn fill_group(&self, cells: &[[usize; 3]]) -> Result<Layer, &'static str> {
+        let mut out = Layer {
+            cut_cells: cells.len(),
+            ..Layer::default()
+        };
+        let mut scratch = face::Scratch::default();
+        let (boundary, _) = self.boundary(cells, Some(&mut out.walls), &mut scratch)?;
+        if !boundary.is_empty() {
+            self.fill_boundary(cells[0], &boundary, &mut out)?;
         }
         Ok(out)
     }
@@ -946,29 +1271,46 @@ impl Context<'_> {
         out: &mut Layer,
         scratch: &mut face::Scratch,
     ) -> Result<(), &'static str> {
-        let mut boundary: Vec<[u32; 3]> = self
-            .cell_triangles(cell)
-            .iter()
-            .map(|&(_, t)| self.surface[t as usize])
-            .collect();
-        for n in 0..3 {
-            let start = boundary.len();
-            self.face_triangles(cell, n, &mut boundary, scratch)?;
-            for t in &mut boundary[start..] {
-                t.swap(1, 2);
-            }
-            if cell[n] == 0 {
-                out.walls.extend_from_slice(&boundary[start..]);
-            }
-            let start = boundary.len();
-            let mut q = cell;
-            q[n] += 1;
-            self.face_triangles(q, n, &mut boundary, scratch)?;
-            if cell[n] + 2 == self.dims[n] {
-                out.walls.extend_from_slice(&boundary[start..]);
+        let walls = out.walls.len();
+        let (boundary, sides) = self.boundary(&[cell], Some(&mut out.walls), scratch)?;
+        let bent = self.bent_faces(cell);
+        if bent != 0 && self.grouped.is_empty() {
+            if let Some(side) = self.crossing(&boundary, &sides, bent) {
+                out.walls.truncate(walls);
+                out.crossed.push((cell, side));
+                return Ok(());
             }
         }
-        for part in parts(&boundary, &|v| self.position(v))? {
+        self.fill_boundary(cell, &boundary, out)
+    }
+
+    /// The cell's faces (bit `2 · axis + side`) with a corner off their plane: a zero point
+    /// snapped onto a crossing along the face's normal.
+    fn bent_faces(&self, cell: [usize; 3]) -> u8 {
+        let ids = self.corner_ids(cell);
+        let mut bent = 0;
+        for (o, &v) in ids.iter().enumerate() {
+            if (v as usize) >= self.base {
+                continue;
+            }
+            let at = self.positions[v as usize];
+            let grid = self.point_position(self.corner_point(cell, o));
+            for n in (0..3).filter(|&n| at[n] != grid[n]) {
+                bent |= 1 << (2 * n + (o >> n & 1));
+            }
+        }
+        bent
+    }
+
+    /// Fills the closed boundary of the region in a cell (or a group of cells around `cell`),
+    /// part by part.
+    fn fill_boundary(
+        &self,
+        cell: [usize; 3],
+        boundary: &[[u32; 3]],
+        out: &mut Layer,
+    ) -> Result<(), &'static str> {
+        for part in parts(boundary, &|v| self.position(v))? {
             let mut budget = SPLIT_BUDGET;
             let Some(peeled) = self.shape.then(|| self.peeled(cell, &part)).flatten() else {
                 self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
