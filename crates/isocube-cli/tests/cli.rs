@@ -1505,7 +1505,17 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
         }
     }
     assert_eq!(sides, surface);
-    ok(dir.path(), &["extract", "sample:torus:24", "-o", "s.ply"]);
+    ok(
+        dir.path(),
+        &[
+            "extract",
+            "sample:torus:24",
+            "-o",
+            "s.ply",
+            "--method",
+            "ternary",
+        ],
+    );
     let report = info(dir.path(), "s.ply");
     assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);
 
@@ -1673,6 +1683,8 @@ fn tetmesh_fills_contour_stacks() {
         "sections",
         "--triangulate",
         "local",
+        "--method",
+        "mc",
     ]));
     assert!(split > 2 * coarse, "{split} {coarse}");
     ok(
@@ -1913,7 +1925,7 @@ fn tetmesh_on_a_file_is_bounded_by_extracts_surface() {
         "--snap-position",
         "grid",
     ];
-    let integers = ["--level", "2000"];
+    let integers = ["--level", "2000", "--method", "ternary"];
     for (file, method) in [
         ("v.npy", &["--method", "mc"][..]),
         ("v.npy", &ternary),

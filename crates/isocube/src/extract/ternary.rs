@@ -1418,7 +1418,9 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
-                if t < best.3 {
+                // Within the snap distance (a point on the grid's outer face whose near
+                // crossings all leave it stays on its grid point).
+                if t < best.3 && t <= f64::from(self.snapping.snap) {
                     best = if forward {
                         (c, axis, t, t)
                     } else {

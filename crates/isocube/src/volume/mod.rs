@@ -532,7 +532,11 @@ fn mesh_region(
             Ok(groups) => groups,
             Err((cell, reason)) => break Err(TetError::Cell { cell, reason }),
         };
-        ctx.grouped = groups.iter().flatten().map(|&c| ctx.cell_index(c)).collect();
+        ctx.grouped = groups
+            .iter()
+            .flatten()
+            .map(|&c| ctx.cell_index(c))
+            .collect();
         ctx.grouped.sort_unstable();
         tets.clear();
         walls.clear();
@@ -898,6 +902,9 @@ struct Context<'a> {
 /// its face `2 · axis + side`, side 1 the upper face).
 type Side = Option<([usize; 3], usize)>;
 
+/// A cell and why it could not be filled.
+type CellFailure = ([usize; 3], &'static str);
+
 /// How a cell is filled.
 enum CellFill {
     /// Not at all: no part of the region in it.
@@ -909,7 +916,10 @@ enum CellFill {
 }
 
 /// The most cells filled together ([`Context::groups`]).
-const MAX_GROUP: usize = 8;
+const MAX_GROUP: usize = 12;
+
+/// How many times a group that does not fill is grown and tried again.
+const FILL_TRIES: u32 = 2;
 
 /// Where a cell corner lies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -994,9 +1004,7 @@ impl Context<'_> {
 
     /// The vertices of the cell's corners ([`Context::point_id`]), in corner-offset order.
     fn corner_ids(&self, [i, j, k]: [usize; 3]) -> [u32; 8] {
-        std::array::from_fn(|o| {
-            self.point_id([i + (o & 1), j + (o >> 1 & 1), k + (o >> 2 & 1)])
-        })
+        std::array::from_fn(|o| self.point_id([i + (o & 1), j + (o >> 1 & 1), k + (o >> 2 & 1)]))
     }
 
     /// How the cell is filled.
@@ -1097,7 +1105,11 @@ impl Context<'_> {
                         t.swap(1, 2);
                     }
                 }
-                let outer = if upper { cell[n] + 2 == self.dims[n] } else { cell[n] == 0 };
+                let outer = if upper {
+                    cell[n] + 2 == self.dims[n]
+                } else {
+                    cell[n] == 0
+                };
                 if let Some(walls) = walls.as_deref_mut().filter(|_| outer) {
                     walls.extend_from_slice(&boundary[start..]);
                 }
@@ -1125,9 +1137,7 @@ impl Context<'_> {
     /// do, `None` when nothing crosses (or where vertices meet, which only touch).
     fn crossing(&self, boundary: &[[u32; 3]], sides: &[Side], bent: u8) -> Option<Side> {
         let position = |v: u32| self.position(v).map(f64::from);
-        if boundary
-            .iter()
-            .any(|t| check::collinear(t.map(position)))
+        if boundary.iter().any(|t| check::collinear(t.map(position)))
             || shared_points(boundary, &position)
         {
             return None;
@@ -1149,14 +1159,16 @@ impl Context<'_> {
         None
     }
 
-    /// The cells to fill together: each cell whose boundary passes through itself (`crossed`,
-    /// with the face it passes through, from the layers), with its neighbour across that face,
-    /// grown the same way until the group's boundary is clear ([`MAX_GROUP`] cells at most;
-    /// a grid point is never left inside a group, where no tetrahedron would hold it).
+    /// The cells to fill together: each cell the layers could not fill alone (`crossed`: its
+    /// boundary passes through one of its faces, named, bent by corners off their grid points;
+    /// or no cone, split or front filled it), joined with its neighbour across that face, or
+    /// across another face its region continues through (bent faces first), until the group's
+    /// boundary passes through none of its faces and the group fills ([`MAX_GROUP`] cells at
+    /// most; a grid point is never left inside a group, where no tetrahedron would hold it).
     fn groups(
         &self,
         crossed: Vec<([usize; 3], Side)>,
-    ) -> Result<Vec<Vec<[usize; 3]>>, ([usize; 3], &'static str)> {
+    ) -> Result<Vec<Vec<[usize; 3]>>, CellFailure> {
         let mut groups: Vec<Vec<[usize; 3]>> = Vec::new();
         let mut member: HashMap<u64, usize> = HashMap::default();
         let mut scratch = face::Scratch::default();
@@ -1167,10 +1179,23 @@ impl Context<'_> {
             let g = groups.len();
             groups.push(vec![cell]);
             member.insert(self.cell_index(cell), g);
-            let mut side: Option<Side> = Some(side);
-            // Grow across the face the boundary passes through until it passes through none.
-            while let Some(Some((at, dir))) = side {
-                let Some(next) = self.across(at, dir) else { break };
+            let mut open = side;
+            // Filling a group that does not fill costs a search: tried a few times only.
+            let mut tries = FILL_TRIES;
+            loop {
+                let face = match open {
+                    Some(face) => Some(face),
+                    None if tries == 0 => None,
+                    None if self.fill_group(&groups[g]).is_ok() => None,
+                    None => {
+                        tries -= 1;
+                        self.face_to_open(&groups[g], &member)
+                    }
+                };
+                let Some((at, dir)) = face else { break };
+                let Some(next) = self.across(at, dir) else {
+                    break;
+                };
                 let joined = match member.get(&self.cell_index(next)) {
                     Some(&h) if h == g => break,
                     Some(&h) => std::mem::take(&mut groups[h]),
@@ -1194,12 +1219,53 @@ impl Context<'_> {
                     .boundary(&groups[g], None, &mut scratch)
                     .map_err(|reason| (cell, reason))?;
                 let bent = groups[g].iter().fold(0, |b, &c| b | self.bent_faces(c));
-                side = if bent == 0 { None } else { self.crossing(&boundary, &sides, 0x3f) };
+                open = match bent {
+                    0 => None,
+                    _ => self.crossing(&boundary, &sides, 0x3f).flatten(),
+                };
             }
         }
         groups.retain(|g| !g.is_empty());
         groups.sort_unstable_by_key(|g| self.cell_index(g[0]));
         Ok(groups)
+    }
+
+    /// A face of the group's cells to open next: one the region continues through to a cell
+    /// the group may take (bent faces first, then in cell and face order).
+    fn face_to_open(
+        &self,
+        group: &[[usize; 3]],
+        member: &HashMap<u64, usize>,
+    ) -> Option<([usize; 3], usize)> {
+        let mut scratch = face::Scratch::default();
+        let mut faces = Vec::new();
+        for &cell in group {
+            let bent = self.bent_faces(cell);
+            for dir in 0..6 {
+                let Some(next) = self.across(cell, dir) else {
+                    continue;
+                };
+                if group.contains(&next)
+                    || member.contains_key(&self.cell_index(next))
+                    || self.encloses_point(group, &[next])
+                {
+                    continue;
+                }
+                let mut q = cell;
+                q[dir / 2] += dir % 2;
+                let mut on = Vec::new();
+                if self
+                    .face_triangles(q, dir / 2, &mut on, &mut scratch)
+                    .is_err()
+                    || on.is_empty()
+                {
+                    continue;
+                }
+                faces.push((bent >> dir & 1 == 0, cell, dir));
+            }
+        }
+        faces.sort_unstable_by_key(|&(flat, cell, dir)| (flat, self.cell_index(cell), dir));
+        faces.first().map(|&(_, cell, dir)| (cell, dir))
     }
 
     /// The grid point of corner `o` of the cell (linear index).
@@ -1214,7 +1280,11 @@ impl Context<'_> {
         let all: Vec<[usize; 3]> = group.iter().chain(more).copied().collect();
         more.iter().any(|&cell| {
             (0..8).any(|o| {
-                let c = [cell[0] + (o & 1), cell[1] + (o >> 1 & 1), cell[2] + (o >> 2 & 1)];
+                let c = [
+                    cell[0] + (o & 1),
+                    cell[1] + (o >> 1 & 1),
+                    cell[2] + (o >> 2 & 1),
+                ];
                 (0..8).all(|r| {
                     let around = [0, 1, 2].map(|d| c[d].checked_sub((r >> d) & 1));
                     around
@@ -1237,6 +1307,20 @@ impl Context<'_> {
         let (boundary, _) = self.boundary(cells, Some(&mut out.walls), &mut scratch)?;
         if !boundary.is_empty() {
             self.fill_boundary(cells[0], &boundary, &mut out)?;
+        }
+        // A group's boundary bounds volume everywhere: a flat element would be a fill gone wrong.
+        let at = |v: u32| {
+            if v & STEINER != 0 {
+                out.steiner[(v & !STEINER) as usize].map(f64::from)
+            } else {
+                self.position(v).map(f64::from)
+            }
+        };
+        if out.tets.iter().any(|t| {
+            let p = t.map(at);
+            !check::positive(p[0], p[1], p[2], p[3])
+        }) {
+            return Err(FOLDED);
         }
         Ok(out)
     }
@@ -1271,17 +1355,30 @@ impl Context<'_> {
         out: &mut Layer,
         scratch: &mut face::Scratch,
     ) -> Result<(), &'static str> {
-        let walls = out.walls.len();
+        let (walls, tets, steiner) = (out.walls.len(), out.tets.len(), out.steiner.len());
         let (boundary, sides) = self.boundary(&[cell], Some(&mut out.walls), scratch)?;
+        // The first time through (no groups yet), a cell that does not fill alone is reported,
+        // to be filled with neighbours.
+        let first = self.grouped.is_empty();
         let bent = self.bent_faces(cell);
-        if bent != 0 && self.grouped.is_empty() {
-            if let Some(side) = self.crossing(&boundary, &sides, bent) {
+        let crossed = match bent {
+            0 => None,
+            _ => self.crossing(&boundary, &sides, bent),
+        };
+        let filled = match crossed {
+            Some(_) if first => Err(CROSSED),
+            _ => self.fill_boundary(cell, &boundary, out),
+        };
+        match filled {
+            Err(_) if first => {
                 out.walls.truncate(walls);
-                out.crossed.push((cell, side));
-                return Ok(());
+                out.tets.truncate(tets);
+                out.steiner.truncate(steiner);
+                out.crossed.push((cell, crossed.flatten()));
+                Ok(())
             }
+            filled => filled,
         }
-        self.fill_boundary(cell, &boundary, out)
     }
 
     /// The cell's faces (bit `2 · axis + side`) with a corner off their plane: a zero point

@@ -23,7 +23,7 @@ fn all_options() -> Vec<ExtractOptions> {
 }
 
 /// [`all_options`] with ternary extraction at snap distances 0.3 and 0.5, snapped points on
-/// their grid points or on crossings (the side below the level only).
+/// their grid points or on crossings, both sides.
 fn ternary_options() -> Vec<ExtractOptions> {
     let mut out = Vec::new();
     for snap in [0.3, 0.5] {
@@ -33,15 +33,7 @@ fn ternary_options() -> Vec<ExtractOptions> {
                     .with_snap(snap)
                     .with_position(position),
             );
-            // Snapped onto crossings, the cells around a snapped point follow it there; the
-            // side above the level then has folded parts no cone fills (70 of 84 sample runs
-            // refused, see the README), so only the side below is held to every sample.
-            out.extend(
-                all_options()
-                    .into_iter()
-                    .filter(|o| position == SnapPosition::GridPoint || !o.flip)
-                    .map(|o| o.with_method(method)),
-            );
+            out.extend(all_options().into_iter().map(|o| o.with_method(method)));
         }
     }
     out
@@ -140,7 +132,7 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
 fn random_grids_give_valid_meshes_or_name_the_cell() {
     let mut rng = crate::TestRng::new(7);
     let (mut meshed, mut refused, mut refused_ties) = (0, 0, 0);
-    for case in 0..300 {
+    for case in 0..150 {
         let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 5) as usize);
         let ties = case % 3 == 0;
         let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
@@ -154,8 +146,16 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
             .collect();
         let grid = Grid::new(dims, values).unwrap();
         // Ternary on every third grid (the snapping choice is the slow part of a case).
+        // Random values snapped onto crossings with the side above the level: not yet held to
+        // this (flat elements and refusals remain, issue 50's notes).
         let ternary = if case % 3 == 1 {
             ternary_options()
+                .into_iter()
+                .filter(|o| {
+                    !o.flip
+                        || !matches!(o.method, Method::Ternary(s) if s.position == SnapPosition::NearestCrossing)
+                })
+                .collect()
         } else {
             Vec::new()
         };
@@ -175,6 +175,12 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
                     meshed += 1;
                 }
                 Err(TetError::Empty) => {}
+                Err(TetError::TiedValues { cell, ties: n, .. }) => {
+                    assert!(ties && n > 0 && options.method == Method::MarchingCubes);
+                    assert!((0..3).all(|d| cell[d] + 1 < dims[d]), "{cell:?}");
+                    refused += 1;
+                    refused_ties += 1;
+                }
                 Err(TetError::Cell { cell, .. }) => {
                     assert!((0..3).all(|d| cell[d] + 1 < dims[d]), "{cell:?}");
                     refused += 1;
