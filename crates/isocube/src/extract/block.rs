@@ -99,7 +99,7 @@ pub fn mesh_block(
             halo,
         });
     }
-    let local = block.with_base(at, dims);
+    let local = block.with_base(at);
     let local_cells = CellBox::new(
         std::array::from_fn(|a| cells.min[a] - at[a]),
         std::array::from_fn(|a| cells.max[a] - at[a]),

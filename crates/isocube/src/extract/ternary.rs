@@ -258,7 +258,7 @@ impl<'a> Ternary<'a> {
             0,
             &self.values,
         )
-        .with_base(g.base(), g.whole())
+        .with_base(g.base())
     }
 
     /// Number of point `(i, j, k)`: its place in [`Ternary::values`].
@@ -1401,11 +1401,6 @@ impl<'a> Ternary<'a> {
         let dims = self.grid.dims();
         let mut best = (c, 0, 0.0, f64::INFINITY);
         for (axis, &stride) in self.strides.iter().enumerate() {
-            // A point on the grid's outer face stays in it: the surface's rim stays on the
-            // box, and the cells' faces there flat (a volume mesh's walls stay the box's).
-            if self.grid.on_outer_face(c, axis) {
-                continue;
-            }
             for forward in [false, true] {
                 let q = match forward {
                     true if c[axis] + 1 < dims[axis] => p + stride,
@@ -1418,9 +1413,7 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
-                // Within the snap distance (a point on the grid's outer face whose near
-                // crossings all leave it stays on its grid point).
-                if t < best.3 && t <= f64::from(self.snapping.snap) {
+                if t < best.3 {
                     best = if forward {
                         (c, axis, t, t)
                     } else {

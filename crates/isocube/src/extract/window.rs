@@ -36,9 +36,9 @@ impl<'a> Window<'a> {
     }
 
     /// The window of a block of a larger grid (see [`GridView::with_base`]).
-    pub(super) fn with_base(self, base: [usize; 3], whole: [usize; 3]) -> Window<'a> {
+    pub(super) fn with_base(self, base: [usize; 3]) -> Window<'a> {
         Window {
-            view: self.view.with_base(base, whole),
+            view: self.view.with_base(base),
             ..self
         }
     }

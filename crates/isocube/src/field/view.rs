@@ -48,8 +48,6 @@ pub struct GridView<'a> {
     /// The whole grid's index of point `(0, 0, 0)` when the view is a block of a larger grid:
     /// positions are the whole grid's, to the bit.
     base: [usize; 3],
-    /// The larger grid's dimensions when the view is a block of it (else the view's).
-    whole: Option<[usize; 3]>,
 }
 
 impl<'a> GridView<'a> {
@@ -105,7 +103,6 @@ impl<'a> GridView<'a> {
             exact: None,
             heights: None,
             base: [0; 3],
-            whole: None,
         })
     }
 
@@ -130,7 +127,6 @@ impl<'a> GridView<'a> {
             exact: None,
             heights,
             base: [0; 3],
-            whole: None,
         }
     }
 
@@ -143,23 +139,10 @@ impl<'a> GridView<'a> {
     /// The view as the block of a larger grid whose point `base` is the view's `(0, 0, 0)`:
     /// positions are computed from the larger grid's indices (its spacing and origin are the
     /// view's), so they come out as the larger grid's to the bit. Not with heights.
-    pub(crate) fn with_base(mut self, base: [usize; 3], whole: [usize; 3]) -> GridView<'a> {
+    pub(crate) fn with_base(mut self, base: [usize; 3]) -> GridView<'a> {
         debug_assert!(self.heights.is_none() || base == [0; 3]);
         self.base = base;
-        self.whole = Some(whole);
         self
-    }
-
-    /// The larger grid's dimensions (the view's own unless it is a block of one,
-    /// [`GridView::with_base`]).
-    pub(crate) fn whole(&self) -> [usize; 3] {
-        self.whole.unwrap_or(self.dims)
-    }
-
-    /// Whether the view's point `c` lies on the larger grid's outer face across `axis`.
-    pub(crate) fn on_outer_face(&self, c: [usize; 3], axis: usize) -> bool {
-        let at = c[axis] + self.base[axis];
-        at == 0 || at + 1 == self.whole()[axis]
     }
 
     /// Sets the spacing (each finite and positive).

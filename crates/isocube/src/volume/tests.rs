@@ -112,7 +112,15 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
                 tets.stats.lattice_cells > 0 && tets.stats.cut_cells > 0,
                 "{what}"
             );
-            sides.push((format!("{:?}", options.with_flip(false)), c.volume));
+            // Snapped onto crossings, a point on the grid's outer face may leave it: the box's
+            // face bends there and neither side holds the sliver between (the README's limits).
+            let on_box = !matches!(
+                options.method,
+                Method::Ternary(s) if s.position == SnapPosition::NearestCrossing
+            );
+            if on_box {
+                sides.push((format!("{:?}", options.with_flip(false)), c.volume));
+            }
         }
         let total = box_volume(&grid);
         sides.sort_by(|a, b| a.0.cmp(&b.0));
