@@ -47,7 +47,7 @@ def triples(triangles: np.ndarray) -> set[tuple[int, ...]]:
 
 @pytest.mark.parametrize(
     "options",
-    [{}, {"method": "ternary"}, {"method": "ternary", "snap": 0.5, "flip": True}],
+    [{}, {"method": "mc"}, {"snap": 0.5, "flip": True}, {"snap_position": "grid"}],
 )
 def test_the_tetrahedra_fill_the_region_the_surface_bounds(options: dict[str, Any]) -> None:
     a = ellipsoid()
@@ -57,10 +57,9 @@ def test_the_tetrahedra_fill_the_region_the_surface_bounds(options: dict[str, An
     # exactly the surface and the walls.
     assert (signed_volumes(mesh.vertices, mesh.tets) > 0).all()
     assert faces_once(mesh.tets) == triples(mesh.surface) | triples(mesh.walls)
-    # The surface is extract's with the same options (its vertices first).
-    surface_options = {k: v for k, v in options.items()}
-    if surface_options.get("method") == "ternary":
-        surface_options["snap_position"] = "grid"
+    # The surface is extract's with the same options (its vertices first); the one default
+    # that differs is the method (ternary for volume meshes).
+    surface_options = {"method": "ternary", **options}
     surface = isocube.extract(a, normals=False, **surface_options)
     assert mesh.surface_vertices == len(surface.vertices)
     assert np.array_equal(mesh.vertices[: mesh.surface_vertices], surface.vertices)
