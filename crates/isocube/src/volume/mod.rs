@@ -511,16 +511,7 @@ fn mesh_region(
             |k| ctx.layer(k),
             |layers| asked(cells + layers * layer_cells),
             |layer| {
-                if positions.len() + layer.steiner.len() >= STEINER as usize {
-                    return Err(TetError::TooManyVertices);
-                }
-                let map = steiner_map(positions.len() as u32);
-                walls.extend(layer.walls.iter().map(|t| t.map(map)));
-                tets.extend(layer.tets.iter().map(|t| t.map(map)));
-                positions.extend_from_slice(&layer.steiner);
-                stats.steiner_points += layer.steiner.len();
-                stats.lattice_cells += layer.lattice_cells;
-                stats.cut_cells += layer.cut_cells;
+                append_layer(&layer, &mut positions, &mut tets, &mut walls, &mut stats)?;
                 crossed.extend(layer.crossed);
                 Ok(())
             },
@@ -558,15 +549,7 @@ fn mesh_region(
             })
             .collect::<Result<_, _>>()?;
         for layer in layers {
-            if positions.len() + layer.steiner.len() >= STEINER as usize {
-                return Err(TetError::TooManyVertices);
-            }
-            let map = steiner_map(positions.len() as u32);
-            walls.extend(layer.walls.iter().map(|t| t.map(map)));
-            tets.extend(layer.tets.iter().map(|t| t.map(map)));
-            positions.extend_from_slice(&layer.steiner);
-            stats.steiner_points += layer.steiner.len();
-            stats.cut_cells += layer.cut_cells;
+            append_layer(&layer, &mut positions, &mut tets, &mut walls, &mut stats)?;
             stats.grouped_cells += layer.cut_cells;
         }
         Ok(())
@@ -614,6 +597,28 @@ fn mesh_region(
     };
     mesh.orient(&grid);
     Ok(mesh)
+}
+
+/// Appends a layer's tetrahedra, walls and Steiner points (numbered after `positions`) and
+/// counts.
+fn append_layer(
+    layer: &Layer,
+    positions: &mut Vec<[f32; 3]>,
+    tets: &mut Vec<[u32; 4]>,
+    walls: &mut Vec<[u32; 3]>,
+    stats: &mut TetStats,
+) -> Result<(), TetError> {
+    if positions.len() + layer.steiner.len() >= STEINER as usize {
+        return Err(TetError::TooManyVertices);
+    }
+    let map = steiner_map(positions.len() as u32);
+    walls.extend(layer.walls.iter().map(|t| t.map(map)));
+    tets.extend(layer.tets.iter().map(|t| t.map(map)));
+    positions.extend_from_slice(&layer.steiner);
+    stats.steiner_points += layer.steiner.len();
+    stats.lattice_cells += layer.lattice_cells;
+    stats.cut_cells += layer.cut_cells;
+    Ok(())
 }
 
 /// Meshes layers `0..count` in parallel a batch at a time and hands them to `append` in
