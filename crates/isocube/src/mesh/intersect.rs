@@ -94,15 +94,17 @@ pub(crate) fn triangles_cross(t: [(u32, [f64; 3]); 3], g: [(u32, [f64; 3]); 3]) 
         3 => false,
         _ => {
             // Sharing an edge, they meet beyond it only lying in one plane on one side of it.
-            if gp.iter().any(|&x| orient(tp[0], tp[1], tp[2], x) != 0.0) {
-                return false;
-            }
+            // (Only the other corner is asked: the shared ones lie in the plane, and an exact
+            // zero is the slowest answer the predicate gives.)
             let other = |x: [(u32, [f64; 3]); 3]| {
                 x.iter()
                     .find(|y| !shared.contains(&y.0))
                     .expect("three vertices")
                     .1
             };
+            if orient(tp[0], tp[1], tp[2], other(g)) != 0.0 {
+                return false;
+            }
             let (a, b) = (
                 t.iter().find(|y| y.0 == shared[0]).expect("shared").1,
                 t.iter().find(|y| y.0 == shared[1]).expect("shared").1,

@@ -924,3 +924,159 @@ fn packed_spheres_at_40_stay_within_the_range() {
         }
     }
 }
+
+/// Counts refusals and invalid meshes on random grids per option set (run with `--ignored
+/// --release --nocapture`; `ISOCUBE_PROBE_CASES` cases, seed `ISOCUBE_PROBE_SEED`).
+#[test]
+#[ignore]
+fn random_probe() {
+    let cases: usize = std::env::var("ISOCUBE_PROBE_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(300);
+    let seed: u64 = std::env::var("ISOCUBE_PROBE_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(11);
+    let only = std::env::var("ISOCUBE_PROBE_ONLY").unwrap_or_default();
+    let mut rng = crate::TestRng::new(seed);
+    let mut tally: std::collections::BTreeMap<String, [usize; 4]> = Default::default();
+    let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
+    let mut examples: std::collections::BTreeMap<String, String> = Default::default();
+    for case in 0..cases {
+        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 5) as usize);
+        let ties = case % 3 == 0;
+        let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
+            .map(|_| {
+                if ties {
+                    (rng.next_u64() % 5) as f32 - 2.0
+                } else {
+                    rng.unit() as f32 * 2.0 - 1.0
+                }
+            })
+            .collect();
+        let grid = Grid::new(dims, values.clone()).unwrap();
+        for options in all_options().into_iter().chain(ternary_options()) {
+            let key = match options.method {
+                Method::MarchingCubes => format!("mc flip={} ties={ties}", options.flip),
+                Method::Ternary(s) => format!(
+                    "ternary {} {:?} flip={} ties={ties}",
+                    s.snap, s.position, options.flip
+                ),
+                _ => unreachable!(),
+            };
+            if !key.contains(&only) {
+                continue;
+            }
+            let t = tally.entry(key.clone()).or_default();
+            t[0] += 1;
+            let what = match tetmesh(&grid, &options) {
+                Ok(tets) => {
+                    let c = tets.check();
+                    let bad = !c.conforming
+                        || c.inverted > 0
+                        || (!ties && c.flat > 0)
+                        || (!ties && (c.volume - c.enclosed).abs() > 1e-9 * c.enclosed.abs());
+                    if bad {
+                        t[2] += 1;
+                        Some(format!("{c:?}"))
+                    } else {
+                        None
+                    }
+                }
+                Err(TetError::Empty) => None,
+                Err(TetError::TiedValues { .. }) => {
+                    t[3] += 1;
+                    None
+                }
+                Err(e) => {
+                    t[1] += 1;
+                    if let TetError::Cell { reason, .. } = e {
+                        let surface = crate::extract::extract(&grid, &options).unwrap().0;
+                        let at = |v: u32| surface.positions[v as usize].map(f64::from);
+                        let selfx = crate::mesh::intersect::first_crossing(&surface.triangles, &at)
+                            .is_some();
+                        *reasons
+                            .entry(format!("{key}: self-crossing surface {selfx}: {reason}"))
+                            .or_default() += 1;
+                    }
+                    Some(e.to_string())
+                }
+            };
+            if let Some(w) = what {
+                examples.entry(key).or_insert_with(|| {
+                    format!("case {case} dims {dims:?} {options:?} values {values:?}: {w}")
+                });
+            }
+        }
+    }
+    for (k, t) in &tally {
+        eprintln!(
+            "{k}: {} runs, {} refused, {} invalid, {} ties",
+            t[0], t[1], t[2], t[3]
+        );
+    }
+    for (k, n) in &reasons {
+        eprintln!("REASON {k}: {n}");
+    }
+    for (k, e) in &examples {
+        eprintln!("EXAMPLE {k}: {e}");
+    }
+}
+
+/// Counts extracted surfaces that pass through themselves on random grids, per snap option,
+/// and shows the first crossing pair of each (run with `--ignored --release --nocapture`).
+/// Issue 50's measurement: snapped onto crossings, a few surfaces in ten thousand do.
+#[test]
+#[ignore]
+fn self_crossing_probe() {
+    let cases: usize = std::env::var("ISOCUBE_PROBE_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3000);
+    let mut rng = crate::TestRng::new(5);
+    let mut tally: std::collections::BTreeMap<String, [usize; 2]> = Default::default();
+    for case in 0..cases {
+        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 6) as usize);
+        let ties = case % 3 == 0;
+        let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
+            .map(|_| {
+                if ties {
+                    (rng.next_u64() % 5) as f32 - 2.0
+                } else {
+                    rng.unit() as f32 * 2.0 - 1.0
+                }
+            })
+            .collect();
+        let grid = Grid::new(dims, values).unwrap();
+        for options in ternary_options() {
+            let Method::Ternary(s) = options.method else {
+                continue;
+            };
+            let key = format!(
+                "{} {:?} flip={} ties={ties}",
+                s.snap, s.position, options.flip
+            );
+            let surface = crate::extract::extract(&grid, &options).unwrap().0;
+            let at = |v: u32| surface.positions[v as usize].map(f64::from);
+            let t = tally.entry(key).or_default();
+            t[0] += 1;
+            if let Some((i, j)) = crate::mesh::intersect::first_crossing(&surface.triangles, &at) {
+                t[1] += 1;
+                // The first pair of each option set, to look at.
+                if t[1] == 1 {
+                    let show =
+                        |k: usize| surface.triangles[k].map(|v| surface.positions[v as usize]);
+                    eprintln!(
+                        "case {case} {dims:?} {options:?}\n  {:?}\n  {:?}",
+                        show(i),
+                        show(j)
+                    );
+                }
+            }
+        }
+    }
+    for (k, t) in &tally {
+        eprintln!("{k}: {} surfaces, {} pass through themselves", t[0], t[1]);
+    }
+}
