@@ -963,7 +963,6 @@ fn random_probe() {
                     "ternary {} {:?} flip={} ties={ties}",
                     s.snap, s.position, options.flip
                 ),
-                _ => unreachable!(),
             };
             if !key.contains(&only) {
                 continue;
