@@ -944,17 +944,7 @@ fn random_probe() {
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
     let mut examples: std::collections::BTreeMap<String, String> = Default::default();
     for case in 0..cases {
-        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 5) as usize);
-        let ties = case % 3 == 0;
-        let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
-            .map(|_| {
-                if ties {
-                    (rng.next_u64() % 5) as f32 - 2.0
-                } else {
-                    rng.unit() as f32 * 2.0 - 1.0
-                }
-            })
-            .collect();
+        let (dims, ties, values) = random_values(&mut rng, case, 5);
         let grid = Grid::new(dims, values.clone()).unwrap();
         for options in all_options().into_iter().chain(ternary_options()) {
             let key = match options.method {
@@ -1036,17 +1026,7 @@ fn self_crossing_probe() {
     let mut rng = crate::TestRng::new(5);
     let mut tally: std::collections::BTreeMap<String, [usize; 2]> = Default::default();
     for case in 0..cases {
-        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 6) as usize);
-        let ties = case % 3 == 0;
-        let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
-            .map(|_| {
-                if ties {
-                    (rng.next_u64() % 5) as f32 - 2.0
-                } else {
-                    rng.unit() as f32 * 2.0 - 1.0
-                }
-            })
-            .collect();
+        let (dims, ties, values) = random_values(&mut rng, case, 6);
         let grid = Grid::new(dims, values).unwrap();
         for options in ternary_options() {
             let Method::Ternary(s) = options.method else {
@@ -1078,4 +1058,25 @@ fn self_crossing_probe() {
     for (k, t) in &tally {
         eprintln!("{k}: {} surfaces, {} pass through themselves", t[0], t[1]);
     }
+}
+
+/// A probe's random grid: 2 to `spread + 1` points per axis, and on every third case integer
+/// values from −2 to 2 (ties with the level) instead of uniform ones in [−1, 1).
+fn random_values(
+    rng: &mut crate::TestRng,
+    case: usize,
+    spread: u64,
+) -> ([usize; 3], bool, Vec<f32>) {
+    let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % spread) as usize);
+    let ties = case % 3 == 0;
+    let values = (0..dims[0] * dims[1] * dims[2])
+        .map(|_| {
+            if ties {
+                (rng.next_u64() % 5) as f32 - 2.0
+            } else {
+                rng.unit() as f32 * 2.0 - 1.0
+            }
+        })
+        .collect();
+    (dims, ties, values)
 }
