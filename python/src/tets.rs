@@ -137,6 +137,7 @@ impl PyTetMesh {
         d.set_item("poor_elements", s.improve.poor)?;
         d.set_item("flips_23", s.improve.flips_23)?;
         d.set_item("flips_32", s.improve.flips_32)?;
+        d.set_item("edge_removals", s.improve.edge_removals)?;
         d.set_item("moved_points", s.improve.moves)?;
         d.set_item("inserted_points", s.improve.inserted)?;
         Ok(d)

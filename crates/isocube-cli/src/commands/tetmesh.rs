@@ -356,9 +356,14 @@ fn finish(
     let improve = &s.improve;
     if improve.poor > 0 {
         eprintln!(
-            "improved: {} elements under 12° (or over 162°) worked on: {} + {} flips, {} points \
-             moved, {} added",
-            improve.poor, improve.flips_23, improve.flips_32, improve.moves, improve.inserted
+            "improved: {} elements under 12° (or over 162°) worked on: {} + {} flips, {} edges \
+             removed, {} points moved, {} added",
+            improve.poor,
+            improve.flips_23,
+            improve.flips_32,
+            improve.edge_removals,
+            improve.moves,
+            improve.inserted
         );
     }
     eprintln!(

@@ -1,0 +1,127 @@
+"""Refusal and angle sweep of `isocube tetmesh` over every built-in sample, as a user runs it.
+
+    python bench/tetmesh/sweep.py ISOCUBE_BINARY [--sizes 24,48,96] [--seeds 8] [--jobs 2]
+
+Every built-in sample (`isocube samples`' list but the contour stack) at each size, with seeds
+1..S for the samples that take one (noise, packed-spheres), both sides (the values below the
+level and, with `--flip`, the rest), and five option sets: the default (ternary, snap 0.3,
+vertices on the crossings), `--method mc`, `--snap-position grid` (snap 0.3 on the grid
+points), `--snap 0.5` and `--snap 0.5 --snap-position grid`. Each run is the command end to end
+(sample, mesh, check, binary `.msh` written). A run is *refused* when the command fails: the
+message is kept and printed. For each option set the table gives meshed / refused and the
+range of the smallest and largest dihedral angles over the meshes, how many meshes have an
+angle outside [10°, 165°], and how many of those the surface itself forces: the smallest angle
+is the summary's sharpest boundary edge, which is under 10° (no tetrahedron at that edge can
+do better; the two surface triangles meeting there at a few hundredths of a degree leave the
+element between them flat, so its largest angle is near 180° too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+SAMPLES = ["sphere", "torus", "two-tori", "tangle", "gyroid", "schwarz-p", "hyperboloid", "tubes"]
+SEEDED = ["noise", "packed-spheres"]
+MODES = {
+    "default": [],
+    "mc": ["--method", "mc"],
+    "0.3 grid": ["--snap-position", "grid"],
+    "0.5": ["--snap", "0.5"],
+    "0.5 grid": ["--snap", "0.5", "--snap-position", "grid"],
+}
+LOW, HIGH = 10.0, 165.0
+
+
+@dataclass
+class Run:
+    mode: str
+    spec: str
+    flip: bool
+    ok: bool
+    low: float = float("nan")
+    high: float = float("nan")
+    sharpest: float | None = None
+    message: str = ""
+
+
+def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
+    out = work / f"{spec.replace(':', '-')}-{mode.replace(' ', '-')}-{int(flip)}.msh"
+    args = [binary, "tetmesh", spec, "-o", str(out), "--binary", *MODES[mode]]
+    if flip:
+        args.append("--flip")
+    done = subprocess.run(args, capture_output=True, text=True)
+    out.unlink(missing_ok=True)
+    if done.returncode != 0:
+        return Run(mode, spec, flip, False, message=done.stderr.strip().splitlines()[-1])
+    angles = re.search(r"dihedral angles ([0-9.]+)°\.\.([0-9.]+)°", done.stderr)
+    if angles is None:
+        raise SystemExit(f"{' '.join(args)}: no dihedral angles in\n{done.stderr}")
+    sharpest = re.search(r"sharpest boundary edge: ([0-9.]+)°", done.stderr)
+    return Run(
+        mode,
+        spec,
+        flip,
+        True,
+        float(angles.group(1)),
+        float(angles.group(2)),
+        float(sharpest.group(1)) if sharpest else None,
+    )
+
+
+def forced_by_surface(r: Run) -> bool:
+    return r.sharpest is not None and r.sharpest < LOW and r.low >= r.sharpest - 0.01
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("binary")
+    parser.add_argument("--sizes", default="24,48,96")
+    parser.add_argument("--seeds", type=int, default=8)
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--modes", default=",".join(MODES))
+    options = parser.parse_args()
+    sizes = [int(n) for n in options.sizes.split(",")]
+    modes = options.modes.split(",")
+    specs = [f"sample:{s}:{n}" for s in SAMPLES for n in sizes]
+    specs += [f"sample:{s}:{n}:{seed}" for s in SEEDED for n in sizes for seed in range(1, options.seeds + 1)]
+    jobs = [(mode, spec, flip) for mode in modes for spec in specs for flip in (False, True)]
+    with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(options.jobs) as pool:
+        runs = list(pool.map(lambda job: run(options.binary, Path(tmp), *job), jobs))
+
+    print(f"{len(specs)} inputs × 2 sides; sizes {options.sizes}, seeds 1..{options.seeds}")
+    print()
+    print("| options | meshed | refused | smallest dihedral (min / median) | largest dihedral (max / median) "
+          f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface |")
+    print("|---|---|---|---|---|---|---|")
+    for mode in modes:
+        mine = [r for r in runs if r.mode == mode]
+        good = [r for r in mine if r.ok]
+        lows = sorted(r.low for r in good)
+        highs = sorted(r.high for r in good)
+        outside = [r for r in good if r.low < LOW or r.high > HIGH]
+        forced = [r for r in outside if forced_by_surface(r)]
+        low = f"{lows[0]:.2f}° / {lows[len(lows) // 2]:.2f}°" if lows else "–"
+        high = f"{highs[-1]:.2f}° / {highs[len(highs) // 2]:.2f}°" if highs else "–"
+        print(f"| {mode} | {len(good)} | {len(mine) - len(good)} | {low} | {high} | {len(outside)} | {len(forced)} |")
+    print()
+    for r in runs:
+        if not r.ok:
+            print(f"refused: {r.mode}: {r.spec}{' --flip' if r.flip else ''}: {r.message}")
+    for r in runs:
+        if r.ok and (r.low < LOW or r.high > HIGH):
+            side = " --flip" if r.flip else ""
+            edge = f", sharpest boundary edge {r.sharpest:.2f}°" if r.sharpest is not None else ""
+            edge += " (forced)" if forced_by_surface(r) else ""
+            print(f"outside: {r.mode}: {r.spec}{side}: {r.low:.2f}°..{r.high:.2f}°{edge}")
+    sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
