@@ -67,19 +67,37 @@ def dihedrals(points: np.ndarray, tets: np.ndarray) -> tuple[float, float]:
 
 def volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
     p = points.astype(np.float64)[tets]
-    return np.abs(np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))) / 6.0
+    return (
+        np.abs(
+            np.einsum(
+                "ij,ij->i",
+                p[:, 1] - p[:, 0],
+                np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]),
+            )
+        )
+        / 6.0
+    )
 
 
 def boundary(tets: np.ndarray) -> np.ndarray:
     """The faces of the tetrahedra that belong to one of them only."""
     t = tets.astype(np.int64)
-    faces = np.concatenate([t[:, [1, 2, 3]], t[:, [0, 3, 2]], t[:, [0, 1, 3]], t[:, [0, 2, 1]]])
-    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
+    faces = np.concatenate(
+        [t[:, [1, 2, 3]], t[:, [0, 3, 2]], t[:, [0, 1, 3]], t[:, [0, 2, 1]]]
+    )
+    _, first, counts = np.unique(
+        np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True
+    )
     return faces[first[counts == 1]]
 
 
 def distance(
-    binary: str, field: str, box: tuple[float, float], points: np.ndarray, tets: np.ndarray, work: Path
+    binary: str,
+    field: str,
+    box: tuple[float, float],
+    points: np.ndarray,
+    tets: np.ndarray,
+    work: Path,
 ) -> tuple[float, float]:
     """The largest distance of the mesh's boundary from the field's level set, in grid spacings:
     the boundary but its parts on the box's faces (where the region meets the box)."""
@@ -93,10 +111,15 @@ def distance(
     faces = faces[~on_wall]
     used, compact = np.unique(faces, return_inverse=True)
     path = work / "boundary.ply"
-    mesh = meshio.Mesh(points[used], [("triangle", compact.reshape(-1, 3).astype(np.int32))])
+    mesh = meshio.Mesh(
+        points[used], [("triangle", compact.reshape(-1, 3).astype(np.int32))]
+    )
     meshio.write(path, mesh, binary=True)
     done = subprocess.run(
-        [binary, "-q", "quality", str(path), "--field", field, "--json"], check=True, capture_output=True, text=True
+        [binary, "-q", "quality", str(path), "--field", field, "--json"],
+        check=True,
+        capture_output=True,
+        text=True,
     )
     measured = json.loads(done.stdout)["distance"]
     return float(measured["max"]), float(measured["mean"])
@@ -130,7 +153,12 @@ def isolated(work: Path, job) -> tuple[np.ndarray, np.ndarray, float] | str:
         try:
             with quiet():
                 points, tets, took = job()
-            np.savez(out, points=np.asarray(points, dtype=np.float64), tets=np.asarray(tets)[:, :4], took=took)
+            np.savez(
+                out,
+                points=np.asarray(points, dtype=np.float64),
+                tets=np.asarray(tets)[:, :4],
+                took=took,
+            )
             code = 0
         except BaseException as e:  # reported by the parent as the reason
             (work / "peer.err").write_text(str(e)[:80])
@@ -146,9 +174,13 @@ def isolated(work: Path, job) -> tuple[np.ndarray, np.ndarray, float] | str:
     return data["points"], data["tets"], float(data["took"])
 
 
-def row(sample: str, tool: str, points, tets, took: float, dist: tuple[float, float]) -> None:
+def row(
+    sample: str, tool: str, points, tets, took: float, dist: tuple[float, float]
+) -> None:
     lo, hi = dihedrals(np.asarray(points), np.asarray(tets))
-    print(f"| {sample} | {tool} | {len(tets)} | {lo:.2f}° | {hi:.2f}° | {dist[0]:.4f} / {dist[1]:.4f} | {took:.3f} |")
+    print(
+        f"| {sample} | {tool} | {len(tets)} | {lo:.2f}° | {hi:.2f}° | {dist[0]:.4f} / {dist[1]:.4f} | {took:.3f} |"
+    )
 
 
 def main() -> None:
@@ -165,7 +197,9 @@ def main() -> None:
     except ImportError:
         pygalmesh = None
 
-    print("| sample | tool | elements | min dihedral | max dihedral | boundary distance, max / mean (h) | seconds |")
+    print(
+        "| sample | tool | elements | min dihedral | max dihedral | boundary distance, max / mean (h) | seconds |"
+    )
     print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -175,20 +209,33 @@ def main() -> None:
             box = (0.0, 1.0) if name == "packed-spheres" else (-1.0, 1.0)
             h = (box[1] - box[0]) / (int(n) - 1)
             reference = None
-            for label, options in [("isocube tetmesh (defaults)", []), ("isocube tetmesh --method mc", ["--method", "mc"])]:
+            for label, options in [
+                ("isocube tetmesh (defaults)", []),
+                ("isocube tetmesh --method mc", ["--method", "mc"]),
+            ]:
                 out = work / "t.vtu"
                 start = time.perf_counter()
-                done = subprocess.run([binary, "-q", "tetmesh", field, "-o", str(out), *options], capture_output=True)
+                done = subprocess.run(
+                    [binary, "-q", "tetmesh", field, "-o", str(out), *options],
+                    capture_output=True,
+                )
                 took = time.perf_counter() - start
                 if done.returncode != 0:
-                    print(f"| {sample} | {label} | refused: {done.stderr.decode().strip()[:80]} | | | | |")
+                    print(
+                        f"| {sample} | {label} | refused: {done.stderr.decode().strip()[:80]} | | | | |"
+                    )
                     continue
                 m = meshio.read(out)
                 tets = m.cells_dict["tetra"]
                 dist = distance(binary, field, box, m.points, tets, work)
                 row(sample, label, m.points, tets, took, dist)
                 if reference is None:
-                    reference = (float(volumes(m.points, tets).mean()), dist[0], m.points, tets)
+                    reference = (
+                        float(volumes(m.points, tets).mean()),
+                        dist[0],
+                        m.points,
+                        tets,
+                    )
             if reference is None:
                 continue
             mean_volume, isocube_distance, points, tets = reference
@@ -196,8 +243,14 @@ def main() -> None:
             # surface and, where the region meets the box, the box's faces (closed).
             faces = boundary(tets)
             used, compact = np.unique(faces, return_inverse=True)
-            surface = meshio.Mesh(np.asarray(points, dtype=np.float64)[used], [("triangle", compact.reshape(-1, 3))])
-            pts, tri = surface.points.astype(np.float64), surface.cells_dict["triangle"].astype(np.int32)
+            surface = meshio.Mesh(
+                np.asarray(points, dtype=np.float64)[used],
+                [("triangle", compact.reshape(-1, 3))],
+            )
+            pts, tri = (
+                surface.points.astype(np.float64),
+                surface.cells_dict["triangle"].astype(np.int32),
+            )
 
             def tetgen_job(switches: str):
                 gen = tetgen.TetGen(pts, tri)
@@ -216,7 +269,11 @@ def main() -> None:
                 return nodes, elems, time.perf_counter() - start
 
             def cgal_job():
-                domain = pygalmesh.Ball([0.0, 0.0, 0.0], SPHERE_RADIUS) if name == "sphere" else pygalmesh.Torus(*TORUS)
+                domain = (
+                    pygalmesh.Ball([0.0, 0.0, 0.0], SPHERE_RADIUS)
+                    if name == "sphere"
+                    else pygalmesh.Torus(*TORUS)
+                )
                 start = time.perf_counter()
                 m = pygalmesh.generate_mesh(
                     domain,
@@ -230,7 +287,10 @@ def main() -> None:
                 )
                 return m.points, m.cells_dict["tetra"], time.perf_counter() - start
 
-            jobs = [(f"TetGen -{sw}", lambda sw=sw: tetgen_job(sw)) for sw in ["pYqQ", f"pqQa{mean_volume:.3e}"]]
+            jobs = [
+                (f"TetGen -{sw}", lambda sw=sw: tetgen_job(sw))
+                for sw in ["pYqQ", f"pqQa{mean_volume:.3e}"]
+            ]
             if wildmeshing is not None:
                 jobs.append(("fTetWild (defaults)", wild_job))
             if pygalmesh is not None and name in ("sphere", "torus"):
@@ -241,7 +301,14 @@ def main() -> None:
                     print(f"| {sample} | {tool} | refused: {result} | | | | |")
                     continue
                 nodes, elems, took = result
-                row(sample, tool, nodes, elems, took, distance(binary, field, box, nodes, elems, work))
+                row(
+                    sample,
+                    tool,
+                    nodes,
+                    elems,
+                    took,
+                    distance(binary, field, box, nodes, elems, work),
+                )
 
 
 if __name__ == "__main__":

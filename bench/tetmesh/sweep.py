@@ -27,7 +27,16 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-SAMPLES = ["sphere", "torus", "two-tori", "tangle", "gyroid", "schwarz-p", "hyperboloid", "tubes"]
+SAMPLES = [
+    "sphere",
+    "torus",
+    "two-tori",
+    "tangle",
+    "gyroid",
+    "schwarz-p",
+    "hyperboloid",
+    "tubes",
+]
 SEEDED = ["noise", "packed-spheres"]
 MODES = {
     "default": [],
@@ -59,7 +68,9 @@ def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
     done = subprocess.run(args, capture_output=True, text=True)
     out.unlink(missing_ok=True)
     if done.returncode != 0:
-        return Run(mode, spec, flip, False, message=done.stderr.strip().splitlines()[-1])
+        return Run(
+            mode, spec, flip, False, message=done.stderr.strip().splitlines()[-1]
+        )
     angles = re.search(r"dihedral angles ([0-9.]+)°\.\.([0-9.]+)°", done.stderr)
     if angles is None:
         raise SystemExit(f"{' '.join(args)}: no dihedral angles in\n{done.stderr}")
@@ -90,15 +101,26 @@ def main() -> None:
     sizes = [int(n) for n in options.sizes.split(",")]
     modes = options.modes.split(",")
     specs = [f"sample:{s}:{n}" for s in SAMPLES for n in sizes]
-    specs += [f"sample:{s}:{n}:{seed}" for s in SEEDED for n in sizes for seed in range(1, options.seeds + 1)]
-    jobs = [(mode, spec, flip) for mode in modes for spec in specs for flip in (False, True)]
+    specs += [
+        f"sample:{s}:{n}:{seed}"
+        for s in SEEDED
+        for n in sizes
+        for seed in range(1, options.seeds + 1)
+    ]
+    jobs = [
+        (mode, spec, flip) for mode in modes for spec in specs for flip in (False, True)
+    ]
     with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(options.jobs) as pool:
         runs = list(pool.map(lambda job: run(options.binary, Path(tmp), *job), jobs))
 
-    print(f"{len(specs)} inputs × 2 sides; sizes {options.sizes}, seeds 1..{options.seeds}")
+    print(
+        f"{len(specs)} inputs × 2 sides; sizes {options.sizes}, seeds 1..{options.seeds}"
+    )
     print()
-    print("| options | meshed | refused | smallest dihedral (min / median) | largest dihedral (max / median) "
-          f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface |")
+    print(
+        "| options | meshed | refused | smallest dihedral (min / median) | largest dihedral (max / median) "
+        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface |"
+    )
     print("|---|---|---|---|---|---|---|")
     for mode in modes:
         mine = [r for r in runs if r.mode == mode]
@@ -109,17 +131,27 @@ def main() -> None:
         forced = [r for r in outside if forced_by_surface(r)]
         low = f"{lows[0]:.2f}° / {lows[len(lows) // 2]:.2f}°" if lows else "–"
         high = f"{highs[-1]:.2f}° / {highs[len(highs) // 2]:.2f}°" if highs else "–"
-        print(f"| {mode} | {len(good)} | {len(mine) - len(good)} | {low} | {high} | {len(outside)} | {len(forced)} |")
+        print(
+            f"| {mode} | {len(good)} | {len(mine) - len(good)} | {low} | {high} | {len(outside)} | {len(forced)} |"
+        )
     print()
     for r in runs:
         if not r.ok:
-            print(f"refused: {r.mode}: {r.spec}{' --flip' if r.flip else ''}: {r.message}")
+            print(
+                f"refused: {r.mode}: {r.spec}{' --flip' if r.flip else ''}: {r.message}"
+            )
     for r in runs:
         if r.ok and (r.low < LOW or r.high > HIGH):
             side = " --flip" if r.flip else ""
-            edge = f", sharpest boundary edge {r.sharpest:.2f}°" if r.sharpest is not None else ""
+            edge = (
+                f", sharpest boundary edge {r.sharpest:.2f}°"
+                if r.sharpest is not None
+                else ""
+            )
             edge += " (forced)" if forced_by_surface(r) else ""
-            print(f"outside: {r.mode}: {r.spec}{side}: {r.low:.2f}°..{r.high:.2f}°{edge}")
+            print(
+                f"outside: {r.mode}: {r.spec}{side}: {r.low:.2f}°..{r.high:.2f}°{edge}"
+            )
     sys.stdout.flush()
 
 

@@ -28,7 +28,11 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-MODES = {"mc": ["--method", "mc"], "ternary, grid": ["--snap-position", "grid"], "default": []}
+MODES = {
+    "mc": ["--method", "mc"],
+    "ternary, grid": ["--snap-position", "grid"],
+    "default": [],
+}
 
 
 def fields(work: Path) -> list[tuple[str, list[str], str]]:
@@ -48,10 +52,18 @@ def fields(work: Path) -> list[tuple[str, list[str], str]]:
             if shape == "ball":
                 f = np.sqrt(x * x + y * y + z * z) - 0.8 * size
             else:
-                f = np.sqrt((np.sqrt(x * x + y * y) - 0.6 * size) ** 2 + z * z) - 0.25 * size
+                f = (
+                    np.sqrt((np.sqrt(x * x + y * y) - 0.6 * size) ** 2 + z * z)
+                    - 0.25 * size
+                )
             path = work / f"{shape}-{n}-{len(out)}.npy"
             np.save(path, f.astype(np.float32))
-            options = ["--spacing", ",".join(f"{s:.6g}" for s in spacing), "--origin", ",".join(f"{o:.6g}" for o in origin)]
+            options = [
+                "--spacing",
+                ",".join(f"{s:.6g}" for s in spacing),
+                "--origin",
+                ",".join(f"{o:.6g}" for o in origin),
+            ]
             out.append((str(path), options, str(path)))
     for name in ("packed-spheres", "noise"):
         for seed, n in enumerate((24, 32, 40, 40), start=1):
@@ -62,11 +74,23 @@ def fields(work: Path) -> list[tuple[str, list[str], str]]:
 
 def boundary_distance(binary: str, mesh: Path, field: str, work: Path) -> float:
     m = meshio.read(mesh, file_format="gmsh")
-    surface = m.cells_dict["triangle"][m.cell_data_dict["gmsh:physical"]["triangle"] == 2]
+    surface = m.cells_dict["triangle"][
+        m.cell_data_dict["gmsh:physical"]["triangle"] == 2
+    ]
     used, compact = np.unique(surface, return_inverse=True)
     ply = work / "surface.ply"
-    meshio.write(ply, meshio.Mesh(m.points[used], [("triangle", compact.reshape(-1, 3).astype(np.int32))]), binary=True)
-    done = subprocess.run([binary, "-q", "quality", str(ply), "--field", field, "--json"], capture_output=True, text=True)
+    meshio.write(
+        ply,
+        meshio.Mesh(
+            m.points[used], [("triangle", compact.reshape(-1, 3).astype(np.int32))]
+        ),
+        binary=True,
+    )
+    done = subprocess.run(
+        [binary, "-q", "quality", str(ply), "--field", field, "--json"],
+        capture_output=True,
+        text=True,
+    )
     if done.returncode != 0:
         return float("nan")
     return float(json.loads(done.stdout)["distance"]["max"])
@@ -90,22 +114,41 @@ def main() -> None:
                     for flip in ([], ["--flip"]):
                         out = work / "m.msh"
                         done = subprocess.run(
-                            [binary, "tetmesh", path, "-o", str(out), *extra, *options, *flip],
+                            [
+                                binary,
+                                "tetmesh",
+                                path,
+                                "-o",
+                                str(out),
+                                *extra,
+                                *options,
+                                *flip,
+                            ],
                             capture_output=True,
                             text=True,
                         )
                         if done.returncode != 0:
                             refused += 1
-                            reasons.append(f"{path.split('/')[-1]} {' '.join(flip)}: {done.stderr.strip().splitlines()[-1][:90]}")
+                            reasons.append(
+                                f"{path.split('/')[-1]} {' '.join(flip)}: {done.stderr.strip().splitlines()[-1][:90]}"
+                            )
                             continue
-                        angles = re.search(r"dihedral angles ([0-9.]+)°\.\.([0-9.]+)°", done.stderr)
+                        angles = re.search(
+                            r"dihedral angles ([0-9.]+)°\.\.([0-9.]+)°", done.stderr
+                        )
                         assert angles, done.stderr
                         low, high = float(angles.group(1)), float(angles.group(2))
                         lo, hi = min(lo, low), max(hi, high)
-                        sharpest = re.search(r"sharpest boundary edge: ([0-9.]+)°", done.stderr)
+                        sharpest = re.search(
+                            r"sharpest boundary edge: ([0-9.]+)°", done.stderr
+                        )
                         if low >= 10.0 and high <= 165.0:
                             within += 1
-                        elif sharpest and float(sharpest.group(1)) < 10.0 and low >= float(sharpest.group(1)) - 0.01:
+                        elif (
+                            sharpest
+                            and float(sharpest.group(1)) < 10.0
+                            and low >= float(sharpest.group(1)) - 0.01
+                        ):
                             forced += 1
                         if field.endswith(".npy"):
                             d = npy_distance(out, path, extra)
@@ -129,12 +172,16 @@ def npy_distance(mesh: Path, path: str, extra: list[str]) -> float:
     from scipy.interpolate import RegularGridInterpolator
 
     values = np.load(path).astype(np.float64)
-    spacing = np.array([float(s) for s in extra[extra.index("--spacing") + 1].split(",")])
+    spacing = np.array(
+        [float(s) for s in extra[extra.index("--spacing") + 1].split(",")]
+    )
     origin = np.array([float(s) for s in extra[extra.index("--origin") + 1].split(",")])
     axes = [origin[a] + spacing[a] * np.arange(values.shape[a]) for a in range(3)]
     f = RegularGridInterpolator(axes, values)
     m = meshio.read(mesh, file_format="gmsh")
-    surface = m.cells_dict["triangle"][m.cell_data_dict["gmsh:physical"]["triangle"] == 2]
+    surface = m.cells_dict["triangle"][
+        m.cell_data_dict["gmsh:physical"]["triangle"] == 2
+    ]
     p = m.points[surface]
     samples = np.concatenate([m.points[np.unique(surface)], p.mean(axis=1)])
     lo, hi = np.array([a[0] for a in axes]), np.array([a[-1] for a in axes])

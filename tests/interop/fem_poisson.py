@@ -30,7 +30,15 @@ from pathlib import Path
 import meshio
 import numpy as np
 import scipy.sparse.linalg as spla
-from skfem import Basis, ElementTetP1, ElementTetP2, Functional, LinearForm, MeshTet, asm
+from skfem import (
+    Basis,
+    ElementTetP1,
+    ElementTetP2,
+    Functional,
+    LinearForm,
+    MeshTet,
+    asm,
+)
 from skfem.models.poisson import laplace
 
 RADIUS = 0.8  # the sphere sample's radius, in its [-1, 1] box
@@ -130,7 +138,9 @@ def main() -> None:
         rows.append((n, h, mesh.t.shape[1], p1, p2, took))
 
     print(f"{shape}, tetmesh options: {' '.join(extra) or '(defaults)'}")
-    print("| N | h | tetrahedra | element | dofs | L2 error | rate | max nodal error | rate |")
+    print(
+        "| N | h | tetrahedra | element | dofs | L2 error | rate | max nodal error | rate |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     hs = [row[1] for row in rows]
     fitted = []
@@ -139,11 +149,21 @@ def main() -> None:
             n, h, tets, (l2, nodal, dofs) = row[0], row[1], row[2], row[e]
             if k:
                 before, h0 = rows[k - 1][e], rows[k - 1][1]
-                r = [f"{math.log(before[m] / now) / math.log(h0 / h):.2f}" for m, now in ((0, l2), (1, nodal))]
+                r = [
+                    f"{math.log(before[m] / now) / math.log(h0 / h):.2f}"
+                    for m, now in ((0, l2), (1, nodal))
+                ]
             else:
                 r = ["–", "–"]
-            print(f"| {n} | {h:.4f} | {tets} | {name} | {dofs} | {l2:.3e} | {r[0]} | {nodal:.3e} | {r[1]} |")
-        fitted.append((rate(hs, [row[e][0] for row in rows]), rate(hs, [row[e][1] for row in rows])))
+            print(
+                f"| {n} | {h:.4f} | {tets} | {name} | {dofs} | {l2:.3e} | {r[0]} | {nodal:.3e} | {r[1]} |"
+            )
+        fitted.append(
+            (
+                rate(hs, [row[e][0] for row in rows]),
+                rate(hs, [row[e][1] for row in rows]),
+            )
+        )
     print(
         f"fitted rates, L2 / max nodal: P1 {fitted[0][0]:.2f} / {fitted[0][1]:.2f}, "
         f"P2 {fitted[1][0]:.2f} / {fitted[1][1]:.2f} (at least {MIN_RATE} required)"
