@@ -1855,11 +1855,17 @@ fn quality_reads_tetrahedral_meshes() {
         &["quality", "t.msh", "--field", "sample:sphere:16"],
     );
     assert_eq!(out.status.code(), Some(2));
-    // Packed spheres at 24: an element under 10° is shown beside the boundary's sharpest edge,
-    // which bounds it.
+    // The pores between packed spheres at 24: an element under 10° is shown beside the
+    // boundary's sharpest edge, which bounds it.
     let out = isocube(
         dir.path(),
-        &["tetmesh", "sample:packed-spheres:24", "-o", "p.msh"],
+        &[
+            "tetmesh",
+            "sample:packed-spheres:24",
+            "--flip",
+            "-o",
+            "p.msh",
+        ],
     );
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr).to_string();
