@@ -141,17 +141,7 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
     let mut rng = crate::TestRng::new(7);
     let (mut meshed, mut refused, mut refused_ties) = (0, 0, 0);
     for case in 0..150 {
-        let dims = [0, 1, 2].map(|_| 2 + (rng.next_u64() % 5) as usize);
-        let ties = case % 3 == 0;
-        let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
-            .map(|_| {
-                if ties {
-                    (rng.next_u64() % 5) as f32 - 2.0
-                } else {
-                    rng.unit() as f32 * 2.0 - 1.0
-                }
-            })
-            .collect();
+        let (dims, ties, values) = random_values(&mut rng, case, 5);
         let grid = Grid::new(dims, values).unwrap();
         // Ternary on every third grid (the snapping choice is the slow part of a case).
         // Random values snapped onto crossings with the side above the level: not yet held to
