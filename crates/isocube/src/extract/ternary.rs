@@ -87,7 +87,9 @@ pub enum SnapPosition {
     GridPoint,
     /// On the nearest crossing among the point's six edges (the grid point itself when its
     /// value is within the zero threshold): the mesh keeps Marching Cubes' accuracy while the
-    /// short edges and needles around the point are gone.
+    /// short edges and needles around the point are gone. A point on the grid's outer face is
+    /// snapped only for crossings within that face, so the surface's rim stays on the grid's
+    /// faces (and a volume mesh's walls stay flat).
     #[default]
     NearestCrossing,
 }
@@ -358,10 +360,20 @@ impl<'a> Ternary<'a> {
                                     continue;
                                 }
                                 let t = (level - a) / (b - a);
-                                if t <= snap {
+                                // A point on the grid's outer face is not carried off it
+                                // along the face's normal (see `snapped_place_at`).
+                                let (first, last) = match axis {
+                                    _ if snapping.position == SnapPosition::GridPoint => {
+                                        (false, false)
+                                    }
+                                    0 => (p == row, p + 2 == row + nx),
+                                    1 => (j == 0, j + 2 == ny),
+                                    _ => (k == 0, k + 2 == nz),
+                                };
+                                if t <= snap && !first {
                                     near.push((p as u64) << 4 | round(t));
                                 }
-                                if 1.0 - t <= snap {
+                                if 1.0 - t <= snap && !last {
                                     near.push((q as u64) << 4 | round(1.0 - t));
                                 }
                             }
@@ -1399,8 +1411,17 @@ impl<'a> Ternary<'a> {
             return (c, 0, 0.0);
         }
         let dims = self.grid.dims();
-        let mut best = (c, 0, 0.0, f64::INFINITY);
+        let on_wall = |axis: usize| c[axis] == 0 || c[axis] + 1 == dims[axis];
+        // A point on the grid's outer face keeps to that face's plane (and is snapped only for
+        // crossings there): carried inward along the face's normal, the rim would bend the
+        // volume mesh's wall, with no cell beyond the wall to fill the two together where the
+        // wall crosses the surface; and the rim stays where a neighbouring volume's meets it.
+        let mut best = None;
+        let mut closest = f64::INFINITY;
         for (axis, &stride) in self.strides.iter().enumerate() {
+            if on_wall(axis) {
+                continue;
+            }
             for forward in [false, true] {
                 let q = match forward {
                     true if c[axis] + 1 < dims[axis] => p + stride,
@@ -1413,18 +1434,19 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
-                if t < best.3 {
-                    best = if forward {
-                        (c, axis, t, t)
+                if t < closest {
+                    closest = t;
+                    best = Some(if forward {
+                        (c, axis, t)
                     } else {
                         let mut cq = c;
                         cq[axis] -= 1;
-                        (cq, axis, 1.0 - t, t)
-                    };
+                        (cq, axis, 1.0 - t)
+                    });
                 }
             }
         }
-        (best.0, best.1, best.2)
+        best.unwrap_or((c, 0, 0.0))
     }
 
     /// Position of the vertex of zero point `p` at coordinates `c`.

@@ -112,19 +112,15 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
                 tets.stats.lattice_cells > 0 && tets.stats.cut_cells > 0,
                 "{what}"
             );
-            // Snapped onto crossings, a point on the grid's outer face may leave it: the box's
-            // face bends there and neither side holds the sliver between (the README's limits).
-            let on_box = !matches!(
-                options.method,
-                Method::Ternary(s) if s.position == SnapPosition::NearestCrossing
-            );
-            if on_box {
-                sides.push((format!("{:?}", options.with_flip(false)), c.volume));
-            }
+            // Snapped points on the grid's outer faces stay on them (every method): the two
+            // sides share the surface and split the box between them.
+            sides.push((format!("{:?}", options.with_flip(false)), c.volume));
         }
         let total = box_volume(&grid);
         sides.sort_by(|a, b| a.0.cmp(&b.0));
-        for pair in sides.chunk_by(|a, b| a.0 == b.0).filter(|p| p.len() == 2) {
+        assert_eq!(sides.len(), all_options().len() + ternary_options().len());
+        for pair in sides.chunk_by(|a, b| a.0 == b.0) {
+            assert_eq!(pair.len(), 2, "{sample:?}: {}", pair[0].0);
             let sum = pair[0].1 + pair[1].1;
             assert!(
                 (sum - total).abs() <= 1e-9 * total,
@@ -135,7 +131,8 @@ fn samples_give_valid_meshes_bounded_by_the_extracted_surface() {
 }
 
 /// Random grids (uniform values and ties at the level): whatever comes out is valid, and a
-/// cell that cannot be filled is a typed error naming it, never a wrong mesh or a panic.
+/// cell that cannot be filled is a typed error naming it, never a wrong mesh or a panic —
+/// and only with plain Marching Cubes: ternary extraction meshes every grid.
 #[test]
 fn random_grids_give_valid_meshes_or_name_the_cell() {
     let mut rng = crate::TestRng::new(7);
@@ -144,16 +141,8 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
         let (dims, ties, values) = random_values(&mut rng, case, 5);
         let grid = Grid::new(dims, values).unwrap();
         // Ternary on every third grid (the snapping choice is the slow part of a case).
-        // Random values snapped onto crossings with the side above the level: not yet held to
-        // this (flat elements and refusals remain, issue 50's notes).
         let ternary = if case % 3 == 1 {
             ternary_options()
-                .into_iter()
-                .filter(|o| {
-                    !o.flip
-                        || !matches!(o.method, Method::Ternary(s) if s.position == SnapPosition::NearestCrossing)
-                })
-                .collect()
         } else {
             Vec::new()
         };
@@ -179,8 +168,14 @@ fn random_grids_give_valid_meshes_or_name_the_cell() {
                     refused += 1;
                     refused_ties += 1;
                 }
-                Err(TetError::Cell { cell, .. }) => {
+                Err(TetError::Cell { cell, reason }) => {
                     assert!((0..3).all(|d| cell[d] + 1 < dims[d]), "{cell:?}");
+                    // Ternary extraction (every snap and position, both sides) meshes them all.
+                    assert_eq!(
+                        options.method,
+                        Method::MarchingCubes,
+                        "case {case} {cell:?}: {reason}"
+                    );
                     refused += 1;
                     refused_ties += usize::from(ties);
                 }
