@@ -1416,8 +1416,7 @@ impl<'a> Ternary<'a> {
         // crossings there): carried inward along the face's normal, the rim would bend the
         // volume mesh's wall, with no cell beyond the wall to fill the two together where the
         // wall crosses the surface; and the rim stays where a neighbouring volume's meets it.
-        let mut best = None;
-        let mut closest = f64::INFINITY;
+        let mut best = (c, 0, 0.0, f64::INFINITY);
         for (axis, &stride) in self.strides.iter().enumerate() {
             if on_wall(axis) {
                 continue;
@@ -1434,19 +1433,18 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
-                if t < closest {
-                    closest = t;
-                    best = Some(if forward {
-                        (c, axis, t)
+                if t < best.3 {
+                    best = if forward {
+                        (c, axis, t, t)
                     } else {
                         let mut cq = c;
                         cq[axis] -= 1;
-                        (cq, axis, 1.0 - t)
-                    });
+                        (cq, axis, 1.0 - t, t)
+                    };
                 }
             }
         }
-        best.unwrap_or((c, 0, 0.0))
+        (best.0, best.1, best.2)
     }
 
     /// Position of the vertex of zero point `p` at coordinates `c`.

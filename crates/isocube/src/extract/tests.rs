@@ -181,6 +181,18 @@ fn quantised_values(dims: [usize; 3], seed: u64) -> Vec<f32> {
         .collect()
 }
 
+/// How many triangles use each undirected edge (low vertex first).
+fn edge_uses(mesh: &Mesh) -> std::collections::HashMap<(u32, u32), usize> {
+    let mut uses = std::collections::HashMap::new();
+    for t in &mesh.triangles {
+        for i in 0..3 {
+            let (a, b) = (t[i], t[(i + 1) % 3]);
+            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    uses
+}
+
 fn assert_closed_manifold(r: &MeshReport) {
     assert_eq!(r.boundary_edges, 0, "{r:?}");
     assert_eq!(r.nonmanifold_edges, 0, "{r:?}");
@@ -326,13 +338,7 @@ proptest! {
         prop_assert_eq!(r.nonmanifold_edges, 0);
         prop_assert!(r.oriented);
         // Boundary edges: both ends on the same boundary face of the grid.
-        let mut counts = std::collections::HashMap::new();
-        for t in &mesh.triangles {
-            for i in 0..3 {
-                let (a, b) = (t[i].min(t[(i + 1) % 3]), t[i].max(t[(i + 1) % 3]));
-                *counts.entry((a, b)).or_insert(0) += 1;
-            }
-        }
+        let counts = edge_uses(&mesh);
         let hi = [0, 1, 2].map(|a| (dims[a] - 1) as f32);
         for ((a, b), c) in counts {
             if c == 1 {
@@ -877,9 +883,10 @@ mod strategies {
     }
 
     /// The combination of ternary snapping, optimal triangulation and relaxation on the exact
-    /// function (what `isocube extract … --relax` does for built-in samples): smallest angle at least
-    /// 30° (27° next to the grid's outer faces), largest at most 110°, within 0.05 grid spacings of the zero set, at most 1.3× the
-    /// triangles of classic Marching Cubes, same topology as MC33.
+    /// function (what `isocube extract … --relax` does for built-in samples): smallest angle at
+    /// least 30° (27° next to the grid's outer faces), largest at most 110°, within 0.05 grid
+    /// spacings of the zero set, at most 1.3× the triangles of classic Marching Cubes, same
+    /// topology as MC33.
     #[test]
     fn best_combination_meets_the_quality_targets() {
         use crate::quality::{level_set_distance, quality_report, relax, Implicit};
@@ -899,10 +906,8 @@ mod strategies {
                 )
                 .unwrap()
                 .0;
-                let mc33 = extract(&grid, &ExtractOptions::default())
-                    .unwrap()
-                    .0
-                    .report();
+                let mc33_mesh = extract(&grid, &ExtractOptions::default()).unwrap().0;
+                let mc33 = mc33_mesh.report();
                 let options = ExtractOptions::default()
                     .with_method(Method::Ternary(Snapping {
                         snap: 0.5,
@@ -922,12 +927,7 @@ mod strategies {
                 let r = mesh.report();
                 let what = format!("{sample}:{n}: {a:?} {d:?}");
                 // The README's table (`--nocapture`).
-                let mc33_distance = level_set_distance(
-                    &extract(&grid, &ExtractOptions::default()).unwrap().0,
-                    |p| sample.eval(p),
-                    0.0,
-                    h,
-                );
+                let mc33_distance = level_set_distance(&mc33_mesh, |p| sample.eval(p), 0.0, h);
                 eprintln!(
                     "| {sample}:{n} | {} ({:.2}) | {:.2}° | {:.2}° | {:.4} ({:.4}) | {} (χ {}) |",
                     mesh.triangle_count(),
@@ -948,14 +948,7 @@ mod strategies {
                 // relaxation keeps the rim's vertices: triangles with a vertex there keep 27°
                 // (gyroid:64 has four at 27.7°, with a rim edge 0.7 spacings long and a crossing
                 // next to it), every other triangle 30°.
-                let mut uses = std::collections::HashMap::new();
-                for t in &mesh.triangles {
-                    for i in 0..3 {
-                        let e = (t[i].min(t[(i + 1) % 3]), t[i].max(t[(i + 1) % 3]));
-                        *uses.entry(e).or_insert(0) += 1;
-                    }
-                }
-                let rim: std::collections::HashSet<u32> = uses
+                let rim: std::collections::HashSet<u32> = edge_uses(&mesh)
                     .iter()
                     .filter(|&(_, &n)| n == 1)
                     .flat_map(|(&(a, b), _)| [a, b])
