@@ -56,7 +56,7 @@ OPTIONS: list[dict[str, Any]] = [
 
 @pytest.mark.parametrize("options", OPTIONS, ids=lambda o: ",".join(map(str, o)) or "mc")
 def test_threaded_chunks_give_the_whole_mesh(options: dict[str, Any]) -> None:
-    # Long along the first axis, so the ternary halo (90 points) does not reach across.
+    # Long along the first axis, so the ternary halo (91 points) does not reach across.
     volume = gyroid((230, 26, 21))
     whole = isocube.extract(volume, 0.1, **options)
     for chunks, split in [((40, 9, 8), 2), ((64, 26, 21), 4), ((17, 13, 5), 3)]:

@@ -11,16 +11,16 @@ use crate::field::GridView;
 
 /// Points beyond a box of cells, on every side where the grid goes on, that a block must hold
 /// for [`mesh_block`] to mesh the box as the whole grid would: one for the normals' central
-/// differences (none without normals) in binary Marching Cubes; 90 for ternary extraction,
-/// whose choice of snapped points reaches 89 points (88 ordered groups, each reading one step
-/// further), plus one for the normals.
+/// differences (none without normals) in binary Marching Cubes; 91 for ternary extraction,
+/// whose choice of snapped points reaches 90 points (88 ordered groups, each reading one step
+/// further, and the ties settled from the points around them), plus one for the normals.
 ///
 /// ```
 /// use isocube::extract::{block_halo, ExtractOptions, Method, Snapping};
 /// assert_eq!(block_halo(&ExtractOptions::default()), 1);
 /// assert_eq!(block_halo(&ExtractOptions::default().with_normals(false)), 0);
 /// let ternary = ExtractOptions::default().with_method(Method::Ternary(Snapping::default()));
-/// assert_eq!(block_halo(&ternary), 90);
+/// assert_eq!(block_halo(&ternary), 91);
 /// ```
 pub fn block_halo(options: &ExtractOptions) -> usize {
     match options.method {
@@ -29,9 +29,10 @@ pub fn block_halo(options: &ExtractOptions) -> usize {
     }
 }
 
-/// How far a ternary zero point's choice looks: 88 groups, each one step, and the values one
-/// step around the first.
-const TERNARY_REACH: usize = 89;
+/// How far a ternary zero point's choice looks: 88 groups, each one step, the values one step
+/// around the first, and each of those values' own neighbours (a lone tie is settled below the
+/// level by them).
+const TERNARY_REACH: usize = 90;
 
 /// Meshes the cells `cells` of a grid of `dims` points from `block`, the values of points
 /// `at .. at + block.dims()` of that grid (any strides; the grid's spacing and origin; no
@@ -501,7 +502,7 @@ mod tests {
 
     /// Blocks with their halo, meshed apart, sent as bytes and joined: the whole grid's mesh,
     /// for binary MC (MC33, classic, no normals, quality triangulations) and ternary, whose
-    /// blocks are cut from a grid long enough that a box's halo of 90 does not reach across.
+    /// blocks are cut from a grid long enough that a box's halo of 91 does not reach across.
     #[test]
     fn blocks_join_into_the_whole_mesh() {
         let ternary = Method::Ternary(Snapping::default());
@@ -534,6 +535,21 @@ mod tests {
                 }),
                 ExtractOptions::default().with_method(ternary),
                 [20, 19, 17],
+            ),
+            // Integer values with points set to the level inside the body: lone ties, settled
+            // from their neighbours, the blocks' edges included.
+            (
+                Grid::from_fn([236, 15, 13], [0.1, 0.1, 0.1], [0.0; 3], |p| {
+                    let f = (p[0] * 1.3).sin() * (p[1] * 2.9).cos() + (p[2] * 2.1).sin() * 0.7;
+                    let lone = (p[0] * 71.3 + p[1] * 13.1 + p[2] * 5.7).sin() > 0.6;
+                    if lone && f < 0.0 {
+                        0.0
+                    } else {
+                        (f * 4.0).round()
+                    }
+                }),
+                ExtractOptions::default().with_method(ternary),
+                [23, 8, 13],
             ),
             // Boxes of odd sizes: blocks start at odd points, where the choice's parity
             // classes are the whole grid's, not the block's.

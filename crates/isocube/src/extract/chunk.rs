@@ -20,8 +20,9 @@
 //!   for the normals' central differences; none without normals;
 //! - ternary: which points are zero is decided point by point in 88 ordered groups (11 rounds
 //!   of crossing distance × 8 parity classes), each decision reading the zero state of points
-//!   one step away decided in earlier groups, so a box's zero points depend on the field up to
-//!   89 points beyond it. [`super::Extractor`] decides them once on the whole grid, and every box
+//!   one step away decided in earlier groups, and the values read are settled from their own
+//!   neighbours (a lone tie), so a box's zero points depend on the field up to 90 points beyond
+//!   it. [`super::Extractor`] decides them once on the whole grid, and every box
 //!   then needs one point beyond it, as for binary;
 //! - labels: the labelled grid is padded by a layer of outside points, and a box of its cells
 //!   reads only its own corner points (smoothing runs after the join, on the whole mesh);

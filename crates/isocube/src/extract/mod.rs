@@ -664,6 +664,17 @@ impl<'a> Extractor<'a> {
             .is_some_and(|t| t.zero_point(i + nx * (j + ny * k)))
     }
 
+    /// The value extraction uses at grid point `(i, j, k)`: the grid's, except a ternary tie
+    /// with points below around it and no neighbour above, which is below the level (no surface wraps
+    /// it).
+    pub(crate) fn value_at(&self, [i, j, k]: [usize; 3]) -> f32 {
+        let [nx, ny, _] = self.grid.dims();
+        match &self.ternary {
+            Some(t) => t.value_at(i + nx * (j + ny * k)),
+            None => self.grid.value(i, j, k),
+        }
+    }
+
     /// Meshes one box of cells.
     pub fn mesh_box(&self, cells: CellBox) -> Result<ChunkMesh, ExtractError> {
         self.mesh_box_with(&mut EdgeCache::new(0, 0), cells)

@@ -10,6 +10,12 @@
 //! [`crate::cube::TernaryTable`] lists for all 6561 configurations. Face consistency is inherited
 //! from the binary table: both cells sharing a face collapse the same segments the same way.
 //!
+//! A *lone tie*, a point exactly at the level none of whose six neighbours is above it, only
+//! touches the level: the tie rule would make MC33 wrap it in a closed surface of zero size, which
+//! no snapping can remove without changing the topology. Such points (with points below around)
+//! are first moved below the level, halfway to the highest of those (see
+//! `settle_lone_ties`), so the mesh has the topology of MC33 on the settled field.
+//!
 //! # Choosing zero points, keeping the topology
 //! Candidates are points with `|value − level| ≤ zero_threshold` (Tokunaga's ε) and points that a
 //! crossing on one of their six edges lies within `snap` of, as a fraction of the edge (Raman and
@@ -214,6 +220,9 @@ pub(super) struct Ternary<'a> {
     topology: Topology,
     /// The values, `x` fastest (borrowed when the grid is stored so): point `p` is `values[p]`.
     values: Cow<'a, [f32]>,
+    /// The input's values where lone ties were settled in `values` (else `None`): the normals'
+    /// gradients read these, so that normals do not change where a tie was settled.
+    input: Option<Cow<'a, [f32]>>,
     /// Zero points, one bit each: the field `g` is the level there and `values` elsewhere.
     zero: Vec<u64>,
     /// Sign masks of `g` (zero points are above).
@@ -234,7 +243,8 @@ impl<'a> Ternary<'a> {
         let (sy, sz) = (nx, nx * ny);
         // Snapping reads points by their number over and over: a grid stored in another order
         // is gathered once.
-        let values = grid.x_fastest();
+        let mut values = grid.x_fastest();
+        let input = settle_lone_ties(&mut values, grid.dims(), options.level);
         Ternary {
             grid,
             level: options.level,
@@ -242,6 +252,7 @@ impl<'a> Ternary<'a> {
             zero: vec![0; values.len().div_ceil(64)],
             masks: super::binary::Masks::new_parallel(&values, grid.dims(), options.level),
             values,
+            input,
             snapping,
             strategy: options.triangulation,
             offsets: [0, 1, 1 + sy, sy, sz, 1 + sz, 1 + sy + sz, sy + sz],
@@ -249,7 +260,8 @@ impl<'a> Ternary<'a> {
         }
     }
 
-    /// The values as the binary mesher's window reads them (`x` fastest).
+    /// The input's values as the binary mesher's window reads them (`x` fastest), for the
+    /// placer: positions from the crossings chosen here, normals from the input's gradient.
     pub(super) fn window(&self) -> Window<'_> {
         let g = &self.grid;
         Window::new(
@@ -258,7 +270,7 @@ impl<'a> Ternary<'a> {
             g.origin(),
             g.heights(),
             0,
-            &self.values,
+            self.input.as_deref().unwrap_or(&self.values),
         )
         .with_base(g.base())
     }
@@ -373,7 +385,9 @@ impl<'a> Ternary<'a> {
                                 if t <= snap && !first {
                                     near.push((p as u64) << 4 | round(t));
                                 }
-                                if 1.0 - t <= snap && !last {
+                                // A crossing exactly halfway is the first end's to take (see
+                                // `snapped_place_at`).
+                                if 1.0 - t <= snap && !last && t != 0.5 {
                                     near.push((q as u64) << 4 | round(1.0 - t));
                                 }
                             }
@@ -553,6 +567,13 @@ impl<'a> Ternary<'a> {
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = p;
+    }
+
+    /// The value extraction uses at point `p` (the input's, or below the level for a lone tie:
+    /// see [`settle_lone_ties`]).
+    #[inline]
+    pub(super) fn value_at(&self, p: usize) -> f32 {
+        self.values[p]
     }
 
     /// Whether `p` was chosen as a zero point.
@@ -1433,6 +1454,13 @@ impl<'a> Ternary<'a> {
                     continue;
                 }
                 let t = (level - v) / (w - v);
+                // Both ends of an edge may be snapped onto a crossing exactly halfway (at
+                // `snap` = 0.5): two vertices in one place, which no triangle joins, so no
+                // area check sees them, and a volume mesh gets flat elements between them. The
+                // first end takes it (the same quotient as the candidates' pass).
+                if !forward && (level - w) / (v - w) == 0.5 {
+                    continue;
+                }
                 if t < best.3 {
                     best = if forward {
                         (c, axis, t, t)
@@ -1645,6 +1673,107 @@ impl<'a> Ternary<'a> {
         ids.insert(key, id);
         Ok(id)
     }
+}
+
+/// Moves every *lone tie* — a value equal to the level with none of its six edge neighbours above
+/// the level, and some point below it among the 26 around — halfway to the highest of those.
+///
+/// By the library's tie rule such a point counts as above, so binary Marching Cubes wraps it in
+/// a closed surface of zero size (every crossing on its edges lies on the point itself), and so
+/// it does a cluster of such ties. Under the ternary model the field only touches the level
+/// there: the region above is a point, not a body. Snapping the point cannot remove that surface
+/// (the topology check keeps every component), so it stayed as a speck of needle triangles, and a
+/// volume mesh had to carve a hole around it. A tie beside a point above the level is joined to
+/// that point's body along their edge and keeps its value; so does a tie among ties only (inside
+/// a plateau at the level, which may be all there is: a mask at its lower value). The 26, not
+/// the six, for the points below: the middle of a cross of ties settles with its arms. A settled tie
+/// beside a kept tie makes a crossing at the kept tie (`t` = 1), the point the surface passes
+/// through anyway; it never has a point above as a neighbour, so no other crossing moves. The
+/// new value is a difference of the data's own values (exact for integer data), so the cell
+/// decisions read it the same whatever the data's type or offset.
+///
+/// Returns the values as they were when any point moved.
+fn settle_lone_ties<'a>(
+    values: &mut Cow<'a, [f32]>,
+    dims: [usize; 3],
+    level: f32,
+) -> Option<Cow<'a, [f32]>> {
+    let [nx, ny, nz] = dims;
+    let plane = nx * ny;
+    let v: &[f32] = values;
+    let lone: Vec<(usize, f32)> = (0..nz)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let mut lone = Vec::new();
+            for j in 0..ny {
+                let row = plane * k + nx * j;
+                if !v[row..row + nx].contains(&level) {
+                    continue;
+                }
+                'point: for i in (0..nx).filter(|&i| v[row + i] == level) {
+                    let p = row + i;
+                    let c = [i, j, k];
+                    for a in 0..3 {
+                        let stride = [1, nx, plane][a];
+                        if (c[a] > 0 && v[p - stride] > level)
+                            || (c[a] + 1 < dims[a] && v[p + stride] > level)
+                        {
+                            continue 'point;
+                        }
+                    }
+                    // The largest value below the level among the 26 around.
+                    let near = |c: usize, n: usize| c.saturating_sub(1)..(c + 2).min(n);
+                    let mut below = f32::NEG_INFINITY;
+                    for z in near(k, nz) {
+                        for y in near(j, ny) {
+                            for &w in &v[plane * z + nx * y..][near(i, nx)] {
+                                if w < level {
+                                    below = below.max(w);
+                                }
+                            }
+                        }
+                    }
+                    if below > f32::NEG_INFINITY {
+                        let halfway = level - (level - below) * 0.5;
+                        // The next f32 below the level when the halfway point rounds onto it
+                        // (`f32::next_down`, after our MSRV).
+                        let settled = if halfway < level {
+                            halfway
+                        } else if level == 0.0 {
+                            -f32::from_bits(1)
+                        } else if level > 0.0 {
+                            f32::from_bits(level.to_bits() - 1)
+                        } else {
+                            f32::from_bits(level.to_bits() + 1)
+                        };
+                        lone.push((p, settled));
+                    }
+                }
+            }
+            lone
+        })
+        .collect();
+    if lone.is_empty() {
+        return None;
+    }
+    let input = values.clone();
+    let values = values.to_mut();
+    for (p, settled) in lone {
+        values[p] = settled;
+    }
+    Some(input)
+}
+
+/// `grid` with its lone ties settled as ternary extraction settles them: the field whose MC33
+/// mesh has the ternary mesh's topology.
+#[cfg(test)]
+pub(super) fn without_lone_ties(grid: &crate::field::Grid, level: f32) -> crate::field::Grid {
+    let mut values = Cow::Borrowed(grid.values());
+    settle_lone_ties(&mut values, grid.dims(), level);
+    crate::field::Grid::new(grid.dims(), values.into_owned())
+        .and_then(|g| g.with_spacing(grid.spacing()))
+        .and_then(|g| g.with_origin(grid.origin()))
+        .unwrap()
 }
 
 /// The ids of the vertices made for the cells of the current plane and the plane before: a

@@ -1,6 +1,7 @@
 use proptest::prelude::*;
 use proptest::strategy::Strategy;
 
+use super::ternary::without_lone_ties;
 use super::*;
 use crate::cube::Topology;
 use crate::extract::{Method, SnapPosition, Snapping};
@@ -485,7 +486,9 @@ mod ternary {
             -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
         ];
         let grid = Grid::new([6, 6, 5], values.iter().map(|&v| f32::from(v)).collect()).unwrap();
-        let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
+        let mc33 = extract(&without_lone_ties(&grid, 0.0), &ExtractOptions::default())
+            .unwrap()
+            .0;
         let mesh = extract(&grid, &ternary_on_grid(1.0, 0.1)).unwrap().0;
         assert_eq!(topology(&mesh), topology(&mc33));
     }
@@ -503,7 +506,7 @@ mod ternary {
         /// the components and Euler characteristic of the MC33 mesh.
         #[test]
         fn random_tied_grids(grid in closed_grid(), threshold in 0u8..3, snap in 0u8..6, on_grid: bool) {
-            let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
+            let mc33 = extract(&without_lone_ties(&grid, 0.0), &ExtractOptions::default()).unwrap().0;
             // Values are multiples of 1, 2 or 3: a threshold of 1 makes the ±1 values zero too.
             let (t, d) = (f32::from(threshold) * 0.5, f32::from(snap) * 0.1);
             let options = if on_grid { ternary_on_grid(t, d) } else { ternary(t, d) };
@@ -535,7 +538,7 @@ mod ternary {
             let values = quantised_values(dims, seed);
             let grid = Grid::new(dims, values).unwrap();
             let level = f32::from(level) / 4.0;
-            let mc33 = extract(&grid, &ExtractOptions::default().with_level(level)).unwrap().0;
+            let mc33 = extract(&without_lone_ties(&grid, level), &ExtractOptions::default().with_level(level)).unwrap().0;
             let options = ternary(0.0, f32::from(snap) * 0.1).with_level(level);
             let (mesh, _) = extract(&grid, &options).unwrap();
             let r = mesh.report();
@@ -580,7 +583,10 @@ mod ternary {
                 }
             }
             let grid = Grid::new(dims, values).unwrap();
-            let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0;
+            // Even seeds put points exactly at the level: chains of them between bodies, and
+            // lone ones, which ternary extraction settles below.
+            let settled = without_lone_ties(&grid, 0.0);
+            let mc33 = extract(&settled, &ExtractOptions::default()).unwrap().0;
             for snap in [0.2, 0.5] {
                 let (mesh, stats) = extract(&grid, &ternary(0.0, snap)).unwrap();
                 checked += stats.snapped_points + stats.refused_points;
@@ -610,9 +616,12 @@ mod ternary {
             }
             let grid = Grid::new(dims, values).unwrap();
             for (level, snap) in [(0.0, 0.5), (0.125, 0.5), (0.25, 0.3)] {
-                let mc33 = extract(&grid, &ExtractOptions::default().with_level(level))
-                    .unwrap()
-                    .0;
+                let mc33 = extract(
+                    &without_lone_ties(&grid, level),
+                    &ExtractOptions::default().with_level(level),
+                )
+                .unwrap()
+                .0;
                 let options = ternary(0.0, snap).with_level(level);
                 let (mesh, _) = extract(&grid, &options).unwrap();
                 let (a, b) = (mesh.report(), mc33.report());
@@ -691,23 +700,68 @@ mod ternary {
         }
     }
 
-    /// A grid point exactly at the level with every neighbour below is a single touching point;
-    /// under the tie rule MC33 makes a closed surface around it, so ternary extraction may not
-    /// snap it away: the point stays, its crossings `MIN_OFFSET` away.
+    /// A grid point exactly at the level with no neighbour above touches the level without
+    /// enclosing anything: MC33's tie rule wraps it in a closed surface of zero size, which
+    /// ternary extraction does not make — alone, in a cluster of such points, or with its only
+    /// point above across a face diagonal. A tie beside a point above is that body's surface
+    /// point and is snapped.
     #[test]
-    fn an_isolated_zero_keeps_its_component() {
-        let mut values = vec![-1.0f32; 27];
-        values[13] = 0.0;
-        let grid = Grid::new([3, 3, 3], values).unwrap();
-        let (mesh, stats) = extract(&grid, &ternary(0.0, 0.5)).unwrap();
-        assert_eq!(stats.snapped_points, 0);
-        assert_eq!(stats.refused_points, 1);
-        assert_eq!(topology(&mesh), (1, 2, true));
-        assert_clean(&mesh);
+    fn lone_ties_make_no_surface() {
+        let at = |i: usize, j: usize, k: usize| i + 5 * (j + 5 * k);
+        let grid_with = |points: &[(usize, f32)]| {
+            let mut values = vec![-1.0f32; 125];
+            for &(p, v) in points {
+                values[p] = v;
+            }
+            Grid::new([5, 5, 5], values).unwrap()
+        };
+        for points in [
+            vec![(at(2, 2, 2), 0.0)],
+            vec![(at(2, 2, 2), 0.0), (at(3, 2, 2), 0.0), (at(3, 3, 2), 0.0)],
+            vec![(at(2, 2, 2), 0.0), (at(1, 1, 1), 0.0)],
+            vec![(at(0, 0, 0), 0.0), (at(4, 4, 4), 0.0)],
+        ] {
+            let grid = grid_with(&points);
+            let (mc33, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+            assert!(mc33.triangle_count() > 0, "{points:?}");
+            for snap in [0.0, 0.3, 0.5] {
+                for options in [ternary(0.0, snap), ternary_on_grid(0.0, snap)] {
+                    let (mesh, stats) = extract(&grid, &options).unwrap();
+                    assert_eq!(mesh.triangle_count(), 0, "{points:?} {options:?}");
+                    assert_eq!((stats.snapped_points, stats.refused_points), (0, 0));
+                }
+            }
+        }
+        // A tie beside a point above: a small body with the tie on its surface, as MC33's.
+        // Its only point above across a face diagonal: the tie is lone, the body is the other
+        // point's alone.
+        for (tie, above) in [(at(2, 2, 2), at(3, 2, 2)), (at(2, 2, 2), at(3, 3, 2))] {
+            let grid = grid_with(&[(tie, 0.0), (above, 1.0)]);
+            let lone = grid_with(&[(above, 1.0)]);
+            let (mc33, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+            let (mesh, _) = extract(&grid, &ternary(0.0, 0.3)).unwrap();
+            assert_clean(&mesh);
+            assert_eq!(topology(&mesh), (1, 2, true));
+            let c = [tie % 5, tie / 5 % 5, tie / 25].map(|x| x as f64);
+            let on_tie = mesh.positions.iter().any(|p| p.map(f64::from) == c);
+            if above == at(3, 2, 2) {
+                assert_eq!(topology(&mc33), (1, 2, true));
+                assert!(on_tie);
+            } else {
+                assert_eq!(topology(&mc33).0, 2);
+                assert!(!on_tie);
+                let (alone, _) = extract(&lone, &ternary(0.0, 0.3)).unwrap();
+                assert_eq!(
+                    (&mesh.positions, &mesh.triangles),
+                    (&alone.positions, &alone.triangles)
+                );
+            }
+        }
     }
 
     /// A face exactly at the level between a cell below and a cell above is the surface, emitted
-    /// once; with both sides above there is no surface at all.
+    /// once; with both sides above, or both below (its points are then lone ties), there is no
+    /// surface at all.
     #[test]
     fn a_zero_face_is_emitted_once() {
         // 2×2×3 points: z = 0 below, z = 1 at the level, z = 2 above or below.
@@ -716,7 +770,8 @@ mod ternary {
             values.extend([0.0; 4]);
             values.extend([top; 4]);
             let grid = Grid::new([2, 2, 3], values).unwrap();
-            let (mc33, _) = extract(&grid, &ExtractOptions::default()).unwrap();
+            let (mc33, _) =
+                extract(&without_lone_ties(&grid, 0.0), &ExtractOptions::default()).unwrap();
             let (mesh, stats) = extract(&grid, &ternary(0.0, 0.0)).unwrap();
             assert_clean(&mesh);
             assert_eq!(topology(&mesh).0, topology(&mc33).0);
@@ -726,6 +781,8 @@ mod ternary {
                 assert_eq!(stats.snapped_points, 4);
                 assert_eq!(mesh.triangle_count(), 2);
                 assert!(mesh.positions.iter().all(|p| p[2] == 1.0));
+            } else {
+                assert_eq!(mesh.triangle_count(), 0);
             }
         }
         let mut values = vec![1.0f32; 4];
@@ -862,13 +919,17 @@ mod strategies {
             ternary: bool,
             relax in 0usize..3,
         ) {
-            let mc33 = extract(&grid, &ExtractOptions::default()).unwrap().0.report();
             let mut options = ExtractOptions::default()
                 .with_triangulation(strategy)
                 .with_relax(relax);
-            if ternary {
+            // Ternary extraction makes no surface around a lone tie (a point at the level with
+            // nothing above beside it): MC33's zero-size sphere there is not counted.
+            let mc33 = if ternary {
                 options = options.with_method(Method::Ternary(Snapping { snap: 0.5, ..Snapping::default() }));
-            }
+                extract(&super::super::ternary::without_lone_ties(&grid, 0.0), &ExtractOptions::default())
+            } else {
+                extract(&grid, &ExtractOptions::default())
+            }.unwrap().0.report();
             let (mesh, _) = extract(&grid, &options).unwrap();
             mesh.validate().unwrap();
             let r = mesh.report();
@@ -1489,7 +1550,14 @@ fn sheets_in_a_face_take_one_diagonal() {
                             .with_triangulation(strategy)
                             .with_method(method);
                         let (mesh, _) = extract(&grid, &options).unwrap();
-                        assert_eq!(mesh.triangles.len(), 4, "{axis} {options:?}");
+                        // Ternary extraction: the sheet's points are lone ties (nothing above
+                        // beside them), so there is no surface at all.
+                        let sheets = if method == Method::MarchingCubes {
+                            4
+                        } else {
+                            0
+                        };
+                        assert_eq!(mesh.triangles.len(), sheets, "{axis} {options:?}");
                         let crossing = edges_crossing_in_faces(&mesh);
                         assert!(crossing.is_empty(), "{axis} {options:?}: {crossing:?}");
                     }

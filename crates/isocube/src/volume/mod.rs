@@ -341,7 +341,7 @@ fn mesh_region(
                         let mut q = c;
                         q[e / 2] = (c[e / 2] + 1).checked_sub(2 * (e % 2))?;
                         (q[e / 2] < dims[e / 2] && !extractor.is_zero_point(q))
-                            .then(|| inside(grid.value(q[0], q[1], q[2])))
+                            .then(|| inside(extractor.value_at(q)))
                     })
                     .collect();
                 if sides.is_empty() {
@@ -351,7 +351,7 @@ fn mesh_region(
                 }
             }
         } else {
-            inside(grid.value(i, j, k))
+            inside(extractor.value_at([i, j, k]))
         }
     };
     // Classified slice by slice in parallel, numbered in grid order.
