@@ -23,6 +23,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,6 +59,7 @@ class Run:
     high: float = float("nan")
     sharpest: float | None = None
     message: str = ""
+    seconds: float = 0.0
 
 
 def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
@@ -65,11 +67,18 @@ def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
     args = [binary, "tetmesh", spec, "-o", str(out), "--binary", *MODES[mode]]
     if flip:
         args.append("--flip")
-    done = subprocess.run(args, capture_output=True, text=True)
+    start = time.perf_counter()
+    done = subprocess.run(args, check=False, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
     out.unlink(missing_ok=True)
     if done.returncode != 0:
         return Run(
-            mode, spec, flip, False, message=done.stderr.strip().splitlines()[-1]
+            mode,
+            spec,
+            flip,
+            False,
+            message=done.stderr.strip().splitlines()[-1],
+            seconds=seconds,
         )
     angles = re.search(r"dihedral angles ([0-9.]+)°\.\.([0-9.]+)°", done.stderr)
     if angles is None:
@@ -83,6 +92,7 @@ def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
         float(angles.group(1)),
         float(angles.group(2)),
         float(sharpest.group(1)) if sharpest else None,
+        seconds=seconds,
     )
 
 
@@ -97,6 +107,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--modes", default=",".join(MODES))
+    parser.add_argument(
+        "--every", action="store_true", help="list every run, not only those outside"
+    )
     options = parser.parse_args()
     sizes = [int(n) for n in options.sizes.split(",")]
     modes = options.modes.split(",")
@@ -141,7 +154,7 @@ def main() -> None:
                 f"refused: {r.mode}: {r.spec}{' --flip' if r.flip else ''}: {r.message}"
             )
     for r in runs:
-        if r.ok and (r.low < LOW or r.high > HIGH):
+        if r.ok and (options.every or r.low < LOW or r.high > HIGH):
             side = " --flip" if r.flip else ""
             edge = (
                 f", sharpest boundary edge {r.sharpest:.2f}°"
@@ -149,8 +162,9 @@ def main() -> None:
                 else ""
             )
             edge += " (forced)" if forced_by_surface(r) else ""
+            kind = "outside" if r.low < LOW or r.high > HIGH else "inside"
             print(
-                f"outside: {r.mode}: {r.spec}{side}: {r.low:.2f}°..{r.high:.2f}°{edge}"
+                f"{kind}: {r.mode}: {r.spec}{side}: {r.low:.2f}°..{r.high:.2f}°{edge}, {r.seconds:.2f} s"
             )
     sys.stdout.flush()
 

@@ -102,7 +102,7 @@ pub(crate) use labels::{label_slabs, Labelled, TETS as KUHN_PATHS};
 pub use layout::{assemble, ChunkOutline, ChunkPlace, JoinLayout, PlacedPiece};
 pub use stream::{extract_streamed, streams_by_default, MeshSink, StreamError, STREAM_ABOVE_BYTES};
 
-pub use ternary::{SnapPosition, Snapping, MIN_OFFSET};
+pub use ternary::{SnapPosition, Snapping, MIN_OFFSET, WALL_SNAP};
 
 use thiserror::Error;
 

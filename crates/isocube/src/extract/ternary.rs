@@ -73,6 +73,13 @@ use super::{choose_tunnel, ExtractError, ExtractOptions};
 /// the ends of its edge.
 pub const MIN_OFFSET: f64 = 1e-3;
 
+/// A point on the grid's outer face whose crossing along the face's normal lies within this
+/// fraction of the edge (and within the snap distance) is snapped too, its vertex kept on the
+/// grid point: the surface grazes the wall there, and left off it, the sliver of region between
+/// the two is thinner than any element could be good in. The vertex is then off the level set by
+/// at most this fraction of an edge (the crossing is that close), and only there.
+pub const WALL_SNAP: f64 = 0.1;
+
 /// How ternary extraction picks the grid points the surface passes through.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -94,8 +101,9 @@ pub enum SnapPosition {
     /// On the nearest crossing among the point's six edges (the grid point itself when its
     /// value is within the zero threshold): the mesh keeps Marching Cubes' accuracy while the
     /// short edges and needles around the point are gone. A point on the grid's outer face is
-    /// snapped only for crossings within that face, so the surface's rim stays on the grid's
-    /// faces (and a volume mesh's walls stay flat).
+    /// placed only on crossings within that face, so the surface's rim stays on the grid's
+    /// faces (and a volume mesh's walls stay flat); one snapped for a crossing along the face's
+    /// normal (within [`WALL_SNAP`]) stays on its grid point.
     #[default]
     NearestCrossing,
 }
@@ -382,12 +390,13 @@ impl<'a> Ternary<'a> {
                                     1 => (j == 0, j + 2 == ny),
                                     _ => (k == 0, k + 2 == nz),
                                 };
-                                if t <= snap && !first {
+                                let wall = snap.min(WALL_SNAP);
+                                if t <= snap && (!first || t <= wall) {
                                     near.push((p as u64) << 4 | round(t));
                                 }
                                 // A crossing exactly halfway is the first end's to take (see
                                 // `snapped_place_at`).
-                                if 1.0 - t <= snap && !last && t != 0.5 {
+                                if 1.0 - t <= snap && (!last || 1.0 - t <= wall) && t != 0.5 {
                                     near.push((q as u64) << 4 | round(1.0 - t));
                                 }
                             }
@@ -1461,7 +1470,7 @@ impl<'a> Ternary<'a> {
                 if !forward && (level - w) / (v - w) == 0.5 {
                     continue;
                 }
-                if t < best.3 {
+                if t < best.3 && t <= f64::from(self.snapping.snap) {
                     best = if forward {
                         (c, axis, t, t)
                     } else {

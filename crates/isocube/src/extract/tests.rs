@@ -415,6 +415,57 @@ mod ternary {
         }))
     }
 
+    /// A sphere just inside the grid, 0.04 of an edge from one of its six faces: the points
+    /// there whose crossing along the face's normal is within `WALL_SNAP` are snapped onto
+    /// themselves, so the surface touches the face (no film of region between the two) and
+    /// stays within that distance of the sphere; with a snap distance under it, they are not.
+    #[test]
+    fn a_surface_grazing_a_wall_touches_it() {
+        use crate::extract::WALL_SNAP;
+        let n = 12;
+        for axis in 0..3 {
+            for high in [false, true] {
+                let mut centre = [5.5, 5.3, 5.7];
+                centre[axis] = if high { (n - 1) as f64 - 4.04 } else { 4.04 };
+                let values: Vec<f32> = (0..n * n * n)
+                    .map(|p| {
+                        let c = [p % n, p / n % n, p / (n * n)];
+                        let d = (0..3)
+                            .map(|a| (c[a] as f64 - centre[a]).powi(2))
+                            .sum::<f64>();
+                        (d.sqrt() - 4.0) as f32
+                    })
+                    .collect();
+                let grid = Grid::new([n; 3], values).unwrap();
+                let wall = if high { (n - 1) as f32 } else { 0.0 };
+                let off_wall = |p: &[f32; 3]| (p[axis] - wall).abs();
+                for (snap, touches) in [(0.3, true), (0.05, false)] {
+                    let (mesh, stats) = extract(&grid, &ternary(0.0, snap)).unwrap();
+                    assert_clean(&mesh);
+                    assert_eq!(topology(&mesh), (1, 2, true), "{axis} {high} {snap}");
+                    assert_eq!(stats.refused_points, 0);
+                    let on = mesh.positions.iter().filter(|p| off_wall(p) == 0.0).count();
+                    let near = mesh
+                        .positions
+                        .iter()
+                        .filter(|p| off_wall(p) > 0.0 && f64::from(off_wall(p)) < WALL_SNAP)
+                        .count();
+                    if touches {
+                        assert!(on > 0 && near == 0, "{axis} {high}: {on} on, {near} near");
+                    } else {
+                        assert!(on == 0 && near > 0, "{axis} {high}: {on} on, {near} near");
+                    }
+                    for p in &mesh.positions {
+                        let d = (0..3)
+                            .map(|a| (f64::from(p[a]) - centre[a]).powi(2))
+                            .sum::<f64>();
+                        assert!((d.sqrt() - 4.0).abs() < WALL_SNAP + 0.05, "{p:?}");
+                    }
+                }
+            }
+        }
+    }
+
     /// A tunnel whose band runs through the cell's centre, which lies exactly between two of
     /// its crossings (quantised values, a symmetric cell): the table's triangles there have no
     /// area, and the interior point is moved (found by `random_open_grids`, 1 run in about 40).

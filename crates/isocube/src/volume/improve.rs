@@ -1,7 +1,7 @@
 //! Quality improvement after the cells are filled. Where the surface cuts a cell thinly, the
 //! cone points and splits of a single cell cannot always avoid flat tetrahedra; across cells, a
 //! face or edge shared with a neighbour's tetrahedra often can be flipped away, and a Steiner
-//! point moved. Four operations, each taken only when it raises the worst dihedral score of the
+//! point moved. These operations, each taken only when it raises the worst dihedral score of the
 //! tetrahedra it replaces and every new tetrahedron is positive by the exact predicate:
 //!
 //! - **2 → 3**: two tetrahedra sharing an interior face become three around the segment joining
@@ -21,6 +21,11 @@
 //!   tetrahedra from a new Steiner point, placed by the same search; where that is not enough,
 //!   the poor tetrahedron with some of those neighbours, or with the tetrahedra around one of
 //!   its edges, whichever star is best.
+//! - **re-make and move**: where none of these helps, a flip or edge removal that does not help
+//!   alone together with a move of one of the new tetrahedra's corners (the worst of all the
+//!   tetrahedra they touch must rise): a needle on the boundary (two corners close, the third
+//!   far) wants its element's fourth corner beside its short edge, a point a flip can join to it
+//!   only once the point that served the needle steps aside.
 //!
 //! Boundary triangles (the surface, the grid's walls) are faces of one tetrahedron only, so no
 //! flip touches them; no surface vertex moves, and a point on a wall moves only within the
@@ -244,9 +249,18 @@ enum Plan {
     Move { v: u32, at: [f32; 3] },
     /// Tetrahedra re-made as a star from a new point.
     Insert { cavity: Vec<u32>, star: Star },
+    /// Tetrahedra re-made on the same points, then one of their corners moved.
+    Remake {
+        old: Vec<u32>,
+        new: Vec<[u32; 4]>,
+        kind: Kind,
+        v: u32,
+        at: [f32; 3],
+    },
 }
 
 /// Which re-making a [`Plan::Replace`] is (for the counts).
+#[derive(Clone, Copy)]
 enum Kind {
     Flip23,
     Flip32,
@@ -343,6 +357,9 @@ impl Work<'_> {
                 }
             }
             consider(self.insert(t), &mut best);
+            if self.extended && best.as_ref().is_none_or(|b| b.0 < POOR) {
+                consider(self.remake_and_move(t), &mut best);
+            }
         }
         let Some((_, plan)) = best else {
             return;
@@ -358,6 +375,22 @@ impl Work<'_> {
             }
             Plan::Move { v, at } => {
                 stats.moves += 1;
+                self.positions[v as usize] = at;
+            }
+            Plan::Remake {
+                old,
+                new,
+                kind,
+                v,
+                at,
+            } => {
+                match kind {
+                    Kind::Flip23 => stats.flips_23 += 1,
+                    Kind::Flip32 => stats.flips_32 += 1,
+                    Kind::EdgeRemoval => stats.edge_removals += 1,
+                }
+                stats.moves += 1;
+                self.replace(&old, &new);
                 self.positions[v as usize] = at;
             }
             Plan::Insert { cavity, star } => {
@@ -555,6 +588,14 @@ impl Work<'_> {
     /// Flips the face of `t` opposite its corner `d` to the three tetrahedra around the segment
     /// from `d` to the far corner of the tetrahedron across it.
     fn flip_23(&self, t: u32, d: u32) -> Option<(f64, Plan)> {
+        let (old, new) = self.flip_23_tets(t, d)?;
+        let old_worst = self.score_of(old[0]).min(self.score_of(old[1]));
+        self.plan(old, new, old_worst, Kind::Flip23)
+    }
+
+    /// The two tetrahedra a 2 → 3 flip of `t`'s face opposite `d` replaces, and the three it
+    /// makes (not checked).
+    fn flip_23_tets(&self, t: u32, d: u32) -> Option<(Vec<u32>, Vec<[u32; 4]>)> {
         let tet = self.tets[t as usize];
         let mut face: Vec<u32> = tet.iter().copied().filter(|&v| v != d).collect();
         let across = self.holding(&face)?;
@@ -574,8 +615,7 @@ impl Work<'_> {
             face.swap(1, 2);
         }
         let new: Vec<[u32; 4]> = (0..3).map(|k| [face[k], face[(k + 1) % 3], e, d]).collect();
-        let old_worst = self.score_of(t).min(self.score_of(s));
-        self.plan(vec![t, s], new, old_worst, Kind::Flip23)
+        Some((vec![t, s], new))
     }
 
     /// Replacing tetrahedra `old` (whose worst scores `old_worst`) by `new`, if every new one is
@@ -594,6 +634,17 @@ impl Work<'_> {
     /// Flips the edge `a`–`b`, if exactly three tetrahedra surround it, to the two sharing the
     /// face of their far corners.
     fn flip_32(&self, a: u32, b: u32) -> Option<(f64, Plan)> {
+        let (ring, new) = self.flip_32_tets(a, b)?;
+        let old_worst = ring
+            .iter()
+            .map(|&t| self.score_of(t))
+            .fold(f64::INFINITY, f64::min);
+        self.plan(ring, new, old_worst, Kind::Flip32)
+    }
+
+    /// The three tetrahedra around edge `a`–`b` a 3 → 2 flip replaces, and the two it makes
+    /// (not checked).
+    fn flip_32_tets(&self, a: u32, b: u32) -> Option<(Vec<u32>, Vec<[u32; 4]>)> {
         let ring = self.holding(&[a, b])?;
         if ring.len() != 3 || !self.may_replace(&ring) {
             return None;
@@ -613,18 +664,31 @@ impl Work<'_> {
         if !positive(p(x), p(y), p(z), p(a)) {
             std::mem::swap(&mut x, &mut z);
         }
-        let new = vec![[x, y, z, a], [x, z, y, b]];
-        let old_worst = ring
-            .iter()
-            .map(|&t| self.score_of(t))
-            .fold(f64::INFINITY, f64::min);
-        self.plan(ring, new, old_worst, Kind::Flip32)
+        Some((ring, vec![[x, y, z, a], [x, z, y, b]]))
     }
 
     /// Removes the interior edge `a`–`b` if four to [`RING`] tetrahedra surround it: the ring of
     /// their far corners is triangulated (the triangulation whose worst element is best, by
     /// dynamic programming) and each triangle joined to `a` and to `b`.
     fn remove_edge(&self, a: u32, b: u32) -> Option<(f64, Plan)> {
+        let (ring, new, worst) = self.edge_removal_tets(a, b)?;
+        let old_worst = ring
+            .iter()
+            .map(|&t| self.score_of(t))
+            .fold(f64::INFINITY, f64::min);
+        (worst > old_worst).then_some((
+            worst,
+            Plan::Replace {
+                old: ring,
+                new,
+                kind: Kind::EdgeRemoval,
+            },
+        ))
+    }
+
+    /// The tetrahedra around edge `a`–`b` its removal replaces, the best triangulation's
+    /// tetrahedra (all positive) and their worst score.
+    fn edge_removal_tets(&self, a: u32, b: u32) -> Option<(Vec<u32>, Vec<[u32; 4]>, f64)> {
         let ring = self.holding(&[a, b])?;
         let n = ring.len();
         if !(4..=RING).contains(&n) || !self.may_replace(&ring) {
@@ -694,11 +758,7 @@ impl Work<'_> {
                 }
             }
         }
-        let old_worst = ring
-            .iter()
-            .map(|&t| self.score_of(t))
-            .fold(f64::INFINITY, f64::min);
-        if best[0][n - 1] <= old_worst || !best[0][n - 1].is_finite() {
+        if !best[0][n - 1].is_finite() {
             return None;
         }
         let mut new: Vec<[u32; 4]> = Vec::with_capacity(2 * n - 4);
@@ -712,14 +772,7 @@ impl Work<'_> {
             todo.push((i, k));
             todo.push((k, j));
         }
-        Some((
-            best[0][n - 1],
-            Plan::Replace {
-                old: ring,
-                new,
-                kind: Kind::EdgeRemoval,
-            },
-        ))
+        Some((ring, new, best[0][n - 1]))
     }
 
     /// Moves Steiner or grid point `v` by a pattern search to where the worst of its tetrahedra scores
@@ -733,6 +786,13 @@ impl Work<'_> {
             return None;
         }
         let star: Vec<[u32; 4]> = star.iter().map(|&t| self.tets[t as usize]).collect();
+        let (at, w) = self.move_within(v, &star)?;
+        Some((w, Plan::Move { v, at }))
+    }
+
+    /// Where point `v` scores best with tetrahedra `star` around it (all of them holding it), if
+    /// somewhere else than where it is, and the worst score there.
+    fn move_within(&mut self, v: u32, star: &[[u32; 4]]) -> Option<([f32; 3], f64)> {
         // A point inside the mesh moves freely: every face at it is shared by two tetrahedra.
         // A face at it used once is on the boundary; a grid or Steiner point is no surface
         // vertex, so such a face is a wall, in a plane of the grid's box, and the point may
@@ -768,12 +828,93 @@ impl Work<'_> {
             return None;
         }
         let start = self.positions[v as usize];
-        let before = self.worst(&star)?;
+        let before = self.worst(star)?;
         self.axes = [0, 1, 2].map(|a| !fixed[a]);
-        let (here, w) = self.search(v, &star, start, before);
+        let (here, w) = self.search(v, star, start, before);
         self.axes = [true; 3];
         self.positions[v as usize] = start;
-        (here != start).then_some((w, Plan::Move { v, at: here }))
+        (here != start).then_some((here, w))
+    }
+
+    /// A flip or edge removal at `t` that does not help alone, followed by a move of one of
+    /// the new tetrahedra's free corners that makes the whole better than before. A boundary
+    /// triangle with two corners close together (a needle, where the surface passes close by
+    /// a grid point kept off it) needs its element's fourth corner beside its short edge; the
+    /// point there is usually a neighbour's, and the flip that joins it to the needle leaves
+    /// the Steiner point that served the needle in the way until that point moves too.
+    fn remake_and_move(&mut self, t: u32) -> Option<(f64, Plan)> {
+        let tet = self.tets[t as usize];
+        let mut candidates: Vec<(Vec<u32>, Vec<[u32; 4]>, Kind)> = Vec::new();
+        for d in tet {
+            if let Some((old, new)) = self.flip_23_tets(t, d) {
+                candidates.push((old, new, Kind::Flip23));
+            }
+        }
+        for i in 0..4 {
+            for j in i + 1..4 {
+                if let Some((old, new)) = self.flip_32_tets(tet[i], tet[j]) {
+                    candidates.push((old, new, Kind::Flip32));
+                }
+                if let Some((old, new, _)) = self.edge_removal_tets(tet[i], tet[j]) {
+                    candidates.push((old, new, Kind::EdgeRemoval));
+                }
+            }
+        }
+        let mut best: Option<(f64, Plan)> = None;
+        for (old, new, kind) in candidates {
+            if self.worst(&new).is_none() {
+                continue;
+            }
+            let old_worst = old
+                .iter()
+                .map(|&o| self.score_of(o))
+                .fold(f64::INFINITY, f64::min);
+            let mut corners: Vec<u32> = new.iter().flatten().copied().collect();
+            corners.sort_unstable();
+            corners.dedup();
+            for v in corners {
+                let free = self.steiner.contains(&v) || self.grid.contains(&v);
+                if !free || !self.known[v as usize] {
+                    continue;
+                }
+                let Some(around) = self.holding(&[v]) else {
+                    continue;
+                };
+                let label = self.label(old[0]);
+                if around.iter().any(|&a| self.label(a) != label) {
+                    continue;
+                }
+                let before = around
+                    .iter()
+                    .map(|&a| self.score_of(a))
+                    .fold(old_worst, f64::min);
+                let mut star: Vec<[u32; 4]> = around
+                    .iter()
+                    .filter(|a| !old.contains(a))
+                    .map(|&a| self.tets[a as usize])
+                    .collect();
+                star.extend(new.iter().filter(|n| n.contains(&v)));
+                let Some((at, w)) = self.move_within(v, &star) else {
+                    continue;
+                };
+                let rest: Vec<[u32; 4]> = new.iter().filter(|n| !n.contains(&v)).copied().collect();
+                let w = self.worst(&rest).map_or(w, |r| w.min(r));
+                if w > before && best.as_ref().is_none_or(|b| w > b.0) {
+                    let (old, new) = (old.clone(), new.clone());
+                    best = Some((
+                        w,
+                        Plan::Remake {
+                            old,
+                            new,
+                            kind,
+                            v,
+                            at,
+                        },
+                    ));
+                }
+            }
+        }
+        best
     }
 
     /// A pattern search for `v`'s position, from `start` (where the worst of `star` scores

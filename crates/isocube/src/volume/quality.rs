@@ -236,9 +236,10 @@ impl TetMesh {
     /// It tells a poor element forced by the surface (where it meets a wall at a grazing
     /// angle, or folds into a thin wedge) from one the mesher could have done better.
     ///
-    /// Edges with other than two boundary triangles (the surface touching itself) are left out;
-    /// `None` when no edge is left, and for multi-material meshes (whose interfaces are not
-    /// one region's boundary).
+    /// Where the surface touches itself or a wall along an edge, four or more boundary triangles
+    /// meet there: the region's angles are the wedges between them, the smallest counted.
+    /// `None` when the boundary has no edge, and for multi-material meshes (whose interfaces are
+    /// not one region's boundary).
     ///
     /// ```
     /// use isocube::extract::ExtractOptions;
@@ -275,32 +276,54 @@ impl TetMesh {
         let at = |v: u32| self.positions[v as usize].map(f64::from);
         halves
             .par_chunk_by(|x, y| x.0 == y.0)
-            .filter_map(|group| match *group {
-                [([a, b], first_forward, c1), (_, second_forward, c2)]
-                    if first_forward != second_forward =>
-                {
-                    // Seen along the edge: the angle from the first triangle's side to the
-                    // second's, turning into the region (against the first one's outward
-                    // normal).
-                    let (pa, pb) = (at(a), at(b));
-                    let e = sub(pb, pa);
-                    let across = |c: u32| {
-                        let u = sub(at(c), pa);
-                        let along = dot(u, e) / dot(e, e);
-                        std::array::from_fn::<f64, 3, _>(|d| u[d] - along * e[d])
-                    };
-                    let (u1, u2) = (across(c1), across(c2));
-                    // The first triangle runs a → b or b → a: its outward normal is ±e × u1.
-                    let inward = cross(u1, e).map(|x| if first_forward { x } else { -x });
-                    let y = dot(u2, inward) / dot(inward, inward).sqrt();
-                    let x = dot(u2, u1) / dot(u1, u1).sqrt();
-                    let angle = y.atan2(x).rem_euclid(std::f64::consts::TAU).to_degrees();
-                    angle.is_finite().then_some(BoundaryEdge {
-                        angle,
-                        edge: [a, b],
-                    })
+            .filter_map(|group| {
+                let [a, b] = group[0].0;
+                let forward = group.iter().filter(|h| h.1).count();
+                if group.len() < 2 || 2 * forward != group.len() {
+                    return None;
                 }
-                _ => None,
+                // Each triangle's direction about the edge, as an angle in a frame turning
+                // right-handed about it. A triangle running a → b (lower vertex first) has the
+                // region on its side of smaller angle, one running b → a on its side of larger:
+                // the region's wedges run from each b → a triangle to the next triangle round.
+                // Where the surface touches itself or a wall along the edge, four or more
+                // triangles meet there and the wedges between them are the region's angles.
+                let (pa, pb) = (at(a), at(b));
+                let e = sub(pb, pa);
+                let across = |c: u32| {
+                    let u = sub(at(c), pa);
+                    let along = dot(u, e) / dot(e, e);
+                    std::array::from_fn::<f64, 3, _>(|d| u[d] - along * e[d])
+                };
+                let x_axis = across(group[0].2);
+                let y_axis = cross(e, x_axis);
+                let mut around: Vec<(f64, bool)> = group
+                    .iter()
+                    .map(|h| {
+                        let u = across(h.2);
+                        let turn = (dot(u, y_axis) / dot(y_axis, y_axis).sqrt())
+                            .atan2(dot(u, x_axis) / dot(x_axis, x_axis).sqrt());
+                        (turn.rem_euclid(std::f64::consts::TAU).to_degrees(), h.1)
+                    })
+                    .collect();
+                around.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                let n = around.len();
+                let mut sharpest = f64::INFINITY;
+                for k in 0..n {
+                    let (from, forward) = around[k];
+                    if forward {
+                        continue;
+                    }
+                    let (to, next_forward) = around[(k + 1) % n];
+                    if !next_forward {
+                        return None;
+                    }
+                    sharpest = sharpest.min((to - from).rem_euclid(360.0));
+                }
+                sharpest.is_finite().then_some(BoundaryEdge {
+                    angle: sharpest,
+                    edge: [a, b],
+                })
             })
             .min_by(|x, y| x.angle.total_cmp(&y.angle).then(x.edge.cmp(&y.edge)))
     }
