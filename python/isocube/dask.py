@@ -1,7 +1,7 @@
 """Isosurfaces of volumes cut into chunks, meshed on a Dask cluster: the mesh one pass makes.
 
 Each task meshes the cells one chunk of the array owns, from that chunk and the points around
-it the method needs (:func:`halo`: one for Marching Cubes' normals, none without normals, 91
+it the method needs (:func:`halo`: one for Marching Cubes' normals, none without normals, 115
 for ternary snapping), read on the worker. Every vertex carries a global key (the grid edge,
 point or cell it belongs to), so chunk meshes are welded by key, never by comparing
 coordinates: each line of chunks along the last axis is merged into a band, one task lays out
@@ -65,14 +65,16 @@ def halo(method: str = "mc", normals: bool = True) -> int:
     """Points a chunk's task reads beyond its own cells, on each side where the volume goes on.
 
     Marching Cubes reads one more point for the normals' central differences (none without
-    normals); ternary extraction reads 91, as far as its choice of snapped points can look
+    normals); ternary extraction reads 115, as far as its choice of snapped points can look
     (88 ordered rounds, each one point further, the values around the first, and their
-    neighbours, which settle lone ties).
+    neighbours, which settle lone ties; then up to six rounds, each four points further, that
+    keep on their grid points the snapped points whose vertices would make the surface cross
+    itself).
 
     >>> import isocube.dask
     >>> from isocube.dask import halo
     >>> halo("mc"), halo("mc", normals=False), halo("ternary")
-    (1, 0, 91)
+    (1, 0, 115)
     """
     return int(_block_halo(method, bool(normals)))
 

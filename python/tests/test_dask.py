@@ -56,8 +56,8 @@ OPTIONS: list[dict[str, Any]] = [
 
 @pytest.mark.parametrize("options", OPTIONS, ids=lambda o: ",".join(map(str, o)) or "mc")
 def test_threaded_chunks_give_the_whole_mesh(options: dict[str, Any]) -> None:
-    # Long along the first axis, so the ternary halo (91 points) does not reach across.
-    volume = gyroid((230, 26, 21))
+    # Long along the first axis, so the ternary halo (115 points) does not reach across.
+    volume = gyroid((290, 26, 21))
     whole = isocube.extract(volume, 0.1, **options)
     for chunks, split in [((40, 9, 8), 2), ((64, 26, 21), 4), ((17, 13, 5), 3)]:
         mesh = isocube.dask.extract(
@@ -74,7 +74,7 @@ def test_threaded_chunks_give_the_whole_mesh(options: dict[str, Any]) -> None:
 def test_ply_written_by_the_chunks_is_the_whole_meshs_file(
     options: dict[str, Any], tmp_path: Path
 ) -> None:
-    volume = gyroid((230, 26, 21))
+    volume = gyroid((290, 26, 21))
     expected = tmp_path / "whole.ply"
     isocube.extract(volume, 0.1, **options).save(expected)
     for n, (chunks, split) in enumerate([((40, 9, 8), 2), ((64, 26, 21), 4), ((17, 13, 5), 3)]):

@@ -11,16 +11,18 @@ use crate::field::GridView;
 
 /// Points beyond a box of cells, on every side where the grid goes on, that a block must hold
 /// for [`mesh_block`] to mesh the box as the whole grid would: one for the normals' central
-/// differences (none without normals) in binary Marching Cubes; 91 for ternary extraction,
+/// differences (none without normals) in binary Marching Cubes; 115 for ternary extraction,
 /// whose choice of snapped points reaches 90 points (88 ordered groups, each reading one step
-/// further, and the ties settled from the points around them), plus one for the normals.
+/// further, and the ties settled from the points around them), 24 more for the rounds that keep
+/// snapped points on their grid points where the surface would cross itself (six, each
+/// reading four points further), plus one for the normals.
 ///
 /// ```
 /// use isocube::extract::{block_halo, ExtractOptions, Method, Snapping};
 /// assert_eq!(block_halo(&ExtractOptions::default()), 1);
 /// assert_eq!(block_halo(&ExtractOptions::default().with_normals(false)), 0);
 /// let ternary = ExtractOptions::default().with_method(Method::Ternary(Snapping::default()));
-/// assert_eq!(block_halo(&ternary), 91);
+/// assert_eq!(block_halo(&ternary), 115);
 /// ```
 pub fn block_halo(options: &ExtractOptions) -> usize {
     match options.method {
@@ -31,8 +33,9 @@ pub fn block_halo(options: &ExtractOptions) -> usize {
 
 /// How far a ternary zero point's choice looks: 88 groups, each one step, the values one step
 /// around the first, and each of those values' own neighbours (a lone tie is settled below the
-/// level by them).
-const TERNARY_REACH: usize = 90;
+/// level by them); then the rounds that keep snapped points off crossings where the surface
+/// would pass through itself.
+const TERNARY_REACH: usize = 90 + super::ternary::UNTANGLE_ROUNDS * super::ternary::UNTANGLE_REACH;
 
 /// Meshes the cells `cells` of a grid of `dims` points from `block`, the values of points
 /// `at .. at + block.dims()` of that grid (any strides; the grid's spacing and origin; no
@@ -502,7 +505,7 @@ mod tests {
 
     /// Blocks with their halo, meshed apart, sent as bytes and joined: the whole grid's mesh,
     /// for binary MC (MC33, classic, no normals, quality triangulations) and ternary, whose
-    /// blocks are cut from a grid long enough that a box's halo of 91 does not reach across.
+    /// blocks are cut from a grid long enough that a box's halo of 115 does not reach across.
     #[test]
     fn blocks_join_into_the_whole_mesh() {
         let ternary = Method::Ternary(Snapping::default());
@@ -530,7 +533,7 @@ mod tests {
                 [10, 10, 10],
             ),
             (
-                Grid::from_fn([240, 20, 18], [0.1, 0.1, 0.1], [0.0; 3], |p| {
+                Grid::from_fn([300, 20, 18], [0.1, 0.1, 0.1], [0.0; 3], |p| {
                     (p[0] * 2.1).sin() * (p[1] * 1.7).cos() + (p[2] * 2.3).sin() * 0.6
                 }),
                 ExtractOptions::default().with_method(ternary),
@@ -539,7 +542,7 @@ mod tests {
             // Integer values with points set to the level inside the body: lone ties, settled
             // from their neighbours, the blocks' edges included.
             (
-                Grid::from_fn([236, 15, 13], [0.1, 0.1, 0.1], [0.0; 3], |p| {
+                Grid::from_fn([296, 15, 13], [0.1, 0.1, 0.1], [0.0; 3], |p| {
                     let f = (p[0] * 1.3).sin() * (p[1] * 2.9).cos() + (p[2] * 2.1).sin() * 0.7;
                     let lone = (p[0] * 71.3 + p[1] * 13.1 + p[2] * 5.7).sin() > 0.6;
                     if lone && f < 0.0 {
@@ -555,8 +558,8 @@ mod tests {
             // classes are the whole grid's, not the block's.
             (
                 Grid::from_fn(
-                    [21, 26, 230],
-                    [2.0 / 20.0, 2.0 / 25.0, 2.0 / 229.0],
+                    [21, 26, 290],
+                    [2.0 / 20.0, 2.0 / 25.0, 2.0 / 289.0],
                     [-1.0; 3],
                     |p| {
                         let (x, y, z) = (3.1 * p[2], 2.9 * p[1], 3.3 * p[0]);

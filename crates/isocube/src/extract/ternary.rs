@@ -46,6 +46,13 @@
 //! pattern only place those triangles' corners and test their areas. Tests (debug assertions)
 //! re-run the full check on every reuse.
 //!
+//! # Placing zero points, keeping the surface off itself
+//! A zero point's vertex goes onto its nearest crossing (or its grid point: [`SnapPosition`]).
+//! On a crossing it leaves four of its eight cells, whose triangles then reach into their
+//! neighbours, where they could pass through the surface; the pairs that could are tested
+//! exactly, and the points whose vertices make one cross stay on their grid points (see
+//! `Ternary::untangle_snaps`). The triangles keep their vertices' keys, so the topology stands.
+//!
 //! Finally, inside each cell, a diagonal between two triangles is flipped where that raises the
 //! smaller of their smallest angles; new diagonals join corners that share no face of the cell,
 //! so no neighbour can ever use the same edge, and flips never change the topology.
@@ -80,6 +87,12 @@ pub const MIN_OFFSET: f64 = 1e-3;
 /// at most this fraction of an edge (the crossing is that close), and only there.
 pub const WALL_SNAP: f64 = 0.1;
 
+/// How many rounds [`Ternary::untangle_snaps`] runs at most; each looks at the cells within
+/// [`UNTANGLE_REACH`] points of the last round's changes.
+pub(super) const UNTANGLE_ROUNDS: usize = 6;
+/// How far one untangling round's decisions read, in points.
+pub(super) const UNTANGLE_REACH: usize = 4;
+
 /// How ternary extraction picks the grid points the surface passes through.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -103,7 +116,8 @@ pub enum SnapPosition {
     /// short edges and needles around the point are gone. A point on the grid's outer face is
     /// placed only on crossings within that face, so the surface's rim stays on the grid's
     /// faces (and a volume mesh's walls stay flat); one snapped for a crossing along the face's
-    /// normal (within [`WALL_SNAP`]) stays on its grid point.
+    /// normal (within [`WALL_SNAP`]) stays on its grid point, and so does one whose vertex on
+    /// the crossing would make the surface pass through itself.
     #[default]
     NearestCrossing,
 }
@@ -208,6 +222,28 @@ struct Patch {
     scratch: super::patch_check::Scratch,
 }
 
+/// A triangle of a cell as [`Ternary::untangle_snaps`] tests it: its keys, positions, the
+/// pokes of its corners (as [`Ternary::poke`]) and those corners, and whether it has no area.
+#[derive(Clone)]
+struct Gathered {
+    keys: [Key; 3],
+    at: [[f64; 3]; 3],
+    mask: u8,
+    flat: bool,
+    corners: [Option<usize>; 3],
+}
+
+/// The cells [`Ternary::untangle_snaps`] emitted last, in a ring of [`UNTANGLE_CACHE`].
+#[derive(Default)]
+struct Emitted {
+    cells: Vec<usize>,
+    triangles: Vec<Vec<Gathered>>,
+    next: usize,
+    patch: Patch,
+}
+
+const UNTANGLE_CACHE: usize = 48;
+
 struct Interior {
     key: Key,
     support: Vec<Key>,
@@ -233,6 +269,9 @@ pub(super) struct Ternary<'a> {
     input: Option<Cow<'a, [f32]>>,
     /// Zero points, one bit each: the field `g` is the level there and `values` elsewhere.
     zero: Vec<u64>,
+    /// Zero points whose vertex stays on the grid point although a crossing was chosen for it:
+    /// there, the surface would pass through itself (see [`Ternary::untangle_snaps`]).
+    on_grid: Vec<u64>,
     /// Sign masks of `g` (zero points are above).
     masks: super::binary::Masks,
     snapping: Snapping,
@@ -258,6 +297,7 @@ impl<'a> Ternary<'a> {
             level: options.level,
             topology: options.topology,
             zero: vec![0; values.len().div_ceil(64)],
+            on_grid: vec![0; values.len().div_ceil(64)],
             masks: super::binary::Masks::new_parallel(&values, grid.dims(), options.level),
             values,
             input,
@@ -309,6 +349,16 @@ impl<'a> Ternary<'a> {
     /// groups), so that a stop is honoured within a fraction of the whole:
     /// [`ExtractError::Cancelled`].
     pub(super) fn choose_zeros_in_groups(
+        &mut self,
+        grouped: bool,
+        check: &mut dyn FnMut() -> ControlFlow<()>,
+    ) -> Result<(usize, usize), ExtractError> {
+        let counts = self.decide_zeros(grouped, check)?;
+        self.untangle_snaps(check)?;
+        Ok(counts)
+    }
+
+    fn decide_zeros(
         &mut self,
         grouped: bool,
         check: &mut dyn FnMut() -> ControlFlow<()>,
@@ -520,6 +570,302 @@ impl<'a> Ternary<'a> {
             }
         }
         (snapped, refused)
+    }
+
+    /// Keeps on their grid points the snapped points whose vertices, carried onto a crossing,
+    /// would make the surface pass through itself. Returns how many.
+    ///
+    /// The snapping checks decide which triangles join which vertices; where a vertex goes is a
+    /// second question. A vertex on a crossing lies on an edge of its point, inside the four
+    /// cells around the point that hold that edge and outside the other four: their triangles
+    /// through it *poke* into the cells beside them. Every other triangle lies in its closed
+    /// cell, and two cells' triangles meet there only in the segments of their common face
+    /// (both draw the same). So two triangles cross only where one of them pokes, inside a cell
+    /// both reach: each cell gathers its own triangles and those poking into it from its 26
+    /// neighbours, and every pair with a poking one is tested exactly. The poking corners of a
+    /// pair that crosses go back to their grid points, inside all their cells (the triangles
+    /// keep their keys, so the topology the checks decided stands), and the cells near them are
+    /// looked at again, for [`UNTANGLE_ROUNDS`] rounds at most. Everything is decided from the
+    /// zero points and positions alone, in rounds of independent cells: a block with its halo
+    /// decides its own cells as the whole grid does.
+    fn untangle_snaps(
+        &mut self,
+        check: &mut dyn FnMut() -> ControlFlow<()>,
+    ) -> Result<usize, ExtractError> {
+        if self.snapping.position == SnapPosition::GridPoint {
+            return Ok(0);
+        }
+        let dims = self.grid.dims();
+        if dims.iter().any(|&d| d < 2) {
+            return Ok(0);
+        }
+        // Snapped points carried onto a crossing: `(point, poke bit)`, the bit as
+        // [`Ternary::poke`] gives it for the cells that do not hold the edge.
+        let mut displaced: Vec<(usize, u8)> = (0..self.zero.len())
+            .into_par_iter()
+            .flat_map_iter(|w| {
+                let mut bits = self.zero[w];
+                std::iter::from_fn(move || {
+                    let b = bits.trailing_zeros() as usize;
+                    (bits != 0).then(|| {
+                        bits &= bits - 1;
+                        w * 64 + b
+                    })
+                })
+            })
+            .filter_map(|p| {
+                let c = self.coords(p);
+                let (c0, axis, t) = self.snapped_place_at(p, c);
+                (t != 0.0).then(|| (p, 1 << (2 * axis + usize::from(c0 == c))))
+            })
+            .collect();
+        let cell_of = move |c: [usize; 3]| c[0] + dims[0] * (c[1] + dims[1] * c[2]);
+        // Cells to look at again after a round: those within `lo..=hi` steps of the points.
+        let mut near: Option<Vec<usize>> = None;
+        let mut kept = 0;
+        for _ in 0..UNTANGLE_ROUNDS {
+            if check().is_break() {
+                return Err(ExtractError::Cancelled);
+            }
+            // The cells each carried point pokes out of (the four around it on the far side of
+            // its edge), with their poke bits merged.
+            let mut pokers: Vec<(usize, u8)> = displaced
+                .par_iter()
+                .flat_map_iter(|&(p, bit)| {
+                    let c = self.coords(p);
+                    let axis = bit.trailing_zeros() as usize / 2;
+                    let forward = bit.trailing_zeros() % 2 == 1;
+                    let range = move |a: usize| {
+                        if a == axis {
+                            let x = if forward {
+                                c[a].checked_sub(1)
+                            } else {
+                                Some(c[a])
+                            };
+                            x.filter(|&x| x + 1 < dims[a]).map_or(0..0, |x| x..x + 1)
+                        } else {
+                            c[a].saturating_sub(1)..c[a].min(dims[a] - 2) + 1
+                        }
+                    };
+                    range(2).flat_map(move |k| {
+                        range(1).flat_map(move |j| range(0).map(move |i| (cell_of([i, j, k]), bit)))
+                    })
+                })
+                .collect();
+            pokers.par_sort_unstable();
+            pokers.dedup_by(|b, a| {
+                let same = a.0 == b.0;
+                if same {
+                    a.1 |= b.1;
+                }
+                same
+            });
+            // `(host, source)`: a cell and a neighbour (or itself) whose pokes may reach it.
+            let mut pairs: Vec<(usize, usize)> = pokers
+                .par_iter()
+                .flat_map_iter(|&(cell, mask)| {
+                    let c = self.coords(cell);
+                    let steps = move |a: usize| {
+                        let mut s = [0isize; 3];
+                        let mut n = 1;
+                        for (bit, step) in [(0, -1), (1, 1)] {
+                            if mask >> (2 * a + bit) & 1 != 0 {
+                                s[n] = step;
+                                n += 1;
+                            }
+                        }
+                        (s, n)
+                    };
+                    let (sx, sy, sz) = (steps(0), steps(1), steps(2));
+                    let mut out = Vec::with_capacity(sx.1 * sy.1 * sz.1);
+                    for &oz in &sz.0[..sz.1] {
+                        for &oy in &sy.0[..sy.1] {
+                            for &ox in &sx.0[..sx.1] {
+                                let o = [ox, oy, oz];
+                                let h: Option<Vec<usize>> = (0..3)
+                                    .map(|a| {
+                                        c[a].checked_add_signed(o[a]).filter(|&x| x + 1 < dims[a])
+                                    })
+                                    .collect();
+                                if let Some(h) = h {
+                                    out.push((cell_of([h[0], h[1], h[2]]), cell));
+                                }
+                            }
+                        }
+                    }
+                    out
+                })
+                .collect();
+            if let Some(near) = &near {
+                pairs.retain(|(h, _)| near.binary_search(h).is_ok());
+            }
+            pairs.par_sort_unstable();
+            let groups: Vec<&[(usize, usize)]> = pairs.chunk_by(|a, b| a.0 == b.0).collect();
+            let mut found: Vec<usize> = groups
+                .par_iter()
+                .with_min_len(16)
+                .map_init(Emitted::default, |cache, group| {
+                    let sources: Vec<usize> = group.iter().map(|e| e.1).collect();
+                    self.crossings_at(group[0].0, &sources, cache)
+                })
+                .flatten_iter()
+                .collect();
+            found.par_sort_unstable();
+            found.dedup();
+            if found.is_empty() {
+                break;
+            }
+            let mut next = Vec::with_capacity(64 * found.len());
+            for &p in &found {
+                self.on_grid[p / 64] |= 1 << (p % 64);
+                let c = self.coords(p);
+                let range = |a: usize| c[a].saturating_sub(2)..=(c[a] + 1).min(dims[a] - 2);
+                for k in range(2) {
+                    for j in range(1) {
+                        for i in range(0) {
+                            next.push(cell_of([i, j, k]));
+                        }
+                    }
+                }
+            }
+            next.par_sort_unstable();
+            next.dedup();
+            near = Some(next);
+            displaced.retain(|&(p, _)| self.on_grid[p / 64] >> (p % 64) & 1 == 0);
+            kept += found.len();
+        }
+        Ok(kept)
+    }
+
+    /// The corners of cell `cell` that poke out of it: bit `2 · axis + forward` for a vertex
+    /// carried along `axis` (forward: to higher coordinates) onto an edge the cell does not hold.
+    fn poke(&self, cell: [usize; 3], p: usize, c: [usize; 3]) -> u8 {
+        if !self.zero_point(p) {
+            return 0;
+        }
+        let (c0, axis, t) = self.snapped_place_at(p, c);
+        if t == 0.0 {
+            return 0;
+        }
+        let forward = c0 == c;
+        let inside = if forward {
+            c[axis] == cell[axis]
+        } else {
+            c[axis] == cell[axis] + 1
+        };
+        if inside {
+            0
+        } else {
+            1 << (2 * axis + usize::from(forward))
+        }
+    }
+
+    /// The triangles of cell `n` with their positions and pokes, from `cache` when it was
+    /// emitted lately (the hosts come in order, and neighbours share most of their sources).
+    fn emitted<'c>(&self, n: usize, cache: &'c mut Emitted) -> &'c [Gathered] {
+        if let Some(i) = cache.cells.iter().position(|&c| c == n) {
+            return &cache.triangles[i];
+        }
+        let slot = cache.next % UNTANGLE_CACHE;
+        cache.next += 1;
+        if cache.cells.len() <= slot {
+            cache.cells.push(n);
+            cache.triangles.push(Vec::new());
+        }
+        cache.cells[slot] = n;
+        let out = &mut cache.triangles[slot];
+        out.clear();
+        let patch = &mut cache.patch;
+        patch.clear();
+        self.emit(n, None, patch, true);
+        if patch.triangles.is_empty() {
+            return out;
+        }
+        let nc = self.coords(n);
+        // The cell's corners that poke, each asked once.
+        let mut pokes = [(usize::MAX, 0u8); 8];
+        for (slot, &off) in pokes.iter_mut().zip(&self.offsets) {
+            let p = n + off;
+            if self.zero_point(p) {
+                *slot = (p, self.poke(nc, p, self.coords(p)));
+            }
+        }
+        for t in &patch.triangles {
+            let mut corners = [None; 3];
+            let mut mask = 0u8;
+            for (slot, &k) in corners.iter_mut().zip(t) {
+                if tag(k) == POINT {
+                    let p = (k & PAYLOAD) as usize;
+                    let m = pokes.iter().find(|e| e.0 == p).map_or(0, |e| e.1);
+                    if m != 0 {
+                        *slot = Some(p);
+                        mask |= m;
+                    }
+                }
+            }
+            let at = t.map(|k| self.position(k, &patch.interiors).map(f64::from));
+            out.push(Gathered {
+                keys: *t,
+                at,
+                mask,
+                flat: crate::mesh::intersect::collinear(at),
+                corners,
+            });
+        }
+        out
+    }
+
+    /// The poking corners of each pair of crossing triangles among those in cell `h`: its own
+    /// and those of `sources` (itself or neighbours) that poke into it (see
+    /// [`Ternary::untangle_snaps`]), poking corners repeated.
+    fn crossings_at(&self, h: usize, sources: &[usize], cache: &mut Emitted) -> Vec<usize> {
+        let hc = self.coords(h);
+        let mut gathered: Vec<Gathered> = Vec::new();
+        // Two triangles of one cell are tested in that cell, which is a host of its own when
+        // it pokes: a host with no triangles tests only pairs from two neighbours.
+        let foreign = sources.iter().filter(|&&n| n != h).count();
+        if foreign < 2 && self.emitted(h, cache).is_empty() {
+            return Vec::new();
+        }
+        let own = std::iter::once(h).chain(sources.iter().copied().filter(|&n| n != h));
+        for n in own {
+            let nc = self.coords(n);
+            let o: [isize; 3] = std::array::from_fn(|a| hc[a] as isize - nc[a] as isize);
+            let reaches = |mask: u8| {
+                (0..3).all(|a| match o[a] {
+                    0 => true,
+                    s => mask >> (2 * a + usize::from(s > 0)) & 1 != 0,
+                })
+            };
+            gathered.extend(
+                self.emitted(n, cache)
+                    .iter()
+                    .filter(|g| !g.flat && reaches(g.mask))
+                    .cloned(),
+            );
+        }
+        if gathered.iter().all(|g| g.mask == 0) {
+            return Vec::new();
+        }
+        let ids: Vec<Key> = {
+            let mut all: Vec<Key> = gathered.iter().flat_map(|g| g.keys).collect();
+            all.sort_unstable();
+            all.dedup();
+            all
+        };
+        let id = |k: Key| ids.binary_search(&k).expect("gathered") as u32;
+        let with_ids = |g: &Gathered| [0, 1, 2].map(|v| (id(g.keys[v]), g.at[v]));
+        let mut found = Vec::new();
+        for (i, a) in gathered.iter().enumerate() {
+            for b in &gathered[i + 1..] {
+                if (a.mask | b.mask) != 0
+                    && crate::mesh::intersect::triangles_cross(with_ids(a), with_ids(b))
+                {
+                    found.extend(a.corners.iter().chain(&b.corners).flatten());
+                }
+            }
+        }
+        found
     }
 
     /// Asks the processor to fetch what a check of `p` reads first: the values of the nine rows
@@ -1437,6 +1783,7 @@ impl<'a> Ternary<'a> {
         let v = f64::from(values[p]);
         if self.snapping.position == SnapPosition::GridPoint
             || (v - level).abs() <= f64::from(self.snapping.zero_threshold)
+            || self.on_grid[p / 64] >> (p % 64) & 1 != 0
         {
             return (c, 0, 0.0);
         }

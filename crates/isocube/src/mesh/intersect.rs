@@ -19,6 +19,50 @@ pub(crate) fn first_crossing(
     })
 }
 
+/// Every pair of triangles (indices, smaller first, sorted) that cross as
+/// [`triangles_cross`] decides, found through boxes of side `size` so that large meshes are
+/// checked in time proportional to their size (triangles of no area left out).
+#[cfg(test)]
+pub(crate) fn crossing_pairs(
+    tris: &[[u32; 3]],
+    position: &dyn Fn(u32) -> [f64; 3],
+    size: f64,
+) -> Vec<(usize, usize)> {
+    let mut boxes: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+    for (i, t) in tris.iter().enumerate() {
+        let p = t.map(position);
+        if collinear(p) {
+            continue;
+        }
+        let lo: [i64; 3] =
+            std::array::from_fn(|d| (p[0][d].min(p[1][d]).min(p[2][d]) / size).floor() as i64);
+        let hi: [i64; 3] =
+            std::array::from_fn(|d| (p[0][d].max(p[1][d]).max(p[2][d]) / size).floor() as i64);
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    boxes.entry([x, y, z]).or_default().push(i);
+                }
+            }
+        }
+    }
+    let at = |i: usize| tris[i].map(|v| (v, position(v)));
+    let mut pairs: Vec<(usize, usize)> = boxes
+        .values()
+        .flat_map(|list| {
+            list.iter().enumerate().flat_map(move |(k, &i)| {
+                list[k + 1..]
+                    .iter()
+                    .filter(move |&&j| triangles_cross(at(i), at(j)))
+                    .map(move |&j| (i.min(j), i.max(j)))
+            })
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
 /// Whether a triangle's corners lie on one line (exactly).
 pub(crate) fn collinear(t: [[f64; 3]; 3]) -> bool {
     (0..3).all(|axis| orient2(t[0], t[1], t[2], axis) == 0.0)
