@@ -88,7 +88,7 @@ def test_ply_written_by_the_chunks_is_the_whole_meshs_file(
             **options,
         )
         assert path.read_bytes() == expected.read_bytes(), chunks
-        assert stats["cells"] == 229 * 25 * 20
+        assert stats["cells"] == 289 * 25 * 20
     # Nothing but the files asked for is left beside them.
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "dask0.ply",

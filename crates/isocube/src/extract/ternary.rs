@@ -699,17 +699,28 @@ impl<'a> Ternary<'a> {
             if let Some(near) = &near {
                 pairs.retain(|(h, _)| near.binary_search(h).is_ok());
             }
+            if check().is_break() {
+                return Err(ExtractError::Cancelled);
+            }
             pairs.par_sort_unstable();
             let groups: Vec<&[(usize, usize)]> = pairs.chunk_by(|a, b| a.0 == b.0).collect();
-            let mut found: Vec<usize> = groups
-                .par_iter()
-                .with_min_len(16)
-                .map_init(Emitted::default, |cache, group| {
-                    let sources: Vec<usize> = group.iter().map(|e| e.1).collect();
-                    self.crossings_at(group[0].0, &sources, cache)
-                })
-                .flatten_iter()
-                .collect();
+            // In some 32 batches, the stop asked between them.
+            let mut found: Vec<usize> = Vec::new();
+            for batch in groups.chunks(groups.len().div_ceil(32).max(1024)) {
+                if check().is_break() {
+                    return Err(ExtractError::Cancelled);
+                }
+                found.par_extend(
+                    batch
+                        .par_iter()
+                        .with_min_len(16)
+                        .map_init(Emitted::default, |cache, group| {
+                            let sources: Vec<usize> = group.iter().map(|e| e.1).collect();
+                            self.crossings_at(group[0].0, &sources, cache)
+                        })
+                        .flatten_iter(),
+                );
+            }
             found.par_sort_unstable();
             found.dedup();
             if found.is_empty() {
@@ -1200,8 +1211,15 @@ impl<'a> Ternary<'a> {
             let allowed = |a: usize, b: usize| may_join_on(masks[a] & masks[b], ALL_FACES);
             // An interior point the search pushes onto a face of the cell (where the
             // triangles are best) has its spokes in the face, where the cell across may draw
-            // edges too, and they could cross: then it is sought again off the faces.
-            let on_face = |x: [f64; 3]| (0..3).any(|d| x[d] == cube.0[d] || x[d] == cube.1[d]);
+            // edges too, and they could cross: then it is sought again off the faces. On the
+            // face as stored (`f32`): a point a rounding away from the face lands on it, and on
+            // the grid's outer face a volume mesh's wall would pass through it.
+            let on_face = |x: [f64; 3]| {
+                (0..3).any(|d| {
+                    let s = x[d] as f32;
+                    s == cube.0[d] as f32 || s == cube.1[d] as f32
+                })
+            };
             let found = match triangulate(&positions, &allowed, self.strategy, cube) {
                 Some(r) if r.interior.is_some_and(on_face) => {
                     let inside = self.interior_bounds(base);
