@@ -620,16 +620,19 @@ impl<'a> Ternary<'a> {
             })
             .collect();
         let cell_of = move |c: [usize; 3]| c[0] + dims[0] * (c[1] + dims[1] * c[2]);
-        // Cells to look at again after a round: those within `lo..=hi` steps of the points.
+        // After a round, the cells to look at again (those whose triangles may have moved:
+        // within two of a point put back), and the carried points whose pokes reach them.
         let mut near: Option<Vec<usize>> = None;
+        let mut active: Vec<(usize, u8)> = Vec::new();
         let mut kept = 0;
         for _ in 0..UNTANGLE_ROUNDS {
             if check().is_break() {
                 return Err(ExtractError::Cancelled);
             }
+            let carried = if near.is_some() { &active } else { &displaced };
             // The cells each carried point pokes out of (the four around it on the far side of
             // its edge), with their poke bits merged.
-            let mut pokers: Vec<(usize, u8)> = displaced
+            let mut pokers: Vec<(usize, u8)> = carried
                 .par_iter()
                 .flat_map_iter(|&(p, bit)| {
                     let c = self.coords(p);
@@ -743,6 +746,23 @@ impl<'a> Ternary<'a> {
             next.dedup();
             near = Some(next);
             displaced.retain(|&(p, _)| self.on_grid[p / 64] >> (p % 64) & 1 == 0);
+            // A point pokes into cells within one of the four it pokes out of, so within two of
+            // it; a cell to look at is within two of a point put back: points within three of
+            // those are all that matter next round (`found` and `displaced` are sorted).
+            let within = |a: [usize; 3], b: [usize; 3]| (0..3).all(|d| a[d].abs_diff(b[d]) <= 3);
+            active = displaced
+                .par_iter()
+                .copied()
+                .filter(|&(p, _)| {
+                    let c = self.coords(p);
+                    // Points sorted by index are sorted by `z` first: look at those in reach.
+                    let lo = found.partition_point(|&f| self.coords(f)[2] + 3 < c[2]);
+                    found[lo..]
+                        .iter()
+                        .take_while(|&&f| self.coords(f)[2] <= c[2] + 3)
+                        .any(|&f| within(self.coords(f), c))
+                })
+                .collect();
             kept += found.len();
         }
         Ok(kept)

@@ -29,8 +29,9 @@
 //!   Snapped onto a crossing ([`SnapPosition::NearestCrossing`][crossing]), a zero point's
 //!   vertex leaves its grid point and the cells around it follow it there (as in isosurface
 //!   stuffing): faces bend, every tetrahedron is still checked, and the surface keeps Marching
-//!   Cubes' accuracy. The side below the level meshes on every sample; the side above often
-//!   has folded parts no cone fills (refused, naming the cell).
+//!   Cubes' accuracy. Where a cell's surface passes through a bent face into its neighbour, or
+//!   its part does not fill alone, it is filled together with its neighbours (a group of up to
+//!   12 cells).
 //!
 //! [grid]: crate::extract::SnapPosition::GridPoint
 //! [crossing]: crate::extract::SnapPosition::NearestCrossing
@@ -39,7 +40,8 @@
 //! stored (`f32`): all positive, over a closed boundary, means the cone tiles the part exactly.
 //! Where no point sees a part whole (the surface folds in the cell), it is coned from several
 //! points, or split in two along a disc spanning a short cycle of its edges and each side
-//! filled. A part that none of this fills is reported as an error naming the cell rather than
+//! filled (600 splits tried per part; 20 000 on the last attempt, the groups of cells filled at
+//! the end). A part that none of this fills is reported as an error naming the cell rather than
 //! meshed wrongly.
 //!
 //! ```
@@ -474,6 +476,7 @@ fn mesh_region(
         flip,
         shape: ternary,
         grouped: Vec::new(),
+        patient: false,
     };
     asked(cells)?;
     // The layers of cells are meshed in parallel a batch at a time and appended in order, each
@@ -537,7 +540,9 @@ fn mesh_region(
         stats.cut_cells = 0;
     };
     debug_assert!(crossed.is_empty());
-    // The groups of cells last, in order.
+    // The groups of cells last, in order: the last attempt at them.
+    ctx.patient = true;
+    let ctx = ctx;
     let filled = filled.and_then(|()| {
         let layers: Vec<Layer> = groups
             .par_iter()
@@ -901,6 +906,10 @@ struct Context<'a> {
     /// Cells filled together with neighbours ([`Context::groups`]), by index, sorted: the layers
     /// leave them out.
     grouped: Vec<u64>,
+    /// Whether a part whose fill runs out of splits gets [`LAST_SPLIT_BUDGET`] more: on the last
+    /// attempt only (the groups of cells, filled at the end), as a first attempt that fails is
+    /// cheaper to answer by grouping the cell with its neighbours.
+    patient: bool,
 }
 
 /// A cell's boundary triangle: the surface's, or one of a cell face's inside part (the cell and
@@ -1415,7 +1424,18 @@ impl Context<'_> {
         for part in parts(boundary, &|v| self.position(v))? {
             let mut budget = SPLIT_BUDGET;
             let Some(peeled) = self.shape.then(|| self.peeled(cell, &part)).flatten() else {
-                self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
+                if self
+                    .fill(cell, &part, out, SPLIT_DEPTH, &mut budget)
+                    .is_err()
+                {
+                    if !self.patient {
+                        return Err(FOLDED);
+                    }
+                    // The last attempt at a part that folds so that the usual number of splits
+                    // runs out: many more (such parts are rare, and only they pay for it).
+                    let mut budget = LAST_SPLIT_BUDGET;
+                    self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
+                }
                 continue;
             };
             // Cutting the ears off is kept only when it beats filling the part as it is.
@@ -1973,9 +1993,8 @@ fn shared_points(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> bool 
 }
 
 const CROSSED: &str =
-    "the surface passes through itself in this cell, so it bounds no region here (seen with \
-     --snap-position crossing, where snapped points carry the surface along a cell face; \
-     --snap-position grid meshes those inputs)";
+    "the surface passes through itself in this cell, so it bounds no region here (`extract` keeps \
+     snapped points off crossings where that would happen: please report the input)";
 
 const FOLDED: &str =
     "no set of cone points found fills the cell's part of the region (a fold of the surface no cone reaches)";
@@ -1985,6 +2004,8 @@ const FOLDED: &str =
 /// that no split fills costs the whole budget).
 const SPLIT_DEPTH: u32 = 2;
 const SPLIT_BUDGET: u32 = 600;
+/// The splits tried for a part once [`SPLIT_BUDGET`] ran out.
+const LAST_SPLIT_BUDGET: u32 = 20_000;
 
 /// A cone point whose tetrahedra score this well ([`cone_quality`]) is kept without looking
 /// further: beyond the goal's bounds with room to spare.
