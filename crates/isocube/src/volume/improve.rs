@@ -572,6 +572,26 @@ impl Work<'_> {
             .all(|&t| !self.frozen(t) && self.label(t) == label)
     }
 
+    /// The worst score of `tets` when every one is positive and scores above `bound`, else
+    /// `None`: [`Work::worst`] for a search that keeps only what beats its best, which can stop
+    /// at the first element that does not (most candidates fail at once).
+    fn worst_above(&self, tets: &[[u32; 4]], bound: f64) -> Option<f64> {
+        let mut worst = f64::INFINITY;
+        for t in tets {
+            let s = score(t.map(|v| self.point(v)));
+            if s <= bound {
+                return None;
+            }
+            worst = worst.min(s);
+        }
+        tets.iter()
+            .all(|t| {
+                let p = t.map(|v| self.point(v));
+                positive(p[0], p[1], p[2], p[3])
+            })
+            .then_some(worst)
+    }
+
     /// The worst score of `tets`, or `None` if one is not positive.
     fn worst(&self, tets: &[[u32; 4]]) -> Option<f64> {
         let mut worst = f64::INFINITY;
@@ -953,12 +973,10 @@ impl Work<'_> {
                 q[dir / 2] += if dir % 2 == 0 { step } else { -step };
                 let q = q.map(|c| c as f32);
                 self.positions[v as usize] = q;
-                if let Some(w) = self.worst(star) {
-                    if w > best {
-                        best = w;
-                        here = q;
-                        moved = true;
-                    }
+                if let Some(w) = self.worst_above(star, best) {
+                    best = w;
+                    here = q;
+                    moved = true;
                 }
             }
             if !moved {
