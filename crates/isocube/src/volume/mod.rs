@@ -1424,12 +1424,10 @@ impl Context<'_> {
         for part in parts(boundary, &|v| self.position(v))? {
             let mut budget = SPLIT_BUDGET;
             let Some(peeled) = self.shape.then(|| self.peeled(cell, &part)).flatten() else {
-                if self
-                    .fill(cell, &part, out, SPLIT_DEPTH, &mut budget)
-                    .is_err()
-                {
-                    if !self.patient {
-                        return Err(FOLDED);
+                if let Err(reason) = self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget) {
+                    // (A part whose surface passes through itself no split can fill.)
+                    if !self.patient || reason == CROSSED {
+                        return Err(reason);
                     }
                     // The last attempt at a part that folds so that the usual number of splits
                     // runs out: many more (such parts are rare, and only they pay for it).
