@@ -573,36 +573,27 @@ impl Work<'_> {
     }
 
     /// The worst score of `tets` when every one is positive and scores above `bound`, else
-    /// `None`: [`Work::worst`] for a search that keeps only what beats its best, which can stop
-    /// at the first element that does not (most candidates fail at once).
+    /// `None`. A search keeps only what beats its best: it can stop at the first element that
+    /// does not (most candidates fail at once).
     fn worst_above(&self, tets: &[[u32; 4]], bound: f64) -> Option<f64> {
-        let mut worst = f64::INFINITY;
-        for t in tets {
-            let s = score(t.map(|v| self.point(v)));
-            if s <= bound {
-                return None;
-            }
-            worst = worst.min(s);
-        }
-        tets.iter()
-            .all(|t| {
-                let p = t.map(|v| self.point(v));
-                positive(p[0], p[1], p[2], p[3])
-            })
-            .then_some(worst)
-    }
-
-    /// The worst score of `tets`, or `None` if one is not positive.
-    fn worst(&self, tets: &[[u32; 4]]) -> Option<f64> {
         let mut worst = f64::INFINITY;
         for t in tets {
             let p = t.map(|v| self.point(v));
             if !positive(p[0], p[1], p[2], p[3]) {
                 return None;
             }
-            worst = worst.min(score(p));
+            let s = score(p);
+            if s <= bound {
+                return None;
+            }
+            worst = worst.min(s);
         }
         Some(worst)
+    }
+
+    /// The worst score of `tets`, or `None` if one is not positive.
+    fn worst(&self, tets: &[[u32; 4]]) -> Option<f64> {
+        self.worst_above(tets, f64::NEG_INFINITY)
     }
 
     /// Flips the face of `t` opposite its corner `d` to the three tetrahedra around the segment

@@ -542,7 +542,6 @@ fn mesh_region(
     debug_assert!(crossed.is_empty());
     // The groups of cells last, in order: the last attempt at them.
     ctx.patient = true;
-    let ctx = ctx;
     let filled = filled.and_then(|()| {
         let layers: Vec<Layer> = groups
             .par_iter()
@@ -1430,7 +1429,8 @@ impl Context<'_> {
                         return Err(reason);
                     }
                     // The last attempt at a part that folds so that the usual number of splits
-                    // runs out: many more (such parts are rare, and only they pay for it).
+                    // (and the front after them) fails: many more (such parts are rare, and only
+                    // they pay for it; the first 600 are tried again, at most ~0.4 s).
                     let mut budget = LAST_SPLIT_BUDGET;
                     self.fill(cell, &part, out, SPLIT_DEPTH, &mut budget)?;
                 }
