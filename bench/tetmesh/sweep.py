@@ -10,10 +10,12 @@ points), `--snap 0.5` and `--snap 0.5 --snap-position grid`. Each run is the com
 (sample, mesh, check, binary `.msh` written). A run is *refused* when the command fails: the
 message is kept and printed. For each option set the table gives meshed / refused and the
 range of the smallest and largest dihedral angles over the meshes, how many meshes have an
-angle outside [10°, 165°], and how many of those the surface itself forces: the smallest angle
-is the summary's sharpest boundary edge, which is under 10° (no tetrahedron at that edge can
-do better; the two surface triangles meeting there at a few hundredths of a degree leave the
-element between them flat, so its largest angle is near 180° too).
+angle outside [10°, 165°], and of those, by the summary's classes of the elements outside
+(`outside [10°, 165°]: …`): meshes whose every such element has an edge where the region's
+boundary is sharper than 10° (forced by the surface: the elements around that edge share its
+angle), meshes whose such elements are all forced or within 1.5 cells of surface detail under a
+fifth of a cell (two surface vertices that close, or one that close to a wall: a gap or neck
+kept open so the topology stays, finer than the elements), and the rest.
 """
 
 from __future__ import annotations
@@ -58,6 +60,11 @@ class Run:
     low: float = float("nan")
     high: float = float("nan")
     sharpest: float | None = None
+    # The summary's classes of the elements outside [10°, 165°]: at a boundary edge sharper
+    # than 10°, beside surface detail under a fifth of a cell, others.
+    forced: int = 0
+    fine: int = 0
+    others: int = 0
     message: str = ""
     seconds: float = 0.0
 
@@ -84,6 +91,11 @@ def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
     if angles is None:
         raise SystemExit(f"{' '.join(args)}: no dihedral angles in\n{done.stderr}")
     sharpest = re.search(r"sharpest boundary edge: ([0-9.]+)°", done.stderr)
+    classes = re.search(
+        r"outside \[10°, 165°\]: [0-9]+ elements: ([0-9]+) at .*?, ([0-9]+) within .*?, ([0-9]+) others",
+        done.stderr,
+    )
+    forced, fine, others = (int(g) for g in classes.groups()) if classes else (0, 0, 0)
     return Run(
         mode,
         spec,
@@ -92,12 +104,22 @@ def run(binary: str, work: Path, mode: str, spec: str, flip: bool) -> Run:
         float(angles.group(1)),
         float(angles.group(2)),
         float(sharpest.group(1)) if sharpest else None,
+        forced,
+        fine,
+        others,
         seconds=seconds,
     )
 
 
 def forced_by_surface(r: Run) -> bool:
-    return r.sharpest is not None and r.sharpest < LOW and r.low >= r.sharpest - 0.01
+    """Every element outside the range is at a boundary edge sharper than 10°."""
+    return r.forced > 0 and r.fine == 0 and r.others == 0
+
+
+def beside_fine_detail(r: Run) -> bool:
+    """No element outside the range is other than forced or beside detail finer than a fifth
+    of a cell (and some is beside such detail)."""
+    return r.fine > 0 and r.others == 0
 
 
 def main() -> None:
@@ -132,9 +154,9 @@ def main() -> None:
     print()
     print(
         "| options | meshed | refused | smallest dihedral (min / median) | largest dihedral (max / median) "
-        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface |"
+        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface | beside detail under 0.2 cells | others |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for mode in modes:
         mine = [r for r in runs if r.mode == mode]
         good = [r for r in mine if r.ok]
@@ -142,10 +164,12 @@ def main() -> None:
         highs = sorted(r.high for r in good)
         outside = [r for r in good if r.low < LOW or r.high > HIGH]
         forced = [r for r in outside if forced_by_surface(r)]
+        fine = [r for r in outside if beside_fine_detail(r)]
         low = f"{lows[0]:.2f}° / {lows[len(lows) // 2]:.2f}°" if lows else "–"
         high = f"{highs[-1]:.2f}° / {highs[len(highs) // 2]:.2f}°" if highs else "–"
         print(
-            f"| {mode} | {len(good)} | {len(mine) - len(good)} | {low} | {high} | {len(outside)} | {len(forced)} |"
+            f"| {mode} | {len(good)} | {len(mine) - len(good)} | {low} | {high} | {len(outside)} | {len(forced)} "
+            f"| {len(fine)} | {len(outside) - len(forced) - len(fine)} |"
         )
     print()
     for r in runs:
@@ -162,6 +186,11 @@ def main() -> None:
                 else ""
             )
             edge += " (forced)" if forced_by_surface(r) else ""
+            edge += (
+                f"; elements outside: {r.forced} forced, {r.fine} beside fine detail, {r.others} others"
+                if r.forced + r.fine + r.others
+                else ""
+            )
             kind = "outside" if r.low < LOW or r.high > HIGH else "inside"
             print(
                 f"{kind}: {r.mode}: {r.spec}{side}: {r.low:.2f}°..{r.high:.2f}°{edge}, {r.seconds:.2f} s"

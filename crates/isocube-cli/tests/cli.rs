@@ -1630,6 +1630,60 @@ fn tetmesh_ternary_keeps_the_angles_moderate() {
     assert_eq!(report["triangles"].as_u64().unwrap() as usize, surface);
 }
 
+/// The summary sorts the elements outside [10°, 165°] by what lies beside them: the classes add
+/// up to the count, and the line is there exactly when the angles leave the range.
+#[test]
+fn tetmesh_sorts_the_elements_outside_the_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut seen = 0;
+    for (spec, flip) in [
+        ("sample:noise:16:1", false),
+        ("sample:noise:16:2", true),
+        ("sample:packed-spheres:16:3", true),
+        ("sample:sphere:16", false),
+    ] {
+        let mut args = vec!["tetmesh", spec, "-o", "t.msh"];
+        if flip {
+            args.push("--flip");
+        }
+        let out = isocube(dir.path(), &args);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{err}");
+        let angles = err
+            .split("dihedral angles ")
+            .nth(1)
+            .and_then(|s| s.split(',').next())
+            .unwrap();
+        let (lo, hi) = angles.split_once("..").unwrap();
+        let degrees = |s: &str| s.trim_end_matches('°').parse::<f64>().unwrap();
+        let outside = degrees(lo) < 10.0 || degrees(hi) > 165.0;
+        let line = err.lines().find(|l| l.starts_with("outside [10°, 165°]: "));
+        assert_eq!(line.is_some(), outside, "{spec}: {err}");
+        let Some(line) = line else { continue };
+        seen += 1;
+        // "N elements: A at …, B within …, C others"
+        let number_before = |word: &str| -> usize {
+            let head = line.split(word).next().unwrap();
+            head.rsplit(|c: char| !c.is_ascii_digit())
+                .find(|s| !s.is_empty())
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        let count = number_before(" elements:");
+        let forced = number_before(" at a boundary edge");
+        let fine = number_before(" within 1.5 cells");
+        let others = number_before(" others");
+        assert!(count > 0, "{line}");
+        assert_eq!(count, forced + fine + others, "{line}");
+        assert_eq!(line.contains("(worst "), others > 0, "{line}");
+    }
+    assert!(
+        seen > 0,
+        "no input left the range: the test looks at nothing"
+    );
+}
+
 /// `tetmesh` on a contour stack: the body between the sections (caps extended or flat), with
 /// planes between the sections by default; with the sections only, its boundary has
 /// `contours --plain`'s triangles; an open stack, another level or labels are refused with

@@ -177,7 +177,12 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         ),
         None => tetmesh(view, &options),
     };
-    finish(args, quiet, meshed, started, loaded)
+    let cell = view
+        .spacing()
+        .into_iter()
+        .map(f64::abs)
+        .fold(f64::INFINITY, f64::min);
+    finish(args, quiet, meshed, cell, started, loaded)
 }
 
 /// The contour stack's body (or, with --flip, the space around it in the grid's box).
@@ -222,7 +227,7 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
     let options = extract_options(args, room, level);
     let loaded = started.elapsed();
     let meshed = isocube::contours::tetmesh(&stack, &plane, cap, layer_spacing, &options);
-    finish(args, quiet, meshed, started, loaded)?;
+    finish(args, quiet, meshed, plane.spacing, started, loaded)?;
     if !quiet {
         eprintln!(
             "{} sections, {}×{} plane grid (cell {:.4}), {}",
@@ -280,6 +285,7 @@ fn finish(
     args: &Args,
     quiet: bool,
     meshed: Result<isocube::volume::TetMesh, TetError>,
+    cell: f64,
     started: Instant,
     loaded: std::time::Duration,
 ) -> Result<(), Failure> {
@@ -378,6 +384,9 @@ fn finish(
             );
         }
     }
+    if report.min_dihedral < 10.0 || report.max_dihedral > 165.0 {
+        eprintln!("{}", poor_line(&mesh, cell));
+    }
     if let Some((c, _)) = &check {
         eprintln!(
             "check: {}, {} inverted, {} flat, volume {:.6e} (the boundary encloses {:.6e})",
@@ -407,4 +416,37 @@ fn finish(
         ms(written - measured),
     );
     Ok(())
+}
+
+/// The elements outside [10°, 165°] and what lies beside them, in cells of width `cell`.
+fn poor_line(mesh: &isocube::volume::TetMesh, cell: f64) -> String {
+    let poor = mesh.poor_elements(cell);
+    let at = |v: u32| mesh.positions[v as usize].map(f64::from);
+    let mut s = format!(
+        "outside [10°, 165°]: {} elements: {} at a boundary edge sharper than 10° (forced), {} \
+         within 1.5 cells of surface vertices under 0.2 cells apart (or that close to a wall)",
+        poor.count, poor.at_sharp_edges, poor.beside_fine_detail
+    );
+    if let Some((d, [a, b])) = poor.closest {
+        // The same vertex twice: it and the wall nearest to it.
+        let (a, b) = (at(a), at(b));
+        s += &format!(
+            " (closest {:.3} cells, at ({:.6}, {:.6}, {:.6}))",
+            d / cell,
+            0.5 * (a[0] + b[0]),
+            0.5 * (a[1] + b[1]),
+            0.5 * (a[2] + b[2])
+        );
+    }
+    s += &format!(", {} others", poor.others);
+    if let Some(w) = poor.worst_other {
+        let p = mesh.tets[w as usize].map(at);
+        let q = isocube::volume::TetQuality::of(p);
+        let centre: [f64; 3] = std::array::from_fn(|d| p.iter().map(|c| c[d]).sum::<f64>() / 4.0);
+        s += &format!(
+            " (worst {:.2}°..{:.2}° at ({:.6}, {:.6}, {:.6}))",
+            q.min_dihedral, q.max_dihedral, centre[0], centre[1], centre[2]
+        );
+    }
+    s
 }

@@ -252,8 +252,18 @@ impl TetMesh {
     /// assert!((sharpest.angle - 90.0).abs() < 1e-9);
     /// ```
     pub fn sharpest_boundary_edge(&self) -> Option<BoundaryEdge> {
+        self.boundary_edges(None)
+            .into_iter()
+            .min_by(|x, y| x.angle.total_cmp(&y.angle).then(x.edge.cmp(&y.edge)))
+    }
+
+    /// Every edge of the region's boundary with the region's angle there (the smallest of its
+    /// wedges where more than two boundary triangles meet), in no particular order; only the
+    /// edges among `among` (sorted, lower vertex first) if given; none for multi-material
+    /// meshes ([`TetMesh::sharpest_boundary_edge`]).
+    pub(super) fn boundary_edges(&self, among: Option<&[[u32; 2]]>) -> Vec<BoundaryEdge> {
         if self.labels.is_some() {
-            return None;
+            return Vec::new();
         }
         let boundary: Vec<[u32; 3]> = if self.surface.is_empty() && self.walls.is_empty() {
             // Read from a file: the faces of one tetrahedron only.
@@ -271,6 +281,7 @@ impl TetMesh {
                     ([a.min(b), a.max(b)], a < b, f[(k + 2) % 3])
                 })
             })
+            .filter(|h| among.is_none_or(|edges| edges.binary_search(&h.0).is_ok()))
             .collect();
         halves.par_sort_unstable();
         let at = |v: u32| self.positions[v as usize].map(f64::from);
@@ -325,8 +336,243 @@ impl TetMesh {
                     edge: [a, b],
                 })
             })
-            .min_by(|x, y| x.angle.total_cmp(&y.angle).then(x.edge.cmp(&y.edge)))
+            .collect()
     }
+
+    /// The elements outside the dihedral range volume meshes aim at, [10°, 165°], sorted by
+    /// what lies beside them, for a mesh whose grid cells are `cell` wide (the smallest
+    /// spacing): those with an edge where the region's boundary is sharper than 10° (the
+    /// surface forces them: the elements around the edge share its angle), those within 1.5
+    /// cells of a surface vertex with another, or a wall of the grid it does not lie on, under
+    /// a fifth of a cell away (detail of the region finer than the elements: where snapping a
+    /// grid point would change the topology, the surface keeps a gap or neck that thin, and
+    /// elements the size of a cell cannot fill it well), and the others, which a better mesh of
+    /// the same boundary could have avoided. A `cell` that is not a positive width counts every
+    /// such element among the others.
+    ///
+    /// ```
+    /// use isocube::extract::ExtractOptions;
+    /// use isocube::field::Sample;
+    /// use isocube::volume::tetmesh;
+    /// let grid = Sample::Sphere.grid(16);
+    /// let mesh = tetmesh(&grid, &ExtractOptions::default()).unwrap();
+    /// let poor = mesh.poor_elements(grid.spacing()[0]);
+    /// assert_eq!(poor.count, poor.at_sharp_edges + poor.beside_fine_detail + poor.others);
+    /// ```
+    pub fn poor_elements(&self, cell: f64) -> PoorElements {
+        let at = |v: u32| self.positions[v as usize].map(f64::from);
+        let scored: Vec<(f64, u32)> = self
+            .tets
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, t)| {
+                let (lo, hi) = dihedral_extremes(t.map(at));
+                (lo < POOR_LOW || hi > POOR_HIGH)
+                    .then_some((lo.min((180.0 - hi) * (2.0 / 3.0)), i as u32))
+            })
+            .collect();
+        let mut poor = PoorElements {
+            count: scored.len(),
+            ..PoorElements::default()
+        };
+        if scored.is_empty() || cell.is_nan() || cell <= 0.0 {
+            poor.others = poor.count;
+            poor.worst_other = scored
+                .iter()
+                .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))
+                .map(|e| e.1);
+            return poor;
+        }
+        // Only the edges of poor elements can make them forced.
+        let mut edges: Vec<[u32; 2]> = scored
+            .iter()
+            .flat_map(|&(_, i)| {
+                let t = self.tets[i as usize];
+                (0..4).flat_map(move |a| (a + 1..4).map(move |b| [t[a].min(t[b]), t[a].max(t[b])]))
+            })
+            .collect();
+        edges.par_sort_unstable();
+        edges.dedup();
+        let mut sharp: Vec<[u32; 2]> = self
+            .boundary_edges(Some(&edges))
+            .into_iter()
+            .filter(|e| e.angle < POOR_LOW)
+            .map(|e| e.edge)
+            .collect();
+        sharp.par_sort_unstable();
+        // Surface vertices (numbered first) by the cell they lie in, `z` first, so that those
+        // of a row of cells along `x` lie together.
+        let key = |p: [f64; 3]| [p[2], p[1], p[0]].map(|c| (c / cell).floor() as i64);
+        let mut by_cell: Vec<([i64; 3], u32)> = (0..self.surface_vertices as u32)
+            .into_par_iter()
+            .map(|v| (key(at(v)), v))
+            .collect();
+        by_cell.par_sort_unstable();
+        // The grid's walls, as planes (axis, coordinate): where the surface passes closer to
+        // one than a fifth of a cell without meeting it, the region between is as thin.
+        let mut planes: Vec<(usize, f32)> = self
+            .walls
+            .iter()
+            .filter_map(|f| {
+                let p = f.map(|v| self.positions[v as usize]);
+                (0..3)
+                    .find(|&a| p[0][a] == p[1][a] && p[1][a] == p[2][a])
+                    .map(|a| (a, p[0][a]))
+            })
+            .collect();
+        planes.sort_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
+        planes.dedup();
+        let reach = 1.5 * cell;
+        let fine = 0.2 * cell;
+        // The surface vertices in the cells `lo..=hi` (keys), `z` rows first.
+        let in_cells = |lo: [i64; 3], hi: [i64; 3]| {
+            let by_cell = &by_cell;
+            (lo[0]..=hi[0]).flat_map(move |z| {
+                (lo[1]..=hi[1]).flat_map(move |y| {
+                    let from = by_cell.partition_point(|e| e.0 < [z, y, lo[2]]);
+                    let to = by_cell.partition_point(|e| e.0 <= [z, y, hi[2]]);
+                    by_cell[from..to].iter().map(|e| e.1)
+                })
+            })
+        };
+        let forced: Vec<bool> = scored
+            .par_iter()
+            .map(|&(_, i)| {
+                let t = self.tets[i as usize];
+                (0..4).any(|a| {
+                    (a + 1..4).any(|b| {
+                        let e = [t[a].min(t[b]), t[a].max(t[b])];
+                        sharp.binary_search(&e).is_ok()
+                    })
+                })
+            })
+            .collect();
+        // The surface vertices within reach of each other poor element.
+        let near: Vec<Vec<u32>> = scored
+            .par_iter()
+            .zip(&forced)
+            .map(|(&(_, i), &forced)| {
+                if forced {
+                    return Vec::new();
+                }
+                let p = self.tets[i as usize].map(at);
+                let centre: [f64; 3] =
+                    std::array::from_fn(|d| p.iter().map(|q| q[d]).sum::<f64>() / 4.0);
+                let (lo, hi) = (
+                    key(centre.map(|c| c - reach)),
+                    key(centre.map(|c| c + reach)),
+                );
+                in_cells(lo, hi)
+                    .filter(|&v| {
+                        let d = sub(at(v), centre);
+                        dot(d, d) <= reach * reach
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut needed: Vec<u32> = near.iter().flatten().copied().collect();
+        needed.par_sort_unstable();
+        needed.dedup();
+        // Each of those vertices' nearest other surface vertex, or wall it does not lie on,
+        // closer than `fine` (a fifth of a cell: within its own cell and the 26 around).
+        let finest: Vec<Option<Closest>> = needed
+            .par_iter()
+            .map(|&v| {
+                let p = at(v);
+                let k = key(p);
+                let mut closest: Option<Closest> = None;
+                let mut take = |d: f64, pair: [u32; 2]| {
+                    if d < fine && closest.is_none_or(|c| (d, pair) < c) {
+                        closest = Some((d, pair));
+                    }
+                };
+                for u in in_cells(k.map(|c| c - 1), k.map(|c| c + 1)) {
+                    if u != v {
+                        let d = sub(at(u), p);
+                        take(dot(d, d).sqrt(), [u.min(v), u.max(v)]);
+                    }
+                }
+                for &(axis, c) in &planes {
+                    let d = (p[axis] - f64::from(c)).abs();
+                    if d > 0.0 {
+                        take(d, [v, v]);
+                    }
+                }
+                closest
+            })
+            .collect();
+        let verdicts: Vec<(u8, Option<Closest>)> = forced
+            .par_iter()
+            .zip(&near)
+            .map(|(&forced, near)| {
+                if forced {
+                    return (0, None);
+                }
+                let closest = near
+                    .iter()
+                    .filter_map(|v| finest[needed.binary_search(v).expect("listed")])
+                    .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                match closest {
+                    Some(c) => (1, Some(c)),
+                    None => (2, None),
+                }
+            })
+            .collect();
+        for (&(score, i), (kind, closest)) in scored.iter().zip(verdicts) {
+            match kind {
+                0 => poor.at_sharp_edges += 1,
+                1 => {
+                    poor.beside_fine_detail += 1;
+                    if let Some(c) = closest {
+                        if poor.closest.is_none_or(|p| (c.0, c.1) < (p.0, p.1)) {
+                            poor.closest = Some(c);
+                        }
+                    }
+                }
+                _ => {
+                    poor.others += 1;
+                    let worse = poor.worst_other.is_none_or(|w| {
+                        let (lo, hi) = dihedral_extremes(self.tets[w as usize].map(at));
+                        let s = lo.min((180.0 - hi) * (2.0 / 3.0));
+                        (score, i) < (s, w)
+                    });
+                    if worse {
+                        poor.worst_other = Some(i);
+                    }
+                }
+            }
+        }
+        poor
+    }
+}
+
+/// Two surface vertices and their distance (a vertex twice: it and the nearest wall).
+type Closest = (f64, [u32; 2]);
+
+/// The dihedral range volume meshes aim at ([`TetMesh::poor_elements`]).
+const POOR_LOW: f64 = 10.0;
+const POOR_HIGH: f64 = 165.0;
+
+/// The elements of a volume mesh outside [10°, 165°] and what lies beside them
+/// ([`TetMesh::poor_elements`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PoorElements {
+    /// Elements with a dihedral angle under 10° or over 165°.
+    pub count: usize,
+    /// Of those, the elements with an edge where the region's boundary is sharper than 10°:
+    /// forced by the surface.
+    pub at_sharp_edges: usize,
+    /// Of the rest, the elements within 1.5 cells of a surface vertex with another surface
+    /// vertex, or a wall of the grid it does not lie on, under a fifth of a cell away.
+    pub beside_fine_detail: usize,
+    /// The closest two such surface vertices (a vertex twice: it and the wall nearest to it),
+    /// and their distance.
+    pub closest: Option<(f64, [u32; 2])>,
+    /// The remaining elements.
+    pub others: usize,
+    /// The worst of them (by the smaller of its smallest dihedral angle and two thirds of 180°
+    /// less its largest).
+    pub worst_other: Option<u32>,
 }
 
 /// Each element's quality in single precision, one column a measure

@@ -1241,3 +1241,86 @@ fn a_fold_that_runs_out_of_splits_is_filled() {
         assert!((c.volume - c.enclosed).abs() <= 1e-9 * c.enclosed, "{c:?}");
     }
 }
+
+/// The poor elements' classes, found through the cell lookup, are those a scan of every surface
+/// vertex and every wall finds; noise at a coarse grid has thin gaps and necks on both sides.
+#[test]
+fn poor_elements_are_classed_as_a_full_scan_classes_them() {
+    let mut seen_fine = 0;
+    for seed in 1..=4 {
+        for flip in [false, true] {
+            let grid = Sample::Noise { seed }.grid(16);
+            let cell = grid.spacing()[0];
+            let mesh = tetmesh(&grid, &ExtractOptions::default().with_flip(flip)).unwrap();
+            let poor = mesh.poor_elements(cell);
+            let at = |v: u32| mesh.positions[v as usize].map(f64::from);
+            let q = mesh.qualities();
+            let sharp: Vec<[u32; 2]> = mesh
+                .boundary_edges(None)
+                .into_iter()
+                .filter(|e| e.angle < 10.0)
+                .map(|e| e.edge)
+                .collect();
+            let planes: Vec<(usize, f64)> = mesh
+                .walls
+                .iter()
+                .flat_map(|f| {
+                    let p = f.map(at);
+                    (0..3)
+                        .filter(move |&a| p[0][a] == p[1][a] && p[1][a] == p[2][a])
+                        .map(move |a| (a, p[0][a]))
+                })
+                .collect();
+            let (mut count, mut forced, mut fine) = (0, 0, 0);
+            for (t, q) in mesh.tets.iter().zip(&q) {
+                if q.min_dihedral >= 10.0 && q.max_dihedral <= 165.0 {
+                    continue;
+                }
+                count += 1;
+                let edges = (0..4).flat_map(|a| (a + 1..4).map(move |b| [a, b]));
+                if edges
+                    .map(|[a, b]| [t[a].min(t[b]), t[a].max(t[b])])
+                    .any(|e| sharp.contains(&e))
+                {
+                    forced += 1;
+                    continue;
+                }
+                let p = t.map(at);
+                let c: [f64; 3] =
+                    std::array::from_fn(|d| p.iter().map(|x| x[d]).sum::<f64>() / 4.0);
+                let near: Vec<u32> = (0..mesh.surface_vertices as u32)
+                    .filter(|&v| {
+                        let x = at(v);
+                        check::dot(check::sub(x, c), check::sub(x, c)) <= (1.5 * cell).powi(2)
+                    })
+                    .collect();
+                let close_pair = near.iter().any(|&a| {
+                    (0..mesh.surface_vertices as u32).any(|b| {
+                        let d = check::sub(at(a), at(b));
+                        b != a && check::dot(d, d).sqrt() < 0.2 * cell
+                    })
+                });
+                let close_wall = near.iter().map(|&a| at(a)).any(|a| {
+                    planes.iter().any(|&(axis, x)| {
+                        let d = (a[axis] - x).abs();
+                        d > 0.0 && d < 0.2 * cell
+                    })
+                });
+                if close_pair || close_wall {
+                    fine += 1;
+                }
+            }
+            let what = format!("noise:16:{seed} flip {flip}");
+            assert_eq!(poor.count, count, "{what}");
+            assert_eq!(poor.at_sharp_edges, forced, "{what}");
+            assert_eq!(poor.beside_fine_detail, fine, "{what}");
+            assert_eq!(poor.others, count - forced - fine, "{what}");
+            assert_eq!(poor.worst_other.is_some(), poor.others > 0, "{what}");
+            seen_fine += fine;
+        }
+    }
+    assert!(
+        seen_fine > 0,
+        "no poor element beside fine detail: the test looks at nothing"
+    );
+}
