@@ -13,9 +13,10 @@ range of the smallest and largest dihedral angles over the meshes, how many mesh
 angle outside [10°, 165°], and of those, by the summary's classes of the elements outside
 (`outside [10°, 165°]: …`): meshes whose every such element has an edge where the region's
 boundary is sharper than 10° (forced by the surface: the elements around that edge share its
-angle), meshes whose such elements are all forced or within 1.5 cells of surface detail under a
-fifth of a cell (two surface vertices that close, or one that close to a wall: a gap or neck
-kept open so the topology stays, finer than the elements), and the rest.
+angle), meshes whose such elements are all forced or within 1.5 cells of surface detail under the
+snap distance (two surface vertices that close, or one that close to a wall: what snapping would
+have removed, kept where it would change the topology — a gap or neck thinner than the elements;
+for `--method mc`, which snaps nothing, the default's 0.3 cells), and the rest.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ class Run:
     high: float = float("nan")
     sharpest: float | None = None
     # The summary's classes of the elements outside [10°, 165°]: at a boundary edge sharper
-    # than 10°, beside surface detail under a fifth of a cell, others.
+    # than 10°, beside surface detail under the snap distance, others.
     forced: int = 0
     fine: int = 0
     others: int = 0
@@ -117,8 +118,8 @@ def forced_by_surface(r: Run) -> bool:
 
 
 def beside_fine_detail(r: Run) -> bool:
-    """No element outside the range is other than forced or beside detail finer than a fifth
-    of a cell (and some is beside such detail)."""
+    """No element outside the range is other than forced or beside surface detail under the
+    snap distance (and some is beside such detail)."""
     return r.fine > 0 and r.others == 0
 
 
@@ -154,7 +155,7 @@ def main() -> None:
     print()
     print(
         "| options | meshed | refused | smallest dihedral (min / median) | largest dihedral (max / median) "
-        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface | beside detail under 0.2 cells | others |"
+        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface | beside detail under the snap distance | others |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for mode in modes:

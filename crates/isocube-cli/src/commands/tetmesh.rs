@@ -385,7 +385,13 @@ fn finish(
         }
     }
     if report.min_dihedral < 10.0 || report.max_dihedral > 165.0 {
-        eprintln!("{}", poor_line(&mesh, cell));
+        // Detail under the snap distance is what snapping would have removed (the default's
+        // for plain Marching Cubes, which snaps nothing).
+        let detail = match args.method.as_str() {
+            "ternary" if args.snap > 0.0 => f64::from(args.snap),
+            _ => f64::from(isocube::extract::Snapping::default().snap),
+        };
+        eprintln!("{}", poor_line(&mesh, cell, detail));
     }
     if let Some((c, _)) = &check {
         eprintln!(
@@ -418,13 +424,15 @@ fn finish(
     Ok(())
 }
 
-/// The elements outside [10°, 165°] and what lies beside them, in cells of width `cell`.
-fn poor_line(mesh: &isocube::volume::TetMesh, cell: f64) -> String {
-    let poor = mesh.poor_elements(cell);
+/// The elements outside [10°, 165°] and what lies beside them, in cells of width `cell`, with
+/// surface detail under `detail` cells.
+fn poor_line(mesh: &isocube::volume::TetMesh, cell: f64, detail: f64) -> String {
+    let poor = mesh.poor_elements(cell, detail);
     let at = |v: u32| mesh.positions[v as usize].map(f64::from);
     let mut s = format!(
         "outside [10°, 165°]: {} elements: {} at a boundary edge sharper than 10° (forced), {} \
-         within 1.5 cells of surface vertices under 0.2 cells apart (or that close to a wall)",
+         within 1.5 cells of surface detail under the snap distance, {detail:.2} cells (surface \
+         vertices that close, or one that close to a wall)",
         poor.count, poor.at_sharp_edges, poor.beside_fine_detail
     );
     if let Some((d, [a, b])) = poor.closest {

@@ -342,13 +342,17 @@ impl TetMesh {
     /// The elements outside the dihedral range volume meshes aim at, [10°, 165°], sorted by
     /// what lies beside them, for a mesh whose grid cells are `cell` wide (the smallest
     /// spacing): those with an edge where the region's boundary is sharper than 10° (the
-    /// surface forces them: the elements around the edge share its angle), those within 1.5
-    /// cells of a surface vertex with another, or a wall of the grid it does not lie on, under
-    /// a fifth of a cell away (detail of the region finer than the elements: where snapping a
-    /// grid point would change the topology, the surface keeps a gap or neck that thin, and
-    /// elements the size of a cell cannot fill it well), and the others, which a better mesh of
-    /// the same boundary could have avoided. A `cell` that is not a positive width counts every
-    /// such element among the others.
+    /// surface forces them: the elements around the edge share its angle); those within 1.5
+    /// cells of surface detail finer than `detail` cells (a surface vertex with another surface
+    /// vertex, or a wall of the grid it does not lie on, that close); and the others, which a
+    /// better mesh of the same boundary could have avoided.
+    ///
+    /// Pass the snap distance as `detail` (0.3 by default): ternary extraction moves every
+    /// crossing that close to a grid point onto it, so surface vertices closer than that to one
+    /// another or to a wall remain only where snapping would change the topology — a gap or
+    /// neck the surface keeps open, thinner than the elements can fill well (crossings more
+    /// than the snap distance from their grid points are at least 0.42 cells apart). A `cell`
+    /// that is not a positive width counts every such element among the others.
     ///
     /// ```
     /// use isocube::extract::ExtractOptions;
@@ -356,10 +360,10 @@ impl TetMesh {
     /// use isocube::volume::tetmesh;
     /// let grid = Sample::Sphere.grid(16);
     /// let mesh = tetmesh(&grid, &ExtractOptions::default()).unwrap();
-    /// let poor = mesh.poor_elements(grid.spacing()[0]);
+    /// let poor = mesh.poor_elements(grid.spacing()[0], 0.3);
     /// assert_eq!(poor.count, poor.at_sharp_edges + poor.beside_fine_detail + poor.others);
     /// ```
-    pub fn poor_elements(&self, cell: f64) -> PoorElements {
+    pub fn poor_elements(&self, cell: f64, detail: f64) -> PoorElements {
         let at = |v: u32| self.positions[v as usize].map(f64::from);
         let scored: Vec<(f64, u32)> = self
             .tets
@@ -409,7 +413,7 @@ impl TetMesh {
             .collect();
         by_cell.par_sort_unstable();
         // The grid's walls, as planes (axis, coordinate): where the surface passes closer to
-        // one than a fifth of a cell without meeting it, the region between is as thin.
+        // one than `detail` without meeting it, the region between is as thin.
         let mut planes: Vec<(usize, f32)> = self
             .walls
             .iter()
@@ -423,7 +427,8 @@ impl TetMesh {
         planes.sort_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
         planes.dedup();
         let reach = 1.5 * cell;
-        let fine = 0.2 * cell;
+        // Within a cell, the 27 cells around a vertex hold every vertex that close.
+        let fine = detail.clamp(0.0, 1.0) * cell;
         // The surface vertices in the cells `lo..=hi` (keys), `z` rows first.
         let in_cells = |lo: [i64; 3], hi: [i64; 3]| {
             let by_cell = &by_cell;
@@ -474,7 +479,7 @@ impl TetMesh {
         needed.par_sort_unstable();
         needed.dedup();
         // Each of those vertices' nearest other surface vertex, or wall it does not lie on,
-        // closer than `fine` (a fifth of a cell: within its own cell and the 26 around).
+        // closer than `fine` (under half a cell: within its own cell and the 26 around).
         let finest: Vec<Option<Closest>> = needed
             .par_iter()
             .map(|&v| {
@@ -563,7 +568,7 @@ pub struct PoorElements {
     /// forced by the surface.
     pub at_sharp_edges: usize,
     /// Of the rest, the elements within 1.5 cells of a surface vertex with another surface
-    /// vertex, or a wall of the grid it does not lie on, under a fifth of a cell away.
+    /// vertex, or a wall of the grid it does not lie on, closer than the detail asked about.
     pub beside_fine_detail: usize,
     /// The closest two such surface vertices (a vertex twice: it and the wall nearest to it),
     /// and their distance.

@@ -1252,7 +1252,7 @@ fn poor_elements_are_classed_as_a_full_scan_classes_them() {
             let grid = Sample::Noise { seed }.grid(16);
             let cell = grid.spacing()[0];
             let mesh = tetmesh(&grid, &ExtractOptions::default().with_flip(flip)).unwrap();
-            let poor = mesh.poor_elements(cell);
+            let poor = mesh.poor_elements(cell, 0.3);
             let at = |v: u32| mesh.positions[v as usize].map(f64::from);
             let q = mesh.qualities();
             let sharp: Vec<[u32; 2]> = mesh
@@ -1297,13 +1297,13 @@ fn poor_elements_are_classed_as_a_full_scan_classes_them() {
                 let close_pair = near.iter().any(|&a| {
                     (0..mesh.surface_vertices as u32).any(|b| {
                         let d = check::sub(at(a), at(b));
-                        b != a && check::dot(d, d).sqrt() < 0.2 * cell
+                        b != a && check::dot(d, d).sqrt() < 0.3 * cell
                     })
                 });
                 let close_wall = near.iter().map(|&a| at(a)).any(|a| {
                     planes.iter().any(|&(axis, x)| {
                         let d = (a[axis] - x).abs();
-                        d > 0.0 && d < 0.2 * cell
+                        d > 0.0 && d < 0.3 * cell
                     })
                 });
                 if close_pair || close_wall {
