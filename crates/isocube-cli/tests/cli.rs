@@ -1572,6 +1572,18 @@ fn tetmesh_writes_checked_meshes_and_refuses_bad_input() {
     assert!(!dir.path().join("b.inp").exists());
 }
 
+/// The smallest and largest dihedral angles of `tetmesh`'s summary (`dihedral angles lo°..hi°`).
+fn dihedral_range(summary: &str) -> (f64, f64) {
+    let angles = summary
+        .split("dihedral angles ")
+        .nth(1)
+        .and_then(|s| s.split(',').next())
+        .unwrap();
+    let (lo, hi) = angles.split_once("..").unwrap();
+    let degrees = |s: &str| s.trim_end_matches('°').parse::<f64>().unwrap();
+    (degrees(lo), degrees(hi))
+}
+
 /// `tetmesh --method ternary`: the boundary is `extract --method ternary --snap-position grid`'s
 /// surface, and the dihedral angles stay within [10°, 165°] on the torus.
 #[test]
@@ -1596,14 +1608,8 @@ fn tetmesh_ternary_keeps_the_angles_moderate() {
         err.contains("check: conforming, 0 inverted, 0 flat"),
         "{err}"
     );
-    let angles = err
-        .split("dihedral angles ")
-        .nth(1)
-        .and_then(|s| s.split(',').next())
-        .unwrap();
-    let (lo, hi) = angles.split_once("..").unwrap();
-    let degrees = |s: &str| s.trim_end_matches('°').parse::<f64>().unwrap();
-    assert!(degrees(lo) > 10.0 && degrees(hi) < 165.0, "{angles}");
+    let (lo, hi) = dihedral_range(&err);
+    assert!(lo > 10.0 && hi < 165.0, "{lo}..{hi}");
     let surface: usize = err
         .split("boundary ")
         .nth(1)
@@ -1649,14 +1655,8 @@ fn tetmesh_sorts_the_elements_outside_the_range() {
         let out = isocube(dir.path(), &args);
         let err = String::from_utf8_lossy(&out.stderr).to_string();
         assert!(out.status.success(), "{err}");
-        let angles = err
-            .split("dihedral angles ")
-            .nth(1)
-            .and_then(|s| s.split(',').next())
-            .unwrap();
-        let (lo, hi) = angles.split_once("..").unwrap();
-        let degrees = |s: &str| s.trim_end_matches('°').parse::<f64>().unwrap();
-        let outside = degrees(lo) < 10.0 || degrees(hi) > 165.0;
+        let (lo, hi) = dihedral_range(&err);
+        let outside = lo < 10.0 || hi > 165.0;
         let line = err.lines().find(|l| l.starts_with("outside [10°, 165°]: "));
         assert_eq!(line.is_some(), outside, "{spec}: {err}");
         let Some(line) = line else { continue };
