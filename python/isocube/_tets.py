@@ -45,7 +45,8 @@ class TetMesh:
         faces out of).
     stats : dict
         Counts (``lattice_cells``, ``cut_cells``, ``grid_points``, ``steiner_points``, the
-        improvement's ``flips_23``, ``moved_points``, ... and the surface's) and ``seconds``.
+        improvement's ``flips_23``, ``moved_points``, ``widened`` (elements worked on around
+        those left outside [10°, 165°]), ... and the surface's) and ``seconds``.
     """
 
     def __init__(self, mesh: _isocube.TetMesh) -> None:
@@ -79,13 +80,19 @@ class TetMesh:
         """Element quality, as ``isocube quality`` reports it: ``min_dihedral`` and
         ``max_dihedral`` (degrees), ``mean_radius_ratio`` and ``max_radius_ratio`` (1 for a
         regular tetrahedron), and ``min_dihedral_histogram`` (elements by smallest dihedral
-        angle in 5° bins).
+        angle in 5° bins). ``outside_range`` counts the elements with a dihedral angle
+        outside [10°, 165°], sorted as ``isocube tetmesh`` sorts them: ``at_sharp_edges``
+        (an edge of the surface sharper than 10°, which no element can widen),
+        ``beside_fine_detail`` (surface detail smaller than the snap distance, kept for the
+        topology) and ``others``.
 
         >>> import numpy as np
         >>> import isocube
         >>> x, y, z = np.mgrid[-1:1:20j, -1:1:20j, -1:1:20j]
         >>> q = isocube.tetmesh(x**2 + y**2 + z**2 - 0.6, method="ternary").quality()
         >>> q["min_dihedral"] > 5 and q["max_dihedral"] < 175
+        True
+        >>> q["outside_range"] == q["at_sharp_edges"] + q["beside_fine_detail"] + q["others"]
         True
         """
         return dict(self._mesh.quality())

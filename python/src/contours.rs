@@ -237,7 +237,12 @@ pub(crate) fn tetmesh(
     let mesh = py
         .detach(|| mesh_body(&stack, &plane, cap, layer_spacing, &options))
         .map_err(tet_error)?;
-    Ok(PyTetMesh::new(mesh, started.elapsed().as_secs_f64()))
+    Ok(PyTetMesh::new(
+        mesh,
+        started.elapsed().as_secs_f64(),
+        plane.spacing,
+        isocube::volume::snap_detail(&options),
+    ))
 }
 
 /// A stack's sections as Python sees them: `(z, [contour, ...])`.

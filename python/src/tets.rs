@@ -4,9 +4,10 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use isocube::extract::ExtractOptions;
 use isocube::extract::{ExtractError, LabelOptions, LabelSelection};
 use isocube::field::Orientation;
-use isocube::volume::{tetmesh_labels, tetmesh_with_progress, TetError, TetMesh};
+use isocube::volume::{snap_detail, tetmesh_labels, tetmesh_with_progress, TetError, TetMesh};
 use isocube_io::TetFormat;
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray3};
@@ -24,6 +25,10 @@ use crate::{
 pub(crate) struct PyTetMesh {
     mesh: TetMesh,
     seconds: f64,
+    /// The grid's cell width (its smallest spacing) and the surface detail, in cells, the
+    /// elements outside the dihedral range are weighed against ([`TetMesh::poor_elements`]).
+    cell: f64,
+    detail: f64,
 }
 
 /// A read-only `(n, N)` array over `rows`, which `owner` holds: no copy.
@@ -53,8 +58,13 @@ fn borrowed_1d<'py>(
 }
 
 impl PyTetMesh {
-    pub(crate) fn new(mesh: TetMesh, seconds: f64) -> PyTetMesh {
-        PyTetMesh { mesh, seconds }
+    pub(crate) fn new(mesh: TetMesh, seconds: f64, cell: f64, detail: f64) -> PyTetMesh {
+        PyTetMesh {
+            mesh,
+            seconds,
+            cell,
+            detail,
+        }
     }
 }
 
@@ -140,13 +150,24 @@ impl PyTetMesh {
         d.set_item("edge_removals", s.improve.edge_removals)?;
         d.set_item("moved_points", s.improve.moves)?;
         d.set_item("inserted_points", s.improve.inserted)?;
+        d.set_item("widened", s.improve.widened)?;
         Ok(d)
     }
 
-    /// Element quality (see `isocube quality`): dihedral angles in degrees, radius ratios.
+    /// Element quality (see `isocube quality`): dihedral angles in degrees, radius ratios,
+    /// and the elements outside [10°, 165°] sorted as `isocube tetmesh` sorts them.
     fn quality<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let r = py.detach(|| self.mesh.quality_report());
+        let (r, poor) = py.detach(|| {
+            (
+                self.mesh.quality_report(),
+                self.mesh.poor_elements(self.cell, self.detail),
+            )
+        });
         let d = PyDict::new(py);
+        d.set_item("outside_range", poor.count)?;
+        d.set_item("at_sharp_edges", poor.at_sharp_edges)?;
+        d.set_item("beside_fine_detail", poor.beside_fine_detail)?;
+        d.set_item("others", poor.others)?;
         d.set_item("tets", r.tets)?;
         d.set_item("min_dihedral", r.min_dihedral)?;
         d.set_item("max_dihedral", r.max_dihedral)?;
@@ -242,6 +263,11 @@ pub(crate) fn tetmesh(
 ) -> PyResult<PyTetMesh> {
     let direction = direction_of(direction)?;
     let started = Instant::now();
+    let cell = spacing
+        .into_iter()
+        .map(f64::abs)
+        .fold(f64::INFINITY, f64::min);
+    let mut detail = snap_detail(&ExtractOptions::default());
     let meshed = if labels {
         // Labels are meshed in the array's index order, as the command line reads a file's.
         let mut grid = index_order_view(&volume, spacing, origin)?;
@@ -275,6 +301,7 @@ pub(crate) fn tetmesh(
             max_memory,
         )?
         .with_normals(false);
+        detail = snap_detail(&options);
         interruptible(
             py,
             progress,
@@ -283,8 +310,10 @@ pub(crate) fn tetmesh(
         )?
     };
     let mesh = meshed.map_err(tet_error)?;
-    Ok(PyTetMesh {
+    Ok(PyTetMesh::new(
         mesh,
-        seconds: started.elapsed().as_secs_f64(),
-    })
+        started.elapsed().as_secs_f64(),
+        cell,
+        detail,
+    ))
 }

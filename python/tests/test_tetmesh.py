@@ -77,6 +77,23 @@ def test_the_tetrahedra_fill_the_region_the_surface_bounds(options: dict[str, An
     assert quality["tets"] == len(mesh.tets)
     assert 0 < quality["min_dihedral"] <= quality["max_dihedral"] < 180
     assert sum(quality["min_dihedral_histogram"]) == len(mesh.tets)
+    if options.get("method") != "mc":
+        # A smooth ellipsoid has neither sharp edges nor fine detail: every element is in range.
+        assert quality["outside_range"] == 0
+        assert quality["min_dihedral"] >= 10 and quality["max_dihedral"] <= 165
+
+
+def test_elements_outside_the_range_are_sorted_by_cause() -> None:
+    # Noise has sharp edges and small detail: the sort's classes add up to the count.
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((14, 13, 12)).astype(np.float32)
+    mesh = isocube.tetmesh(a)
+    quality = mesh.quality()
+    histogram = quality["min_dihedral_histogram"]
+    below = sum(histogram[:2])  # under 10°
+    assert quality["outside_range"] >= below
+    classes = ("at_sharp_edges", "beside_fine_detail", "others")
+    assert quality["outside_range"] == sum(quality[c] for c in classes)
 
 
 def test_ternary_elements_are_better_than_marching_cubes() -> None:

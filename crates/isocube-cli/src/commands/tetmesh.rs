@@ -182,7 +182,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         .into_iter()
         .map(f64::abs)
         .fold(f64::INFINITY, f64::min);
-    finish(args, quiet, meshed, cell, started, loaded)
+    let detail = isocube::volume::snap_detail(&options);
+    finish(args, quiet, meshed, (cell, detail), started, loaded)
 }
 
 /// The contour stack's body (or, with --flip, the space around it in the grid's box).
@@ -227,7 +228,15 @@ fn run_stack(args: &Args, quiet: bool) -> Result<(), Failure> {
     let options = extract_options(args, room, level);
     let loaded = started.elapsed();
     let meshed = isocube::contours::tetmesh(&stack, &plane, cap, layer_spacing, &options);
-    finish(args, quiet, meshed, plane.spacing, started, loaded)?;
+    let detail = isocube::volume::snap_detail(&options);
+    finish(
+        args,
+        quiet,
+        meshed,
+        (plane.spacing, detail),
+        started,
+        loaded,
+    )?;
     if !quiet {
         eprintln!(
             "{} sections, {}×{} plane grid (cell {:.4}), {}",
@@ -280,12 +289,13 @@ fn extract_options(args: &Args, room: Option<u64>, level: f32) -> ExtractOptions
         })
 }
 
-/// Writes the mesh (checking it alongside) and reports.
+/// Writes the mesh (checking it alongside) and reports, weighing the elements outside the
+/// range against surface detail (`cell` wide cells, detail under `detail` of one).
 fn finish(
     args: &Args,
     quiet: bool,
     meshed: Result<isocube::volume::TetMesh, TetError>,
-    cell: f64,
+    (cell, detail): (f64, f64),
     started: Instant,
     loaded: std::time::Duration,
 ) -> Result<(), Failure> {
@@ -362,9 +372,17 @@ fn finish(
     let improve = &s.improve;
     if improve.poor > 0 {
         eprintln!(
-            "improved: {} elements under 12° (or over 162°) worked on: {} + {} flips, {} edges \
+            "improved: {} elements under 12° (or over 162°) worked on{}: {} + {} flips, {} edges \
              removed, {} points moved, {} added",
             improve.poor,
+            if improve.widened > 0 {
+                format!(
+                    ", then {} around those left outside [10°, 165°] under 18° (or over 153°)",
+                    improve.widened
+                )
+            } else {
+                String::new()
+            },
             improve.flips_23,
             improve.flips_32,
             improve.edge_removals,
@@ -385,12 +403,6 @@ fn finish(
         }
     }
     if report.min_dihedral < 10.0 || report.max_dihedral > 165.0 {
-        // Detail under the snap distance is what snapping would have removed (the default's
-        // for plain Marching Cubes, which snaps nothing).
-        let detail = match args.method.as_str() {
-            "ternary" if args.snap > 0.0 => f64::from(args.snap),
-            _ => f64::from(isocube::extract::Snapping::default().snap),
-        };
         eprintln!("{}", poor_line(&mesh, cell, detail));
     }
     if let Some((c, _)) = &check {

@@ -86,7 +86,7 @@ mod quality;
 pub use check::{positive, TetCheck};
 pub use improve::ImproveStats;
 pub use labels::{tetmesh_labels, TetLabels};
-pub use quality::{BoundaryEdge, PoorElements, QualityColumns, TetQuality, TetReport};
+pub use quality::{snap_detail, BoundaryEdge, PoorElements, QualityColumns, TetQuality, TetReport};
 
 /// A tetrahedral mesh of the region inside a surface.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -551,6 +551,27 @@ impl TetMesh {
     }
 }
 
+/// The surface detail [`TetMesh::poor_elements`] weighs a mesh made with `options` against,
+/// in cells: the snap distance of ternary extraction, or the default's for a method that snaps
+/// nothing (plain Marching Cubes, or ternary with snapping off), whose surface has such detail
+/// wherever a crossing falls near a grid point.
+///
+/// ```
+/// use isocube::extract::{ExtractOptions, Method, Snapping};
+/// use isocube::volume::snap_detail;
+/// let ternary = ExtractOptions::default().with_method(Method::Ternary(Snapping::default()));
+/// assert!((snap_detail(&ternary) - 0.3).abs() < 1e-6);
+/// // Plain Marching Cubes snaps nothing: its surface is weighed against the default's distance.
+/// assert_eq!(snap_detail(&ExtractOptions::default()), snap_detail(&ternary));
+/// ```
+pub fn snap_detail(options: &crate::extract::ExtractOptions) -> f64 {
+    use crate::extract::{Method, Snapping};
+    match options.method {
+        Method::Ternary(s) if s.snap > 0.0 => f64::from(s.snap),
+        _ => f64::from(Snapping::default().snap),
+    }
+}
+
 /// Two surface vertices and their distance (a vertex twice: it and the nearest wall).
 type Closest = (f64, [u32; 2]);
 

@@ -1324,3 +1324,35 @@ fn poor_elements_are_classed_as_a_full_scan_classes_them() {
         "no poor element beside fine detail: the test looks at nothing"
     );
 }
+
+/// Elements left outside [10°, 165°] that neither a sharp boundary edge nor surface detail
+/// under the snap distance explains are rare: the improvement's second round, with a wider
+/// margin around each element still outside, lifts most of those the first round leaves (on
+/// these 32 meshes, 54 in 16 meshes without the second round, 7 in 4 with it). The meshes stay
+/// valid.
+#[test]
+fn few_elements_outside_the_range_are_left_unexplained() {
+    let (mut others, mut widened, mut meshes) = (0, 0, 0);
+    for seed in 1..=8 {
+        for sample in [Sample::Noise { seed }, Sample::PackedSpheres { seed }] {
+            for flip in [false, true] {
+                let grid = sample.grid(16);
+                // As `isocube tetmesh` by default.
+                let options = ExtractOptions::default()
+                    .with_method(Method::Ternary(crate::extract::Snapping::default()))
+                    .with_flip(flip);
+                let mesh = tetmesh(&grid, &options).unwrap();
+                assert_valid(&mesh, &format!("{sample:?} flip {flip}"));
+                let poor = mesh.poor_elements(grid.spacing()[0], 0.3);
+                others += poor.others;
+                widened += mesh.stats.improve.widened;
+                meshes += 1;
+            }
+        }
+    }
+    assert!(widened > 0, "no second round: the test looks at nothing");
+    assert!(
+        3 * others <= meshes,
+        "{others} elements outside [10°, 165°] unexplained in {meshes} meshes"
+    );
+}
