@@ -1677,11 +1677,34 @@ fn tetmesh_sorts_the_elements_outside_the_range() {
         assert!(count > 0, "{line}");
         assert_eq!(count, forced + fine + others, "{line}");
         assert_eq!(line.contains("(worst "), others > 0, "{line}");
+        // `quality` on the file, told the cell, sorts the elements the same way (the file
+        // knows no surface or walls: the faces in its bounding box's faces are the walls).
+        let grid: isocube::field::SampleSpec = spec.parse().unwrap();
+        let cell = grid.grid().spacing()[0].to_string();
+        let out = isocube(dir.path(), &["quality", "t.msh", "--cell", &cell]);
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        assert!(out.status.success(), "{spec}: {text}");
+        let again = text
+            .lines()
+            .find(|l| l.starts_with("outside [10°, 165°]: ") && l.contains(" elements: "));
+        assert_eq!(again, Some(line), "{spec}: {text}");
+        let out = isocube(dir.path(), &["quality", "t.msh", "--cell", &cell, "--json"]);
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["outside_elements"], count, "{spec}");
+        assert_eq!(json["others"], others, "{spec}");
     }
     assert!(
         seen > 0,
         "no input left the range: the test looks at nothing"
     );
+    // Without a positive cell width, or on a surface, --cell is refused.
+    let out = isocube(dir.path(), &["quality", "t.msh", "--cell", "0"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--cell 0"));
+    ok(dir.path(), &["extract", "sample:sphere:12", "-o", "s.ply"]);
+    let out = isocube(dir.path(), &["quality", "s.ply", "--cell", "0.1"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("holds triangles"));
 }
 
 /// `tetmesh` on a contour stack: the body between the sections (caps extended or flat), with

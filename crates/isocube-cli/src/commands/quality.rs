@@ -1,4 +1,5 @@
-//! `isocube quality MESH [--field VOLUME] [--level L] [--json] [--histogram FILE.png|FILE.svg]`.
+//! `isocube quality MESH [--field VOLUME] [--level L] [--cell WIDTH [--snap CELLS]] [--json]
+//! [--histogram FILE.png|FILE.svg]`.
 
 use std::path::{Path, PathBuf};
 
@@ -8,7 +9,7 @@ use isocube::mesh::Mesh;
 use isocube::quality::{
     level_set_distance, quality_report, Distance, Field, QualityReport, Range, Trilinear,
 };
-use isocube::volume::{BoundaryEdge, TetMesh, TetReport};
+use isocube::volume::{BoundaryEdge, PoorElements, TetMesh, TetReport};
 use isocube_io::{read_mesh, read_tet_mesh, read_volume_oriented, TetFormat, VolumeOptions};
 use serde_json::json;
 
@@ -34,6 +35,16 @@ pub(crate) struct Args {
     /// Write the angle histogram (5° bins) as a picture: .svg or .png.
     #[arg(long, value_name = "FILE")]
     histogram: Option<PathBuf>,
+    /// For a tetrahedral mesh: the width of the grid cells it was made on (world units; the
+    /// smallest spacing). With it the elements outside [10°, 165°] are sorted as `tetmesh`
+    /// sorts them: at a boundary edge sharper than 10° (forced), beside surface detail under
+    /// --snap cells, and the others.
+    #[arg(long, value_name = "WIDTH")]
+    cell: Option<f64>,
+    /// With --cell: the snap distance the mesh was made with, in cells (0.3 is `tetmesh`'s
+    /// default, and the weight for a mesh made by plain Marching Cubes).
+    #[arg(long, value_name = "CELLS", default_value_t = 0.3, requires = "cell")]
+    snap: f64,
     /// The most memory reading the --field volume may take (as for `extract`).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     max_memory: Option<MemoryLimit>,
@@ -52,8 +63,27 @@ pub(crate) fn run(args: &Args) -> Result<(), Failure> {
             )));
         }
     }
+    if let Some(cell) = args.cell {
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(Failure::input(anyhow::anyhow!(
+                "--cell {cell}: the cell width must be a positive number"
+            )));
+        }
+        if !(args.snap.is_finite() && (0.0..=1.0).contains(&args.snap)) {
+            return Err(Failure::input(anyhow::anyhow!(
+                "--snap {}: the snap distance is in cells, from 0 to 1",
+                args.snap
+            )));
+        }
+    }
     if TetFormat::from_path(&args.mesh).is_some() {
         return run_tets(args);
+    }
+    if args.cell.is_some() {
+        return Err(Failure::input(anyhow::anyhow!(
+            "--cell sorts a volume mesh's elements: {} holds triangles",
+            args.mesh.display()
+        )));
     }
     let mesh = read_mesh(&args.mesh).map_err(|e| crate::io_failure(e, true))?;
     let report = quality_report(&mesh);
@@ -161,6 +191,9 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
     }
     let share = outside as f64 / report.tets.max(1) as f64;
     let sharpest = mesh.sharpest_boundary_edge();
+    let sorted = args
+        .cell
+        .map(|cell| (cell, mesh.poor_elements(cell, args.snap)));
     if args.json {
         let mut fields = serde_json::Map::new();
         fields.insert("tetrahedra".into(), json!(report.tets));
@@ -171,6 +204,12 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
             fields.insert((*name).into(), range(r));
         }
         fields.insert("outside_10_165".into(), number(share));
+        if let Some((_, poor)) = &sorted {
+            fields.insert("outside_elements".into(), json!(poor.count));
+            fields.insert("at_sharp_edges".into(), json!(poor.at_sharp_edges));
+            fields.insert("beside_fine_detail".into(), json!(poor.beside_fine_detail));
+            fields.insert("others".into(), json!(poor.others));
+        }
         if let Some(e) = &sharpest {
             fields.insert("sharpest_boundary_edge".into(), number(e.angle));
         }
@@ -190,6 +229,11 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
         if let Some(e) = &sharpest {
             s += &format!("{}\n", sharpest_line(&mesh, e));
         }
+        if let Some((cell, poor)) = &sorted {
+            if poor.count > 0 {
+                s += &format!("{}\n", poor_line(&mesh, poor, *cell, args.snap));
+            }
+        }
         print!("{s}");
     }
     Ok(())
@@ -204,6 +248,40 @@ pub(crate) fn sharpest_line(mesh: &TetMesh, e: &BoundaryEdge) -> String {
          larger smallest dihedral angle",
         e.angle, middle[0], middle[1], middle[2]
     )
+}
+
+/// The elements outside [10°, 165°] and what lies beside them, in cells of width `cell`, with
+/// surface detail under `detail` cells.
+pub(crate) fn poor_line(mesh: &TetMesh, poor: &PoorElements, cell: f64, detail: f64) -> String {
+    let at = |v: u32| mesh.positions[v as usize].map(f64::from);
+    let mut s = format!(
+        "outside [10°, 165°]: {} elements: {} at a boundary edge sharper than 10° (forced), {} \
+         within 1.5 cells of surface detail under the snap distance, {detail:.2} cells (surface \
+         vertices that close, or one that close to a wall)",
+        poor.count, poor.at_sharp_edges, poor.beside_fine_detail
+    );
+    if let Some((d, [a, b])) = poor.closest {
+        // The same vertex twice: it and the wall nearest to it.
+        let (a, b) = (at(a), at(b));
+        s += &format!(
+            " (closest {:.3} cells, at ({:.6}, {:.6}, {:.6}))",
+            d / cell,
+            0.5 * (a[0] + b[0]),
+            0.5 * (a[1] + b[1]),
+            0.5 * (a[2] + b[2])
+        );
+    }
+    s += &format!(", {} others", poor.others);
+    if let Some(w) = poor.worst_other {
+        let p = mesh.tets[w as usize].map(at);
+        let q = isocube::volume::TetQuality::of(p);
+        let centre: [f64; 3] = std::array::from_fn(|d| p.iter().map(|c| c[d]).sum::<f64>() / 4.0);
+        s += &format!(
+            " (worst {:.2}°..{:.2}° at ({:.6}, {:.6}, {:.6}))",
+            q.min_dihedral, q.max_dihedral, centre[0], centre[1], centre[2]
+        );
+    }
+    s
 }
 
 fn distance(

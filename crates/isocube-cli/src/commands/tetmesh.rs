@@ -403,7 +403,15 @@ fn finish(
         }
     }
     if report.min_dihedral < 10.0 || report.max_dihedral > 165.0 {
-        eprintln!("{}", poor_line(&mesh, cell, detail));
+        eprintln!(
+            "{}",
+            crate::commands::quality::poor_line(
+                &mesh,
+                &mesh.poor_elements(cell, detail),
+                cell,
+                detail
+            )
+        );
     }
     if let Some((c, _)) = &check {
         eprintln!(
@@ -434,39 +442,4 @@ fn finish(
         ms(written - measured),
     );
     Ok(())
-}
-
-/// The elements outside [10°, 165°] and what lies beside them, in cells of width `cell`, with
-/// surface detail under `detail` cells.
-fn poor_line(mesh: &isocube::volume::TetMesh, cell: f64, detail: f64) -> String {
-    let poor = mesh.poor_elements(cell, detail);
-    let at = |v: u32| mesh.positions[v as usize].map(f64::from);
-    let mut s = format!(
-        "outside [10°, 165°]: {} elements: {} at a boundary edge sharper than 10° (forced), {} \
-         within 1.5 cells of surface detail under the snap distance, {detail:.2} cells (surface \
-         vertices that close, or one that close to a wall)",
-        poor.count, poor.at_sharp_edges, poor.beside_fine_detail
-    );
-    if let Some((d, [a, b])) = poor.closest {
-        // The same vertex twice: it and the wall nearest to it.
-        let (a, b) = (at(a), at(b));
-        s += &format!(
-            " (closest {:.3} cells, at ({:.6}, {:.6}, {:.6}))",
-            d / cell,
-            0.5 * (a[0] + b[0]),
-            0.5 * (a[1] + b[1]),
-            0.5 * (a[2] + b[2])
-        );
-    }
-    s += &format!(", {} others", poor.others);
-    if let Some(w) = poor.worst_other {
-        let p = mesh.tets[w as usize].map(at);
-        let q = isocube::volume::TetQuality::of(p);
-        let centre: [f64; 3] = std::array::from_fn(|d| p.iter().map(|c| c[d]).sum::<f64>() / 4.0);
-        s += &format!(
-            " (worst {:.2}°..{:.2}° at ({:.6}, {:.6}, {:.6}))",
-            q.min_dihedral, q.max_dihedral, centre[0], centre[1], centre[2]
-        );
-    }
-    s
 }

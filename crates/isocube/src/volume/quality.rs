@@ -339,6 +339,38 @@ impl TetMesh {
             .collect()
     }
 
+    /// The surface's vertices and the walls' triangles. A mesh read from a file knows neither:
+    /// its boundary (the faces of one tetrahedron only) is split into the faces lying in a face
+    /// of its bounding box (the walls of the grid it was made on) and the rest (the surface).
+    pub(super) fn surface_and_walls(&self) -> (Vec<u32>, std::borrow::Cow<'_, [[u32; 3]]>) {
+        if !(self.surface.is_empty() && self.walls.is_empty()) {
+            let surface = (0..self.surface_vertices as u32).collect();
+            return (surface, std::borrow::Cow::Borrowed(&self.walls));
+        }
+        let boundary = super::check::match_faces(&self.tets, self.positions.len()).1;
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for p in self
+            .tets
+            .iter()
+            .flatten()
+            .map(|&v| self.positions[v as usize])
+        {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        let (walls, surface): (Vec<[u32; 3]>, Vec<[u32; 3]>) =
+            boundary.into_iter().partition(|f| {
+                let p = f.map(|v| self.positions[v as usize]);
+                (0..3).any(|a| [lo[a], hi[a]].iter().any(|&c| p.iter().all(|q| q[a] == c)))
+            });
+        let mut vertices: Vec<u32> = surface.into_iter().flatten().collect();
+        vertices.par_sort_unstable();
+        vertices.dedup();
+        (vertices, std::borrow::Cow::Owned(walls))
+    }
+
     /// The elements outside the dihedral range volume meshes aim at, [10°, 165°], sorted by
     /// what lies beside them, for a mesh whose grid cells are `cell` wide (the smallest
     /// spacing): those with an edge where the region's boundary is sharper than 10° (the
@@ -352,7 +384,9 @@ impl TetMesh {
     /// another or to a wall remain only where snapping would change the topology — a gap or
     /// neck the surface keeps open, thinner than the elements can fill well (crossings more
     /// than the snap distance from their grid points are at least 0.42 cells apart). A `cell`
-    /// that is not a positive width counts every such element among the others.
+    /// that is not a positive width counts every such element among the others. A mesh read
+    /// from a file knows no surface or walls: its boundary faces lying in a face of its bounding
+    /// box are taken for walls, the others for the surface.
     ///
     /// ```
     /// use isocube::extract::ExtractOptions;
@@ -407,15 +441,13 @@ impl TetMesh {
         // Surface vertices (numbered first) by the cell they lie in, `z` first, so that those
         // of a row of cells along `x` lie together.
         let key = |p: [f64; 3]| [p[2], p[1], p[0]].map(|c| (c / cell).floor() as i64);
-        let mut by_cell: Vec<([i64; 3], u32)> = (0..self.surface_vertices as u32)
-            .into_par_iter()
-            .map(|v| (key(at(v)), v))
-            .collect();
+        let (surface, walls) = self.surface_and_walls();
+        let mut by_cell: Vec<([i64; 3], u32)> =
+            surface.into_par_iter().map(|v| (key(at(v)), v)).collect();
         by_cell.par_sort_unstable();
         // The grid's walls, as planes (axis, coordinate): where the surface passes closer to
         // one than `detail` without meeting it, the region between is as thin.
-        let mut planes: Vec<(usize, f32)> = self
-            .walls
+        let mut planes: Vec<(usize, f32)> = walls
             .iter()
             .filter_map(|f| {
                 let p = f.map(|v| self.positions[v as usize]);

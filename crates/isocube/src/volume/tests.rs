@@ -1317,6 +1317,33 @@ fn poor_elements_are_classed_as_a_full_scan_classes_them() {
             assert_eq!(poor.others, count - forced - fine, "{what}");
             assert_eq!(poor.worst_other.is_some(), poor.others > 0, "{what}");
             seen_fine += fine;
+            // Read back from a file the mesh knows no surface or walls: the faces of one
+            // element in the faces of its bounding box are taken for walls (every wall, and
+            // any surface triangle lying in such a face), and the sort is the same.
+            let bare = TetMesh {
+                positions: mesh.positions.clone(),
+                tets: mesh.tets.clone(),
+                ..TetMesh::default()
+            };
+            let (surface, walls) = bare.surface_and_walls();
+            let sorted = |faces: &[[u32; 3]]| -> std::collections::HashSet<[u32; 3]> {
+                faces
+                    .iter()
+                    .map(|f| {
+                        let mut f = *f;
+                        f.sort_unstable();
+                        f
+                    })
+                    .collect()
+            };
+            let (found, known) = (sorted(&walls), sorted(&mesh.walls));
+            assert!(found.is_superset(&known), "{what}");
+            let surface_faces = sorted(&mesh.surface);
+            assert!(found.difference(&known).all(|f| surface_faces.contains(f)));
+            assert!(surface
+                .iter()
+                .all(|&v| (v as usize) < mesh.surface_vertices));
+            assert_eq!(bare.poor_elements(cell, 0.3), poor, "{what}");
         }
     }
     assert!(
