@@ -155,9 +155,10 @@ def main() -> None:
     print()
     print(
         "| options | meshed | refused | smallest dihedral (min / median) | largest dihedral (max / median) "
-        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface | beside detail under the snap distance | others |"
+        f"| outside [{LOW:g}°, {HIGH:g}°] | of those, forced by the surface | beside detail under the snap distance | others "
+        "| elements outside: forced / beside detail / others | seconds |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for mode in modes:
         mine = [r for r in runs if r.mode == mode]
         good = [r for r in mine if r.ok]
@@ -168,9 +169,13 @@ def main() -> None:
         fine = [r for r in outside if beside_fine_detail(r)]
         low = f"{lows[0]:.2f}° / {lows[len(lows) // 2]:.2f}°" if lows else "–"
         high = f"{highs[-1]:.2f}° / {highs[len(highs) // 2]:.2f}°" if highs else "–"
+        elements = " / ".join(
+            str(sum(getattr(r, c) for r in good)) for c in ("forced", "fine", "others")
+        )
+        seconds = sum(r.seconds for r in mine)
         print(
             f"| {mode} | {len(good)} | {len(mine) - len(good)} | {low} | {high} | {len(outside)} | {len(forced)} "
-            f"| {len(fine)} | {len(outside) - len(forced) - len(fine)} |"
+            f"| {len(fine)} | {len(outside) - len(forced) - len(fine)} | {elements} | {seconds:.0f} |"
         )
     print()
     for r in runs:
