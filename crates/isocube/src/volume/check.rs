@@ -146,6 +146,22 @@ pub(super) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The angle, in degrees, at the edge from `u` to `v` between the half-planes through `p` and
+/// through `q` (a tetrahedron's dihedral angle there, or the wedge two triangles make); `None`
+/// when `p` or `q` lies on the edge's line.
+pub(super) fn angle_across(u: [f64; 3], v: [f64; 3], p: [f64; 3], q: [f64; 3]) -> Option<f64> {
+    let e = sub(v, u);
+    // Each point's direction away from the edge, square to it.
+    let away = |p: [f64; 3]| {
+        let d = sub(p, u);
+        let t = dot(d, e) / dot(e, e);
+        [d[0] - t * e[0], d[1] - t * e[1], d[2] - t * e[2]]
+    };
+    let (x, y) = (away(p), away(q));
+    let norm = (dot(x, x) * dot(y, y)).sqrt();
+    (norm != 0.0).then(|| (dot(x, y) / norm).clamp(-1.0, 1.0).acos().to_degrees())
+}
+
 /// What [`TetMesh::check`] found.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TetCheck {

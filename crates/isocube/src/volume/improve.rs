@@ -48,7 +48,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
-use super::check::positive;
+use super::check::{angle_across, positive};
 use super::quality::dihedral_extremes;
 use super::TetError;
 
@@ -114,24 +114,6 @@ pub struct ImproveStats {
 fn score(p: [[f64; 3]; 4]) -> f64 {
     let (lo, hi) = dihedral_extremes(p);
     lo.min((180.0 - hi) * (2.0 / 3.0))
-}
-
-/// The dihedral angle of tetrahedron `p` at its edge from corner `a` to corner `b`, in degrees.
-fn dihedral_at(p: [[f64; 3]; 4], a: usize, b: usize) -> f64 {
-    let mut others = (0..4).filter(|&k| k != a && k != b);
-    let (c, d) = (others.next().expect("two"), others.next().expect("two"));
-    let sub = |x: [f64; 3], y: [f64; 3]| [x[0] - y[0], x[1] - y[1], x[2] - y[2]];
-    let dot = |x: [f64; 3], y: [f64; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
-    let e = sub(p[b], p[a]);
-    // The other two corners' directions across the edge.
-    let across = |q: [f64; 3]| {
-        let u = sub(q, p[a]);
-        let t = dot(u, e) / dot(e, e);
-        [u[0] - t * e[0], u[1] - t * e[1], u[2] - t * e[2]]
-    };
-    let (u, w) = (across(p[c]), across(p[d]));
-    let cos = dot(u, w) / (dot(u, u) * dot(w, w)).sqrt();
-    cos.clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 /// The corners of tetrahedron `t` other than its `k`-th, in order.
@@ -416,16 +398,20 @@ impl Work<'_> {
                     .collect();
                 far.sort_unstable();
                 let open = far.chunk_by(|x, y| x == y).any(|c| c.len() != 2);
-                open && ring
+                // The region's angle at the edge: its elements' dihedral angles there (an
+                // element flat across the edge leaves it undecided: not forced).
+                let angle = ring
                     .iter()
                     .map(|&r| {
-                        let u = self.tets[r as usize];
-                        let a = u.iter().position(|&v| v == tet[i]).expect("held");
-                        let b = u.iter().position(|&v| v == tet[j]).expect("held");
-                        dihedral_at(u.map(|v| self.point(v)), a, b)
+                        let mut others = self.tets[r as usize]
+                            .into_iter()
+                            .filter(|&v| v != tet[i] && v != tet[j]);
+                        let (p, q) = (others.next()?, others.next()?);
+                        let [u, v, p, q] = [tet[i], tet[j], p, q].map(|v| self.point(v));
+                        angle_across(u, v, p, q)
                     })
-                    .sum::<f64>()
-                    < AIM
+                    .sum::<Option<f64>>();
+                open && angle.is_some_and(|a| a < AIM)
             })
         })
     }

@@ -1948,20 +1948,10 @@ fn thinnest_wedge(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> Opti
             continue;
         }
         let [pu, pv, pa, pb] = [u, v, a, b].map(position);
-        // Each triangle's direction away from the edge, within its plane: the angle between
-        // them is the wedge's, inside when the ear is positive.
-        let e = check::sub(pv, pu);
-        let away = |p: [f64; 3]| {
-            let d = check::sub(p, pu);
-            let t = dot(d, e) / dot(e, e);
-            [d[0] - t * e[0], d[1] - t * e[1], d[2] - t * e[2]]
-        };
-        let (x, y) = (away(pa), away(pb));
-        let norm = (dot(x, x) * dot(y, y)).sqrt();
-        if norm == 0.0 {
+        // The wedge's angle between the two triangles, inside when the ear is positive.
+        let Some(angle) = check::angle_across(pu, pv, pa, pb) else {
             continue;
-        }
-        let angle = (dot(x, y) / norm).clamp(-1.0, 1.0).acos().to_degrees();
+        };
         if angle < THIN_WEDGE
             && best.is_none_or(|(b, _)| angle < b)
             && check::positive(pu, pa, pv, pb)
@@ -1972,11 +1962,6 @@ fn thinnest_wedge(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> Opti
     best.map(|(_, ear)| ear)
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Why a part could not be filled.
 /// Whether two of the part's vertices lie at one point.
 fn shared_points(part: &[[u32; 3]], position: &dyn Fn(u32) -> [f64; 3]) -> bool {
     let mut vertices: Vec<u32> = part.iter().flatten().copied().collect();
