@@ -1,6 +1,7 @@
 """Refusal and angle sweep of `isocube tetmesh` over every built-in sample, as a user runs it.
 
-    python bench/tetmesh/sweep.py ISOCUBE_BINARY [--sizes 24,48,96] [--seeds 8] [--jobs 2]
+    python bench/tetmesh/sweep.py ISOCUBE_BINARY [--sizes 24,48,96] [--seeds 8] [--first-seed 1]
+        [--samples sphere,noise,...] [--modes default,mc,...] [--jobs 2]
 
 Every built-in sample (`isocube samples`' list but the contour stack) at each size, with seeds
 1..S for the samples that take one (noise, packed-spheres), both sides (the values below the
@@ -128,6 +129,14 @@ def main() -> None:
     parser.add_argument("binary")
     parser.add_argument("--sizes", default="24,48,96")
     parser.add_argument("--seeds", type=int, default=8)
+    parser.add_argument(
+        "--first-seed", type=int, default=1, help="seeds first..first+seeds-1"
+    )
+    parser.add_argument(
+        "--samples",
+        default=",".join(SAMPLES + SEEDED),
+        help="which samples (comma-separated)",
+    )
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--modes", default=",".join(MODES))
     parser.add_argument(
@@ -136,12 +145,15 @@ def main() -> None:
     options = parser.parse_args()
     sizes = [int(n) for n in options.sizes.split(",")]
     modes = options.modes.split(",")
-    specs = [f"sample:{s}:{n}" for s in SAMPLES for n in sizes]
+    chosen = options.samples.split(",")
+    seeds = range(options.first_seed, options.first_seed + options.seeds)
+    specs = [f"sample:{s}:{n}" for s in SAMPLES if s in chosen for n in sizes]
     specs += [
         f"sample:{s}:{n}:{seed}"
         for s in SEEDED
+        if s in chosen
         for n in sizes
-        for seed in range(1, options.seeds + 1)
+        for seed in seeds
     ]
     jobs = [
         (mode, spec, flip) for mode in modes for spec in specs for flip in (False, True)
@@ -150,7 +162,7 @@ def main() -> None:
         runs = list(pool.map(lambda job: run(options.binary, Path(tmp), *job), jobs))
 
     print(
-        f"{len(specs)} inputs × 2 sides; sizes {options.sizes}, seeds 1..{options.seeds}"
+        f"{len(specs)} inputs × 2 sides; sizes {options.sizes}, seeds {seeds.start}..{seeds.stop - 1}"
     )
     print()
     print(

@@ -415,18 +415,22 @@ mod ternary {
         }))
     }
 
-    /// A sphere just inside the grid, 0.04 of an edge from one of its six faces: the points
-    /// there whose crossing along the face's normal is within `WALL_SNAP` are snapped onto
-    /// themselves, so the surface touches the face (no film of region between the two) and
+    /// A sphere just inside the grid, 0.04 or 0.15 of an edge from one of its six faces: the
+    /// points there whose crossing along the face's normal is within `WALL_SNAP` are snapped
+    /// onto themselves, so the surface touches the face (no film of region between the two) and
     /// stays within that distance of the sphere; with a snap distance under it, they are not.
     #[test]
     fn a_surface_grazing_a_wall_touches_it() {
         use crate::extract::WALL_SNAP;
         let n = 12;
-        for axis in 0..3 {
+        for (axis, gap) in (0..3).flat_map(|a| [(a, 0.04), (a, 0.15)]) {
             for high in [false, true] {
                 let mut centre = [5.5, 5.3, 5.7];
-                centre[axis] = if high { (n - 1) as f64 - 4.04 } else { 4.04 };
+                centre[axis] = if high {
+                    (n - 1) as f64 - 4.0 - gap
+                } else {
+                    4.0 + gap
+                };
                 let values: Vec<f32> = (0..n * n * n)
                     .map(|p| {
                         let c = [p % n, p / n % n, p / (n * n)];
@@ -442,7 +446,7 @@ mod ternary {
                 for (snap, touches) in [(0.3, true), (0.05, false)] {
                     let (mesh, stats) = extract(&grid, &ternary(0.0, snap)).unwrap();
                     assert_clean(&mesh);
-                    assert_eq!(topology(&mesh), (1, 2, true), "{axis} {high} {snap}");
+                    assert_eq!(topology(&mesh), (1, 2, true), "{axis} {gap} {high} {snap}");
                     assert_eq!(stats.refused_points, 0);
                     let on = mesh.positions.iter().filter(|p| off_wall(p) == 0.0).count();
                     let near = mesh
@@ -451,9 +455,15 @@ mod ternary {
                         .filter(|p| off_wall(p) > 0.0 && f64::from(off_wall(p)) < WALL_SNAP)
                         .count();
                     if touches {
-                        assert!(on > 0 && near == 0, "{axis} {high}: {on} on, {near} near");
+                        assert!(
+                            on > 0 && near == 0,
+                            "{axis} {gap} {high}: {on} on, {near} near"
+                        );
                     } else {
-                        assert!(on == 0 && near > 0, "{axis} {high}: {on} on, {near} near");
+                        assert!(
+                            on == 0 && near > 0,
+                            "{axis} {gap} {high}: {on} on, {near} near"
+                        );
                     }
                     for p in &mesh.positions {
                         let d = (0..3)
