@@ -150,6 +150,7 @@ impl PyTetMesh {
         d.set_item("edge_removals", s.improve.edge_removals)?;
         d.set_item("moved_points", s.improve.moves)?;
         d.set_item("inserted_points", s.improve.inserted)?;
+        d.set_item("removed_points", s.improve.removed + s.improve.removed_grid)?;
         d.set_item("widened", s.improve.widened)?;
         Ok(d)
     }
@@ -188,6 +189,7 @@ impl PyTetMesh {
         d.set_item("boundary_mismatch", c.boundary_mismatch)?;
         d.set_item("inverted", c.inverted)?;
         d.set_item("flat", c.flat)?;
+        d.set_item("unused", c.unused)?;
         d.set_item("volume", c.volume)?;
         d.set_item("enclosed", c.enclosed)?;
         Ok(d)

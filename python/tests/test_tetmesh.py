@@ -67,7 +67,12 @@ def test_the_tetrahedra_fill_the_region_the_surface_bounds(options: dict[str, An
     for count in ("active_cells", "snapped_points", "refused_points"):
         assert mesh.stats[count] == surface.stats[count], count
     check = mesh.check()
-    assert check["conforming"] and check["inverted"] == 0 and check["flat"] == 0
+    assert (
+        check["conforming"]
+        and check["inverted"] == 0
+        and check["flat"] == 0
+        and check["unused"] == 0
+    )
     assert check["volume"] == pytest.approx(check["enclosed"], rel=1e-9)
     # Inside the ellipsoid the region is closed: no walls; flipped, it is the box around it.
     assert (len(mesh.walls) > 0) == bool(options.get("flip"))

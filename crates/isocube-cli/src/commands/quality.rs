@@ -199,6 +199,7 @@ fn run_tets(args: &Args) -> Result<(), Failure> {
         fields.insert("tetrahedra".into(), json!(report.tets));
         fields.insert("inverted".into(), json!(check.inverted));
         fields.insert("flat".into(), json!(check.flat));
+        fields.insert("unused_nodes".into(), json!(check.unused));
         fields.insert("total_volume".into(), number(check.volume));
         for (name, r) in &rows {
             fields.insert((*name).into(), range(r));

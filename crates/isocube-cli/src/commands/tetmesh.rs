@@ -373,7 +373,7 @@ fn finish(
     if improve.poor > 0 {
         eprintln!(
             "improved: {} elements under 12° (or over 162°) worked on{}: {} + {} flips, {} edges \
-             removed, {} points moved, {} added",
+             removed, {} points moved, {} added, {} taken out",
             improve.poor,
             if improve.widened > 0 {
                 format!(
@@ -387,7 +387,8 @@ fn finish(
             improve.flips_32,
             improve.edge_removals,
             improve.moves,
-            improve.inserted
+            improve.inserted,
+            improve.removed + improve.removed_grid
         );
     }
     eprintln!(
@@ -415,7 +416,7 @@ fn finish(
     }
     if let Some((c, _)) = &check {
         eprintln!(
-            "check: {}, {} inverted, {} flat, volume {:.6e} (the boundary encloses {:.6e})",
+            "check: {}, {} inverted, {} flat{}, volume {:.6e} (the boundary encloses {:.6e})",
             if c.conforming {
                 "conforming".to_string()
             } else {
@@ -426,6 +427,11 @@ fn finish(
             },
             c.inverted,
             c.flat,
+            if c.unused > 0 {
+                format!(", {} points in no element", c.unused)
+            } else {
+                String::new()
+            },
             c.volume,
             c.enclosed
         );

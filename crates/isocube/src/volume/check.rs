@@ -177,6 +177,9 @@ pub struct TetCheck {
     pub inverted: usize,
     /// Tetrahedra with four coplanar vertices (exact predicate).
     pub flat: usize,
+    /// Vertices other than the surface's that no tetrahedron uses (each would be a node with
+    /// no element: a finite element system with one is singular).
+    pub unused: usize,
     /// Sum of the tetrahedra's volumes.
     pub volume: f64,
     /// The volume the surface and walls enclose (divergence theorem).
@@ -266,6 +269,12 @@ impl TetMesh {
             boundary_mismatch,
             inverted,
             flat,
+            unused: unused_points(
+                self.positions.len(),
+                &self.tets,
+                self.surface_vertices as u32,
+            )
+            .len(),
             volume,
             enclosed,
         }
@@ -431,4 +440,24 @@ pub(super) fn match_faces(tets: &[[u32; 4]], vertices: usize) -> (usize, Vec<[u3
                 a
             },
         )
+}
+
+/// The points from `first` on that no tetrahedron of `tets` uses, in order.
+pub(super) fn unused_points(count: usize, tets: &[[u32; 4]], first: u32) -> Vec<u32> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let used: Vec<AtomicBool> = (first as usize..count)
+        .map(|_| AtomicBool::new(false))
+        .collect();
+    tets.par_chunks(1 << 16).for_each(|chunk| {
+        for &v in chunk.iter().flatten() {
+            if v >= first {
+                used[(v - first) as usize].store(true, Ordering::Relaxed);
+            }
+        }
+    });
+    used.iter()
+        .enumerate()
+        .filter(|(_, u)| !u.load(Ordering::Relaxed))
+        .map(|(k, _)| first + k as u32)
+        .collect()
 }

@@ -203,7 +203,8 @@ pub fn tetmesh_labels<'a>(
         grid_end..grid_end,
     );
     let stats = TetStats {
-        grid_points: grid_end as usize - base,
+        grid_points: grid_end as usize - base - improve.removed_grid,
+        steiner_points: improve.inserted - improve.removed,
         improve,
         ..TetStats::default()
     };

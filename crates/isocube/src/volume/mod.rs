@@ -575,6 +575,7 @@ fn mesh_region(
         let improved = improve::improve_with(
             &mut positions,
             &mut tets,
+            &mut walls,
             None,
             base as u32..steiner_base as u32,
             steiner_base as u32..steiner_end,
@@ -588,6 +589,8 @@ fn mesh_region(
             }
         };
         stats.steiner_points += stats.improve.inserted;
+        stats.steiner_points -= stats.improve.removed;
+        stats.grid_points -= stats.improve.removed_grid;
     }
     let mut mesh = TetMesh {
         positions,

@@ -49,7 +49,7 @@ fn box_volume(grid: &Grid) -> f64 {
 fn assert_valid(tets: &TetMesh, what: &str) -> TetCheck {
     let c = tets.check();
     assert!(
-        c.conforming && c.inverted == 0 && c.flat == 0,
+        c.conforming && c.inverted == 0 && c.flat == 0 && c.unused == 0,
         "{what}: {c:?}"
     );
     assert!(
