@@ -146,6 +146,14 @@ def main() -> None:
     sizes = [int(n) for n in options.sizes.split(",")]
     modes = options.modes.split(",")
     chosen = options.samples.split(",")
+    unknown = [s for s in chosen if s not in SAMPLES + SEEDED]
+    if unknown:
+        parser.error(
+            f"unknown sample(s) {', '.join(unknown)}; known: {', '.join(SAMPLES + SEEDED)}"
+        )
+    unknown = [m for m in modes if m not in MODES]
+    if unknown:
+        parser.error(f"unknown mode(s) {', '.join(unknown)}; known: {', '.join(MODES)}")
     seeds = range(options.first_seed, options.first_seed + options.seeds)
     specs = [f"sample:{s}:{n}" for s in SAMPLES if s in chosen for n in sizes]
     specs += [
