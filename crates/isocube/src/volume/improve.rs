@@ -21,12 +21,13 @@
 //!   tetrahedra from a new Steiner point, placed by the same search; where that is not enough,
 //!   the poor tetrahedron with some of those neighbours, or with the tetrahedra around one of
 //!   its edges, whichever star is best.
-//! - **take out**: a Steiner or grid point inside the mesh merged into one of its neighbours
-//!   (the edge between them contracted), its tetrahedra re-made as a cone from that neighbour.
-//!   A point inserted where it helped once can later split a boundary edge's narrow wedge into
-//!   two thin elements where one good one fits; only the extended sweeps and the second round
-//!   try it (there it takes the default sweep from 27 to 23 runs with an element outside the
-//!   range, and on 96 held-out runs 54 to 52, with 15 % fewer such elements);
+//! - **take out**: a Steiner or grid point merged into one of its neighbours (the edge between
+//!   them contracted), its tetrahedra re-made as a cone from that neighbour; a point on a wall
+//!   merges within the wall's plane and its wall triangles follow. A point inserted where it
+//!   helped once can later split a boundary edge's narrow wedge into two thin elements where
+//!   one good one fits; only the extended sweeps and the second round try it (there it takes
+//!   the default sweep from 27 to 23 runs with an element outside the range and 292 to 201
+//!   such elements, and on 96 held-out runs 54 to 51 and 917 to 712);
 //! - **re-make and move**: where none of these helps, a flip or edge removal that does not help
 //!   alone together with a move of one of the new tetrahedra's corners (the worst of all the
 //!   tetrahedra they touch must rise): a needle on the boundary (two corners close, the third
@@ -170,9 +171,16 @@ pub(super) fn improve(
     grid: Range<u32>,
     steiner: Range<u32>,
 ) -> ImproveStats {
-    improve_with(positions, tets, &mut [], labels, grid, steiner, &mut || {
-        Ok(())
-    })
+    let mut walls = Vec::new();
+    improve_with(
+        positions,
+        tets,
+        &mut walls,
+        labels,
+        grid,
+        steiner,
+        &mut || Ok(()),
+    )
     .expect("no check to stop it")
 }
 
@@ -182,7 +190,7 @@ pub(super) fn improve(
 pub(super) fn improve_with(
     positions: &mut Vec<[f32; 3]>,
     tets: &mut Vec<[u32; 4]>,
-    walls: &mut [[u32; 3]],
+    walls: &mut Vec<[u32; 3]>,
     labels: Option<&mut Vec<u32>>,
     grid: Range<u32>,
     steiner: Range<u32>,
@@ -254,6 +262,7 @@ pub(super) fn improve_with(
         extended: false,
         axes: [true; 3],
         bar: POOR,
+        merged: Vec::new(),
     };
     work.alive = vec![true; work.tets.len()];
     work.sweeps(poor, POOR, 2 * SWEEPS, check, &mut stats)?;
@@ -270,7 +279,23 @@ pub(super) fn improve_with(
     // Dead slots out, in order.
     let alive = std::mem::take(&mut work.alive);
     let grid = work.grid.clone();
+    let merged = std::mem::take(&mut work.merged);
     drop(work);
+    // Wall triangles follow the wall points taken out to where they merged (a point merged
+    // into one merged later follows it on); those that held both are gone.
+    if !merged.is_empty() {
+        let into: HashMap<u32, u32> = merged.iter().map(|&[v, w]| (v, w)).collect();
+        let follow = |mut v: u32| {
+            while let Some(&w) = into.get(&v) {
+                v = w;
+            }
+            v
+        };
+        walls.retain_mut(|t| {
+            *t = t.map(follow);
+            t[0] != t[1] && t[1] != t[2] && t[0] != t[2]
+        });
+    }
     let mut k = 0;
     tets.retain(|_| {
         k += 1;
@@ -370,7 +395,13 @@ enum Plan {
     /// Tetrahedra re-made as a star from a new point.
     Insert { cavity: Vec<u32>, star: Star },
     /// A Steiner point merged into a neighbour: the tetrahedra around it re-made.
-    Remove { old: Vec<u32>, new: Vec<[u32; 4]> },
+    Remove {
+        old: Vec<u32>,
+        new: Vec<[u32; 4]>,
+        /// For a point on a wall, it and the neighbour it merged into: the wall triangles at
+        /// it move there too.
+        merge: Option<[u32; 2]>,
+    },
     /// Tetrahedra re-made on the same points, then one of their corners moved.
     Remake {
         old: Vec<u32>,
@@ -410,6 +441,8 @@ struct Work<'a> {
     axes: [bool; 3],
     /// The score under which the tetrahedra of the current sweeps are worked on.
     bar: f64,
+    /// Wall points taken out and the neighbours they merged into, in order.
+    merged: Vec<[u32; 2]>,
 }
 
 impl Work<'_> {
@@ -701,10 +734,11 @@ impl Work<'_> {
                 self.replace(&old, &new);
                 self.positions[v as usize] = at;
             }
-            Plan::Remove { old, new } => {
+            Plan::Remove { old, new, merge } => {
                 // Counted again once the unused points are found (see `improve_with`).
                 stats.removed += 1;
                 self.replace(&old, &new);
+                self.merged.extend(merge);
             }
             Plan::Insert { cavity, star } => {
                 stats.inserted += 1;
@@ -1151,14 +1185,15 @@ impl Work<'_> {
         (here != start).then_some((here, w))
     }
 
-    /// Steiner point `v` taken out: the tetrahedra around it re-made as a cone from one of its
+    /// Steiner or grid point `v` taken out: the tetrahedra around it re-made as a cone from one of its
     /// neighbours `w` (the edge `vw` contracted onto `w`), the neighbour that gives the best
     /// worst score, if that beats theirs. A point inserted where it helped once can later hold
     /// two thin elements where one good one fits: a boundary edge whose region angle is under
-    /// twice the bound wants a single element, and no flip takes the point away. Only points
-    /// inside the mesh go (every face at them shared), so the boundary is kept; the cone tiles
-    /// the same polyhedron when every new tetrahedron is positive and the faces it leaves
-    /// outside are the old ones'.
+    /// twice the bound wants a single element, and no flip takes the point away. A point on
+    /// a wall merges only into a neighbour in the same plane(s) of the box, its wall triangles
+    /// moving with it (those holding both go with their elements); the surface is never
+    /// touched. The cone tiles the same polyhedron when every new tetrahedron is positive and
+    /// the faces it leaves outside are the old ones (the walls at the point moved).
     fn remove_point(&self, v: u32) -> Option<(f64, Plan)> {
         if !(self.steiner.contains(&v) || self.grid.contains(&v)) || !self.known[v as usize] {
             return None;
@@ -1168,32 +1203,49 @@ impl Work<'_> {
             return None;
         }
         let tets: Vec<[u32; 4]> = star.iter().map(|&t| self.tets[t as usize]).collect();
-        // The link: the faces opposite `v`, each sorted. Every face at `v` shared twice.
+        // The link: the faces opposite `v`, each sorted; and the faces at `v`, shared twice
+        // inside the mesh, once on a wall.
         let mut at_v: Vec<[u32; 3]> = Vec::with_capacity(3 * tets.len());
-        let mut link: Vec<[u32; 3]> = Vec::with_capacity(tets.len());
+        let mut outside: Vec<[u32; 3]> = Vec::with_capacity(tets.len());
         for t in &tets {
             let k = t.iter().position(|&x| x == v)?;
             for j in 0..4 {
                 let mut f = face(*t, j);
                 f.sort_unstable();
                 if j == k {
-                    link.push(f);
+                    outside.push(f);
                 } else {
                     at_v.push(f);
                 }
             }
         }
         at_v.sort_unstable();
-        if at_v.len() % 2 != 0 || at_v.chunks(2).any(|p| p[0] != p[1]) {
-            return None;
+        // Faces at `v` used once are walls: each in a plane of the grid's box through `v`,
+        // which `w` must lie in too so that the walls keep their planes.
+        let at = self.positions[v as usize];
+        let mut planes = [false; 3];
+        let mut walls: Vec<[u32; 3]> = Vec::new();
+        let mut i = 0;
+        while i < at_v.len() {
+            if at_v.get(i + 1) == Some(&at_v[i]) {
+                i += 2;
+                continue;
+            }
+            let f = at_v[i];
+            let a = (0..3).find(|&a| f.iter().all(|&x| self.positions[x as usize][a] == at[a]))?;
+            planes[a] = true;
+            walls.push(f);
+            i += 1;
         }
-        link.sort_unstable();
         let old_worst = self.worst_of(&star);
-        let mut neighbours: Vec<u32> = link.iter().flatten().copied().collect();
+        let mut neighbours: Vec<u32> = outside.iter().flatten().copied().collect();
         neighbours.sort_unstable();
         neighbours.dedup();
-        let mut best: Option<(f64, Vec<[u32; 4]>)> = None;
+        let mut best: Option<(f64, u32, Vec<[u32; 4]>)> = None;
         for w in neighbours {
+            if (0..3).any(|a| planes[a] && self.positions[w as usize][a] != at[a]) {
+                continue;
+            }
             let new: Vec<[u32; 4]> = tets
                 .iter()
                 .filter(|t| !t.contains(&w))
@@ -1204,13 +1256,36 @@ impl Work<'_> {
                 continue;
             };
             // The cone's outside faces are the link's faces away from `w`; with the faces at
-            // `w` it covers, the old outside.
-            if boundary(&new) != link {
+            // `w` it covers, the old outside: the link, and the walls at `v` moved to `w`
+            // (those at both end with the elements that held both).
+            let mut expected: Vec<[u32; 3]> = walls
+                .iter()
+                .filter(|f| !f.contains(&w))
+                .map(|f| {
+                    let mut f = f.map(|x| if x == v { w } else { x });
+                    f.sort_unstable();
+                    f
+                })
+                .chain(outside.iter().copied())
+                .collect();
+            expected.sort_unstable();
+            if boundary(&new) != expected {
                 continue;
             }
-            best = Some((worst, new));
+            best = Some((worst, w, new));
         }
-        best.map(|(w, new)| (w, Plan::Remove { old: star, new }))
+        let merge = !walls.is_empty();
+        best.map(|(worst, w, new)| {
+            let merge = merge.then_some([v, w]);
+            (
+                worst,
+                Plan::Remove {
+                    old: star,
+                    new,
+                    merge,
+                },
+            )
+        })
     }
 
     /// A flip or edge removal at `t` that does not help alone, followed by a move of one of
@@ -1442,6 +1517,77 @@ mod tests {
         assert!(worst(&positions, &tets) > 16.9);
         assert_eq!(boundary(&tets), outline);
         assert!((volume(&positions, &tets) - volume_before).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_wall_point_splitting_a_narrow_wedge_is_taken_out_and_its_walls_follow() {
+        // An element standing on a wall (the plane z = 0) with a 17° angle at its edge a–d
+        // (d straight over a, so the angle is the wall triangle's at a), cut into three from a
+        // point s on the wall, on the bisector: the two at a–d share the 17° evenly, so no
+        // move of s within the wall and no new point helps. Taken out, it leaves the one
+        // element and its wall triangle.
+        let angle = 17f32.to_radians();
+        let mut positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [angle.cos(), angle.sin(), 0.0],
+            [0.0, 0.0, 0.5],
+            [0.6 * (angle / 2.0).cos(), 0.6 * (angle / 2.0).sin(), 0.0],
+        ];
+        let (a, b, c, d, s) = (0, 1, 2, 3, 4);
+        let p = |v: u32, positions: &[[f32; 3]]| positions[v as usize].map(f64::from);
+        let oriented = |t: [u32; 4], positions: &[[f32; 3]]| {
+            let q = t.map(|v| p(v, positions));
+            if positive(q[0], q[1], q[2], q[3]) {
+                t
+            } else {
+                [t[1], t[0], t[2], t[3]]
+            }
+        };
+        let mut tets: Vec<[u32; 4]> = [[s, a, b, d], [s, b, c, d], [s, c, a, d]]
+            .into_iter()
+            .map(|t| oriented(t, &positions))
+            .collect();
+        // The faces away from d, outward as the check orients a tetrahedron's faces.
+        let walls_of = |tets: &[[u32; 4]]| -> Vec<[u32; 3]> {
+            let mut out: Vec<[u32; 3]> = tets
+                .iter()
+                .flat_map(|&[i, j, k, l]| [[i, k, j], [i, j, l], [i, l, k], [j, k, l]])
+                .filter(|f| !f.contains(&d))
+                .map(|f| {
+                    let r = f.iter().position(|v| v == f.iter().min().unwrap()).unwrap();
+                    [f[r], f[(r + 1) % 3], f[(r + 2) % 3]]
+                })
+                .collect();
+            out.sort_unstable();
+            out
+        };
+        let mut walls = walls_of(&tets);
+        assert_eq!(walls.len(), 3);
+        let before = worst(&positions, &tets);
+        assert!(before < 8.6, "{before}");
+        let volume_before = volume(&positions, &tets);
+        let stats = improve_with(
+            &mut positions,
+            &mut tets,
+            &mut walls,
+            None,
+            4..4,
+            4..5,
+            &mut || Ok(()),
+        )
+        .unwrap();
+        assert!(stats.removed >= 1, "{stats:?}");
+        assert_eq!((positions.len(), tets.len()), (4, 1), "{stats:?}");
+        assert!(worst(&positions, &tets) > 16.9);
+        assert!((volume(&positions, &tets) - volume_before).abs() < 1e-12);
+        let after = walls_of(&tets);
+        assert_eq!(after.len(), 1);
+        let r = walls[0].iter().position(|&v| v == a).unwrap();
+        assert_eq!(
+            [walls[0][r], walls[0][(r + 1) % 3], walls[0][(r + 2) % 3]],
+            after[0]
+        );
     }
 
     #[test]
