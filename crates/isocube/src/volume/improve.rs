@@ -1139,6 +1139,28 @@ impl Work<'_> {
         Some((w, Plan::Move { v, at }))
     }
 
+    /// Of the faces at point `v` (sorted, each sorted), those used once: walls, each in a plane
+    /// of the grid's box through `v`. Returns which axes' planes hold them and the walls, or
+    /// `None` when one lies in no such plane.
+    fn wall_planes(&self, v: u32, faces: &[[u32; 3]]) -> Option<([bool; 3], Vec<[u32; 3]>)> {
+        let at = self.positions[v as usize];
+        let mut planes = [false; 3];
+        let mut walls = Vec::new();
+        let mut i = 0;
+        while i < faces.len() {
+            if faces.get(i + 1) == Some(&faces[i]) {
+                i += 2;
+                continue;
+            }
+            let f = faces[i];
+            let a = (0..3).find(|&a| f.iter().all(|&w| self.positions[w as usize][a] == at[a]))?;
+            planes[a] = true;
+            walls.push(f);
+            i += 1;
+        }
+        Some((planes, walls))
+    }
+
     /// Where point `v` scores best with tetrahedra `star` around it (all of them holding it), if
     /// somewhere else than where it is, and the worst score there.
     fn move_within(&mut self, v: u32, star: &[[u32; 4]]) -> Option<([f32; 3], f64)> {
@@ -1160,19 +1182,7 @@ impl Work<'_> {
             })
             .collect();
         faces.sort_unstable();
-        let at = self.positions[v as usize];
-        let mut fixed = [false; 3];
-        let mut i = 0;
-        while i < faces.len() {
-            if faces.get(i + 1) == Some(&faces[i]) {
-                i += 2;
-                continue;
-            }
-            let f = faces[i];
-            let a = (0..3).find(|&a| f.iter().all(|&w| self.positions[w as usize][a] == at[a]))?;
-            fixed[a] = true;
-            i += 1;
-        }
+        let (fixed, _) = self.wall_planes(v, &faces)?;
         if fixed.iter().all(|&x| x) {
             return None;
         }
@@ -1223,20 +1233,7 @@ impl Work<'_> {
         // Faces at `v` used once are walls: each in a plane of the grid's box through `v`,
         // which `w` must lie in too so that the walls keep their planes.
         let at = self.positions[v as usize];
-        let mut planes = [false; 3];
-        let mut walls: Vec<[u32; 3]> = Vec::new();
-        let mut i = 0;
-        while i < at_v.len() {
-            if at_v.get(i + 1) == Some(&at_v[i]) {
-                i += 2;
-                continue;
-            }
-            let f = at_v[i];
-            let a = (0..3).find(|&a| f.iter().all(|&x| self.positions[x as usize][a] == at[a]))?;
-            planes[a] = true;
-            walls.push(f);
-            i += 1;
-        }
+        let (planes, walls) = self.wall_planes(v, &at_v)?;
         let old_worst = self.worst_of(&star);
         let mut neighbours: Vec<u32> = outside.iter().flatten().copied().collect();
         neighbours.sort_unstable();
