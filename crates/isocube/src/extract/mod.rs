@@ -144,6 +144,10 @@ pub struct ExtractOptions {
     /// they become, would need more: a clean error instead of the system's out-of-memory
     /// killer, whatever the front end.
     pub max_memory: Option<u64>,
+    /// Volume meshes ([`crate::volume::tetmesh`]) only: how the interior coarsens away from
+    /// the surface ([`crate::volume::Grading::UNIFORM`], the default: not at all). Extraction
+    /// ignores it.
+    pub grading: crate::volume::Grading,
 }
 
 /// Which Marching Cubes: binary (values at or above the level versus below) or ternary.
@@ -179,11 +183,18 @@ impl Default for ExtractOptions {
             triangulation: Strategy::Fan,
             relax: 0,
             max_memory: None,
+            grading: crate::volume::Grading::UNIFORM,
         }
     }
 }
 
 impl ExtractOptions {
+    /// Sets [`ExtractOptions::grading`].
+    pub fn with_grading(mut self, grading: crate::volume::Grading) -> Self {
+        self.grading = grading;
+        self
+    }
+
     /// Sets [`ExtractOptions::max_memory`].
     pub fn with_max_memory(mut self, bytes: Option<u64>) -> Self {
         self.max_memory = bytes;

@@ -461,3 +461,48 @@ pub(super) fn unused_points(count: usize, tets: &[[u32; 4]], first: u32) -> Vec<
         .map(|(k, _)| first + k as u32)
         .collect()
 }
+
+/// Drops the points `removed` (sorted) from `positions`, numbering the later ones down in
+/// `tets` and `walls` (none of which may use a dropped point).
+pub(super) fn drop_points(
+    positions: &mut Vec<[f32; 3]>,
+    tets: &mut [[u32; 4]],
+    walls: &mut [[u32; 3]],
+    removed: &[u32],
+) {
+    let Some(&first) = removed.first() else {
+        return;
+    };
+    let first = first as usize;
+    let mut map: Vec<u32> = Vec::with_capacity(positions.len() - first);
+    let (mut next, mut r) = (first as u32, 0);
+    for old in first..positions.len() {
+        if removed.get(r) == Some(&(old as u32)) {
+            r += 1;
+            map.push(u32::MAX);
+        } else {
+            map.push(next);
+            next += 1;
+        }
+    }
+    let renumber = |v: &mut u32| {
+        if *v as usize >= first {
+            *v = map[*v as usize - first];
+            debug_assert_ne!(*v, u32::MAX, "a point taken out is used");
+        }
+    };
+    tets.par_iter_mut()
+        .for_each(|t| t.iter_mut().for_each(renumber));
+    walls
+        .par_iter_mut()
+        .for_each(|t| t.iter_mut().for_each(renumber));
+    let mut k = first;
+    let mut r = 0;
+    let kept = positions.split_off(first);
+    positions.extend(kept.into_iter().filter(|_| {
+        let gone = removed.get(r) == Some(&(k as u32));
+        r += usize::from(gone);
+        k += 1;
+        !gone
+    }));
+}

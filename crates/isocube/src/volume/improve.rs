@@ -318,40 +318,7 @@ pub(super) fn improve_with(
     };
     stats.removed_grid = removed.iter().filter(|&v| grid.contains(v)).count();
     stats.removed = removed.len() - stats.removed_grid;
-    if let Some(&first) = removed.first() {
-        let first = first as usize;
-        let mut map: Vec<u32> = Vec::with_capacity(positions.len() - first);
-        let (mut next, mut r) = (first as u32, 0);
-        for old in first..positions.len() {
-            if removed.get(r) == Some(&(old as u32)) {
-                r += 1;
-                map.push(u32::MAX);
-            } else {
-                map.push(next);
-                next += 1;
-            }
-        }
-        let renumber = |v: &mut u32| {
-            if *v as usize >= first {
-                *v = map[*v as usize - first];
-                debug_assert_ne!(*v, u32::MAX, "a point taken out is used");
-            }
-        };
-        tets.par_iter_mut()
-            .for_each(|t| t.iter_mut().for_each(renumber));
-        walls
-            .par_iter_mut()
-            .for_each(|t| t.iter_mut().for_each(renumber));
-        let mut k = first;
-        let mut r = 0;
-        let kept = positions.split_off(first);
-        positions.extend(kept.into_iter().filter(|_| {
-            let gone = removed.get(r) == Some(&(k as u32));
-            r += usize::from(gone);
-            k += 1;
-            !gone
-        }));
-    }
+    super::check::drop_points(positions, tets, walls, &removed);
     Ok(stats)
 }
 

@@ -79,11 +79,13 @@ mod cones;
 mod cycles;
 mod face;
 mod front;
+mod graded;
 mod improve;
 mod labels;
 mod quality;
 
 pub use check::{positive, TetCheck};
+pub use graded::Grading;
 pub use improve::ImproveStats;
 pub use labels::{tetmesh_labels, TetLabels};
 pub use quality::{snap_detail, BoundaryEdge, PoorElements, QualityColumns, TetQuality, TetReport};
@@ -477,7 +479,25 @@ fn mesh_region(
         shape: ternary,
         grouped: Vec::new(),
         patient: false,
+        cubes: None,
     };
+    asked(cells)?;
+    // Graded: away from the surface, whole cells gathered into cubes (see `graded`).
+    if options.grading.max_level > 0 {
+        let shared = &ctx;
+        let whole: Vec<bool> = (0..cell_dims[2])
+            .into_par_iter()
+            .flat_map_iter(|k| {
+                (0..cell_dims[1]).flat_map(move |j| {
+                    (0..cell_dims[0]).map(move |i| {
+                        matches!(shared.cell_fill([i, j, k]), CellFill::Whole(ids)
+                            if ids.iter().all(|&v| v != u32::MAX && v as usize >= shared.base))
+                    })
+                })
+            })
+            .collect();
+        ctx.cubes = Some(graded::Cubes::new(cell_dims, &whole, options.grading));
+    }
     asked(cells)?;
     // The layers of cells are meshed in parallel a batch at a time and appended in order, each
     // freed once copied: the tetrahedra are held about once (all the layers first, then their
@@ -591,6 +611,13 @@ fn mesh_region(
         stats.steiner_points += stats.improve.inserted;
         stats.steiner_points -= stats.improve.removed;
         stats.grid_points -= stats.improve.removed_grid;
+    }
+    if options.grading.max_level > 0 {
+        // The grid points strictly inside cubes (but the centres of transition cubes) are in
+        // no element: dropped, the later points numbered down.
+        let unused = check::unused_points(positions.len(), &tets, base as u32);
+        stats.grid_points -= unused.len();
+        check::drop_points(&mut positions, &mut tets, &mut walls, &unused);
     }
     let mut mesh = TetMesh {
         positions,
@@ -912,6 +939,8 @@ struct Context<'a> {
     /// attempt only (the groups of cells, filled at the end), as a first attempt that fails is
     /// cheaper to answer by grouping the cell with its neighbours.
     patient: bool,
+    /// Graded meshes: the cubes whole cells are gathered into away from the surface.
+    cubes: Option<graded::Cubes>,
 }
 
 /// A cell's boundary triangle: the surface's, or one of a cell face's inside part (the cell and
@@ -1064,6 +1093,18 @@ impl Context<'_> {
                     && self.grouped.binary_search(&self.cell_index(cell)).is_ok()
                 {
                     continue;
+                }
+                if let Some(cubes) = &self.cubes {
+                    let level = cubes.level(cell);
+                    if level > 0 {
+                        let mask = (1usize << level) - 1;
+                        if cell.iter().all(|&x| x & mask == 0) {
+                            let id = |p: [usize; 3]| self.point_id(p);
+                            cubes.cube(cell, level, &id, &mut out.tets, &mut out.walls);
+                            out.lattice_cells += 1 << (3 * level);
+                        }
+                        continue;
+                    }
                 }
                 let failed = |reason| TetError::Cell { cell, reason };
                 match self.cell_fill(cell) {

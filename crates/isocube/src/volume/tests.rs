@@ -1405,3 +1405,59 @@ fn few_elements_outside_the_range_are_left_unexplained() {
         "{others} elements outside [10°, 165°] unexplained in {meshes} meshes"
     );
 }
+
+/// Graded meshes: conforming, positive, the same boundary as the uniform mesh (the surface is
+/// `extract`'s) and the same volume, with fewer elements and no point in none; on smooth
+/// fields with the default method every angle stays in [10°, 165°].
+#[test]
+fn graded_meshes_keep_the_boundary_with_fewer_elements() {
+    let ternary = ExtractOptions::default().with_method(Method::Ternary(Default::default()));
+    for (sample, n) in [
+        (Sample::Sphere, 40),
+        (Sample::Torus, 36),
+        (Sample::PackedSpheres { seed: 3 }, 30),
+    ] {
+        let grid = sample.grid(n);
+        for options in [ternary, ternary.with_flip(true), ExtractOptions::default()] {
+            let uniform = tetmesh(&grid, &options).unwrap();
+            for layers in [0, 1] {
+                let grading = Grading {
+                    max_level: 3,
+                    layers,
+                };
+                let what = format!("{sample:?} {n} {options:?} {grading:?}");
+                let graded = tetmesh(&grid, &options.with_grading(grading))
+                    .unwrap_or_else(|e| panic!("{what}: {e}"));
+                let c = assert_valid(&graded, &what);
+                let u = uniform.check();
+                assert!((c.volume - u.volume).abs() <= 1e-9 * u.volume, "{what}");
+                assert_eq!(graded.surface, uniform.surface, "{what}");
+                assert_eq!(
+                    graded.positions[..graded.surface_vertices],
+                    uniform.positions[..uniform.surface_vertices],
+                    "{what}"
+                );
+                // A torus tube this thin holds no cube with a layer around it.
+                let fewer = graded.tets.len() < uniform.tets.len();
+                assert!(fewer || (layers > 0 && sample != Sample::Sphere), "{what}");
+                assert!(graded.tets.len() <= uniform.tets.len(), "{what}");
+                assert_eq!(
+                    graded.positions.len(),
+                    graded.surface_vertices
+                        + graded.stats.grid_points
+                        + graded.stats.steiner_points,
+                    "{what}"
+                );
+                if options.method != Method::MarchingCubes
+                    && !matches!(sample, Sample::PackedSpheres { .. })
+                {
+                    let q = graded.quality_report();
+                    assert!(
+                        q.min_dihedral >= 10.0 && q.max_dihedral <= 165.0,
+                        "{what}: {q:?}"
+                    );
+                }
+            }
+        }
+    }
+}
