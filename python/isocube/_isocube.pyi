@@ -144,6 +144,9 @@ def tetmesh(
     only: list[int] | None,
     background: int,
     max_memory: int | None,
+    max_size: float | None = None,
+    max_size_cells: bool = False,
+    grading: int = 0,
     progress: Callable[[int, int], object] | None = None,
 ) -> TetMesh: ...
 def contours_read(

@@ -10,6 +10,7 @@ import numpy as np
 
 from . import _isocube
 from ._arrays import ArrayLike, _labels, _matrix, _triple, _volume
+from ._isocube import InputError
 from ._progress import _progress_bar
 
 
@@ -44,7 +45,8 @@ class TetMesh:
         The two labels on either side of each interface triangle (the first is the one it
         faces out of).
     stats : dict
-        Counts (``lattice_cells``, ``cut_cells``, ``grid_points``, ``steiner_points``, the
+        Counts (``lattice_cells``, ``cut_cells``, ``grid_points``, ``steiner_points``; graded:
+        ``cubes``, ``largest_cube`` (cells on a side) and ``cube_tets``; the
         improvement's ``flips_23``, ``moved_points``, ``widened`` (elements worked on around
         those left outside [10°, 165°]), ... and the surface's) and ``seconds``.
     """
@@ -202,6 +204,8 @@ def tetmesh(
     labels: bool | Iterable[int] = False,
     background: int = 0,
     max_memory: int | None = None,
+    max_size: float | str | None = None,
+    grading: int = 0,
     progress: bool | Callable[[int, int], object] = False,
 ) -> TetMesh:
     """Fills the region of `volume` below `level` (above it with `flip`) with tetrahedra, as
@@ -234,6 +238,14 @@ def tetmesh(
     background : int
     max_memory : int, optional
         Refuse (``MemoryLimitError``) a mesh estimated to need more bytes.
+    max_size : float or str, optional
+        A graded interior, as ``isocube tetmesh --max-size``: away from the surface, cells are
+        gathered into cubes of 2, 4, 8, ... cells up to this size, a distance in the units of
+        `spacing` or ``'16c'`` for 16 cells (the boundary is unchanged). Default: uniform.
+        Not yet for `labels`.
+    grading : int
+        With `max_size`: cubes of each size keep this many cubes of their size from the cells
+        the surface passes through (0: sizes may double from one cube to the next).
     progress : bool or callable
         As in :func:`extract` (the surface's cells, then the cells filled, out of twice the
         volume's cells). Ctrl-C stops the work within a fraction of a second
@@ -264,6 +276,7 @@ def tetmesh(
     else:
         a = _labels(volume)
         label_mode, only = True, None if labels is True else [int(x) for x in labels]
+    size, in_cells = _max_size(max_size)
     with _progress_bar(progress, "isocube.tetmesh") as report:
         mesh = _isocube.tetmesh(
             a,
@@ -282,6 +295,26 @@ def tetmesh(
             only=only,
             background=int(background),
             max_memory=max_memory,
+            max_size=size,
+            max_size_cells=in_cells,
+            grading=int(grading),
             progress=report,
         )
     return TetMesh(mesh)
+
+
+def _max_size(max_size: float | str | None) -> tuple[float | None, bool]:
+    """`max_size` as a number and whether it counts cells (``'16c'``)."""
+    if max_size is None:
+        return None, False
+    if isinstance(max_size, str):
+        text = max_size.strip()
+        in_cells = text.endswith("c")
+        try:
+            return float(text[:-1] if in_cells else text), in_cells
+        except ValueError:
+            raise InputError(
+                f"max_size {max_size!r}: expected a size > 0, in cells ('16c') or in the "
+                "units of spacing"
+            ) from None
+    return float(max_size), False

@@ -7,7 +7,9 @@ use std::time::Instant;
 use isocube::extract::ExtractOptions;
 use isocube::extract::{ExtractError, LabelOptions, LabelSelection};
 use isocube::field::Orientation;
-use isocube::volume::{snap_detail, tetmesh_labels, tetmesh_with_progress, TetError, TetMesh};
+use isocube::volume::{
+    snap_detail, tetmesh_labels, tetmesh_with_progress, Grading, TetError, TetMesh,
+};
 use isocube_io::TetFormat;
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray3};
@@ -142,6 +144,9 @@ impl PyTetMesh {
         let d = crate::stats_dict(py, &s.extract, self.seconds)?;
         d.set_item("lattice_cells", s.lattice_cells)?;
         d.set_item("cut_cells", s.cut_cells)?;
+        d.set_item("cubes", s.cubes)?;
+        d.set_item("largest_cube", s.largest_cube)?;
+        d.set_item("cube_tets", s.cube_tets)?;
         d.set_item("grid_points", s.grid_points)?;
         d.set_item("steiner_points", s.steiner_points)?;
         d.set_item("poor_elements", s.improve.poor)?;
@@ -240,7 +245,8 @@ pub(crate) fn tet_error(e: TetError) -> PyErr {
 #[pyfunction]
 #[pyo3(signature = (
     volume, level, *, spacing, origin, direction, method, topology, triangulate, snap,
-    zero_threshold, snap_position, flip, labels, only, background, max_memory, progress=None
+    zero_threshold, snap_position, flip, labels, only, background, max_memory, max_size=None,
+    max_size_cells=false, grading=0, progress=None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn tetmesh(
@@ -261,6 +267,9 @@ pub(crate) fn tetmesh(
     only: Option<Vec<i64>>,
     background: i64,
     max_memory: Option<u64>,
+    max_size: Option<f64>,
+    max_size_cells: bool,
+    grading: u8,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<PyTetMesh> {
     let direction = direction_of(direction)?;
@@ -269,6 +278,20 @@ pub(crate) fn tetmesh(
         .into_iter()
         .map(f64::abs)
         .fold(f64::INFINITY, f64::min);
+    let grading = match max_size {
+        None => Grading::UNIFORM,
+        Some(size) if !(size.is_finite() && size > 0.0) => {
+            return Err(InputError::new_err(format!(
+                "max_size {size}: expected a size > 0"
+            )))
+        }
+        Some(_) if labels => {
+            return Err(InputError::new_err(
+                "max_size: segmentations are meshed uniformly for now",
+            ))
+        }
+        Some(size) => Grading::within(if max_size_cells { size } else { size / cell }, grading),
+    };
     let mut detail = snap_detail(&ExtractOptions::default());
     let meshed = if labels {
         // Labels are meshed in the array's index order, as the command line reads a file's.
@@ -302,7 +325,8 @@ pub(crate) fn tetmesh(
             method_of(method, snap, zero_threshold, snap_position)?,
             max_memory,
         )?
-        .with_normals(false);
+        .with_normals(false)
+        .with_grading(grading);
         detail = snap_detail(&options);
         interruptible(
             py,

@@ -157,6 +157,28 @@ def test_bad_input_names_the_reason() -> None:
         isocube.tetmesh(ellipsoid()).save("mesh.xyz")
 
 
+@pytest.mark.parametrize("flip", [False, True])
+def test_a_graded_interior_keeps_the_boundary_with_fewer_elements(flip: bool) -> None:
+    x, y, z = np.mgrid[-1:1:40j, -1:1:41j, -1:1:42j]
+    ball = np.sqrt(x**2 + y**2 + z**2)
+    uniform = isocube.tetmesh(ball, 0.8, flip=flip)
+    graded = isocube.tetmesh(ball, 0.8, flip=flip, max_size="8c")
+    assert (signed_volumes(graded.vertices, graded.tets) > 0).all()
+    assert faces_once(graded.tets) == triples(graded.surface) | triples(graded.walls)
+    np.testing.assert_array_equal(graded.surface, uniform.surface)
+    check = graded.check()
+    assert check["conforming"] and check["unused"] == 0
+    stats = graded.stats
+    assert stats["cubes"] > 0 and stats["largest_cube"] in (2, 4, 8)
+    assert 0 < stats["cube_tets"] < len(graded.tets)
+    assert uniform.stats["cubes"] == 0
+    assert check["volume"] == pytest.approx(uniform.check()["volume"], rel=1e-9)
+    fewer = len(graded.tets) < len(uniform.tets) / (1 if flip else 1.5)
+    assert fewer, (len(graded.tets), len(uniform.tets))
+    with pytest.raises(isocube.InputError, match="max_size"):
+        isocube.tetmesh(ball, 0.8, max_size="big")
+
+
 def test_peers_read_the_mesh() -> None:
     mesh = isocube.tetmesh(ellipsoid(), method="ternary")
     enclosed = mesh.check()["enclosed"]
@@ -177,6 +199,8 @@ def test_peers_read_the_mesh() -> None:
         ({}, []),
         ({"method": "ternary", "snap": 0.4}, ["--method", "ternary", "--snap", "0.4"]),
         ({"flip": True, "level": 0.1}, ["--flip", "--level", "0.1"]),
+        ({"max_size": "4c", "grading": 1}, ["--max-size", "4c", "--grading", "1"]),
+        ({"max_size": 8.0, "flip": True}, ["--max-size", "8", "--flip"]),
     ],
 )
 def test_files_are_the_command_lines_bytes(

@@ -322,15 +322,7 @@ fn grading(args: &Args, cell: f64) -> Grading {
         MaxSize::Cells(n) => n,
         MaxSize::Distance(d) => d / cell,
     };
-    let max_level = if cells >= 2.0 {
-        (cells.log2().floor() as u8).min(isocube::volume::Grading::MAX_LEVEL)
-    } else {
-        0
-    };
-    Grading {
-        max_level,
-        layers: args.grading,
-    }
+    Grading::within(cells, args.grading)
 }
 
 /// The volume mesher's options from the command line.
@@ -409,6 +401,16 @@ fn finish(
         mesh.surface.len(),
         mesh.walls.len()
     );
+    if s.cubes > 0 {
+        eprintln!(
+            "graded: {} cubes of 2 to {} cells on a side hold {} of the tetrahedra ({:.1} %); \
+             the cells the surface passes through and their neighbours hold the rest",
+            s.cubes,
+            s.largest_cube,
+            s.cube_tets,
+            100.0 * s.cube_tets as f64 / mesh.tets.len().max(1) as f64
+        );
+    }
     if let Some(labels) = &mesh.labels {
         let mut counts = vec![0usize; labels.names.len()];
         for &l in &labels.tets {

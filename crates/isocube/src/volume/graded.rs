@@ -63,6 +63,23 @@ impl Grading {
     /// The deepest level a grading may ask for (cubes of 2^15 cells: more than any grid).
     pub const MAX_LEVEL: u8 = 15;
 
+    /// The grading whose largest cubes are the largest power of two cells within `cells`
+    /// (uniform under 2), cubes keeping `layers` cubes of their size from the cut cells.
+    ///
+    /// ```
+    /// use isocube::volume::Grading;
+    /// assert_eq!(Grading::within(20.0, 0).largest_cells(), 16);
+    /// assert_eq!(Grading::within(1.5, 1), Grading { max_level: 0, layers: 1 });
+    /// ```
+    pub fn within(cells: f64, layers: u8) -> Grading {
+        let max_level = if cells >= 2.0 {
+            (cells.log2().floor().min(f64::from(Grading::MAX_LEVEL))) as u8
+        } else {
+            0
+        };
+        Grading { max_level, layers }
+    }
+
     /// The side of the largest cubes, in cells.
     pub fn largest_cells(&self) -> usize {
         1 << self.max_level

@@ -122,6 +122,14 @@ pub struct TetStats {
     pub lattice_cells: usize,
     /// Cells the surface passes through.
     pub cut_cells: usize,
+    /// Graded meshes ([`crate::extract::ExtractOptions::grading`]): the cubes of 2 or more
+    /// cells on a side whole cells were gathered into (their cells are counted in
+    /// `lattice_cells`), the side of the largest, and the elements they hold.
+    pub cubes: usize,
+    /// The side of the largest cube, in cells (0 without cubes).
+    pub largest_cube: usize,
+    /// The tetrahedra of the cubes.
+    pub cube_tets: usize,
     /// Grid points inside the region (vertices of the mesh).
     pub grid_points: usize,
     /// Points added inside cut cells (one per connected part).
@@ -558,6 +566,9 @@ fn mesh_region(
         stats.steiner_points = 0;
         stats.lattice_cells = 0;
         stats.cut_cells = 0;
+        stats.cubes = 0;
+        stats.largest_cube = 0;
+        stats.cube_tets = 0;
     };
     debug_assert!(crossed.is_empty());
     // The groups of cells last, in order: the last attempt at them.
@@ -652,6 +663,9 @@ fn append_layer(
     stats.steiner_points += layer.steiner.len();
     stats.lattice_cells += layer.lattice_cells;
     stats.cut_cells += layer.cut_cells;
+    stats.cubes += layer.cubes;
+    stats.largest_cube = stats.largest_cube.max(layer.largest_cube);
+    stats.cube_tets += layer.cube_tets;
     Ok(())
 }
 
@@ -881,6 +895,9 @@ struct Layer {
     steiner: Vec<[f32; 3]>,
     lattice_cells: usize,
     cut_cells: usize,
+    cubes: usize,
+    largest_cube: usize,
+    cube_tets: usize,
     /// Cells left unfilled because their boundary passes through one of their faces (bent by
     /// corners off their grid points), with that face.
     crossed: Vec<([usize; 3], Side)>,
@@ -1100,8 +1117,12 @@ impl Context<'_> {
                         let mask = (1usize << level) - 1;
                         if cell.iter().all(|&x| x & mask == 0) {
                             let id = |p: [usize; 3]| self.point_id(p);
+                            let before = out.tets.len();
                             cubes.cube(cell, level, &id, &mut out.tets, &mut out.walls);
                             out.lattice_cells += 1 << (3 * level);
+                            out.cubes += 1;
+                            out.largest_cube = out.largest_cube.max(1 << level);
+                            out.cube_tets += out.tets.len() - before;
                         }
                         continue;
                     }

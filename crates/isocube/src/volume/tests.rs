@@ -1461,3 +1461,74 @@ fn graded_meshes_keep_the_boundary_with_fewer_elements() {
         }
     }
 }
+
+/// Random bodies (balls with noise, on grids of random sizes) under random gradings and
+/// options: valid, the uniform mesh's surface and volume, never more elements, and no edge
+/// longer than the largest cube's diagonal.
+#[test]
+fn random_bodies_under_random_gradings() {
+    let mut rng = crate::TestRng::new(51);
+    let mut coarser = 0;
+    for case in 0..40 {
+        let dims = [0; 3].map(|_| 12 + (rng.next_u64() % 24) as usize);
+        let centre = dims.map(|d| (d as f64 - 1.0) * (0.3 + 0.4 * rng.unit()));
+        let radius = 4.0 + rng.unit() * dims.iter().min().copied().unwrap_or(12) as f64 * 0.6;
+        let noise = 0.6 * rng.unit();
+        let mut values = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let d = [i, j, k]
+                        .iter()
+                        .zip(centre)
+                        .map(|(&x, c)| (x as f64 - c).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    values.push((d - radius + noise * (rng.unit() - 0.5)) as f32);
+                }
+            }
+        }
+        let grid = Grid::new(dims, values).unwrap();
+        let grading = Grading {
+            max_level: 1 + (rng.next_u64() % 4) as u8,
+            layers: (rng.next_u64() % 3) as u8,
+        };
+        let options = match case % 4 {
+            0 => ExtractOptions::default(),
+            1 => ExtractOptions::default().with_flip(true),
+            2 => ExtractOptions::default()
+                .with_method(Method::Ternary(Default::default()))
+                .with_flip(true),
+            _ => ExtractOptions::default().with_method(Method::Ternary(Default::default())),
+        };
+        let what = format!("case {case} {dims:?} {grading:?} {options:?}");
+        let uniform = match tetmesh(&grid, &options) {
+            Ok(mesh) => mesh,
+            Err(TetError::Empty) => continue,
+            Err(e) => panic!("{what}: {e}"),
+        };
+        let graded = tetmesh(&grid, &options.with_grading(grading))
+            .unwrap_or_else(|e| panic!("{what}: {e}"));
+        let c = assert_valid(&graded, &what);
+        let u = uniform.check();
+        assert!((c.volume - u.volume).abs() <= 1e-9 * u.volume, "{what}");
+        assert_eq!(graded.surface, uniform.surface, "{what}");
+        assert_eq!(graded.walls.is_empty(), uniform.walls.is_empty(), "{what}");
+        assert!(graded.tets.len() <= uniform.tets.len(), "{what}");
+        coarser += usize::from(graded.tets.len() < uniform.tets.len());
+        let longest = (1u32 << grading.max_level) as f64 * 3f64.sqrt();
+        for t in &graded.tets {
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    let [p, q] = [t[a], t[b]].map(|v| graded.positions[v as usize]);
+                    let d = (0..3)
+                        .map(|i| f64::from(p[i] - q[i]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    assert!(d <= longest + 1e-6, "{what}: an edge of {d}");
+                }
+            }
+        }
+    }
+    assert!(coarser >= 20, "{coarser} of 40 coarsened");
+}
