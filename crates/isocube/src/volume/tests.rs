@@ -1406,6 +1406,30 @@ fn few_elements_outside_the_range_are_left_unexplained() {
     );
 }
 
+/// The graded mesh of `grid`, checked valid against the `uniform` one: the same surface over
+/// the same vertices, the same volume, never more elements.
+fn graded_like(
+    grid: &Grid,
+    options: &ExtractOptions,
+    grading: Grading,
+    uniform: &TetMesh,
+    what: &str,
+) -> TetMesh {
+    let graded =
+        tetmesh(grid, &options.with_grading(grading)).unwrap_or_else(|e| panic!("{what}: {e}"));
+    let c = assert_valid(&graded, what);
+    let u = uniform.check();
+    assert!((c.volume - u.volume).abs() <= 1e-9 * u.volume, "{what}");
+    assert_eq!(graded.surface, uniform.surface, "{what}");
+    assert_eq!(
+        graded.positions[..graded.surface_vertices],
+        uniform.positions[..uniform.surface_vertices],
+        "{what}"
+    );
+    assert!(graded.tets.len() <= uniform.tets.len(), "{what}");
+    graded
+}
+
 /// Graded meshes: conforming, positive, the same boundary as the uniform mesh (the surface is
 /// `extract`'s) and the same volume, with fewer elements and no point in none; on smooth
 /// fields with the default method every angle stays in [10°, 165°].
@@ -1426,17 +1450,7 @@ fn graded_meshes_keep_the_boundary_with_fewer_elements() {
                     layers,
                 };
                 let what = format!("{sample:?} {n} {options:?} {grading:?}");
-                let graded = tetmesh(&grid, &options.with_grading(grading))
-                    .unwrap_or_else(|e| panic!("{what}: {e}"));
-                let c = assert_valid(&graded, &what);
-                let u = uniform.check();
-                assert!((c.volume - u.volume).abs() <= 1e-9 * u.volume, "{what}");
-                assert_eq!(graded.surface, uniform.surface, "{what}");
-                assert_eq!(
-                    graded.positions[..graded.surface_vertices],
-                    uniform.positions[..uniform.surface_vertices],
-                    "{what}"
-                );
+                let graded = graded_like(&grid, &options, grading, &uniform, &what);
                 // A torus tube this thin holds no cube with a layer around it.
                 let fewer = graded.tets.len() < uniform.tets.len();
                 assert!(fewer || (layers > 0 && sample != Sample::Sphere), "{what}");
@@ -1507,14 +1521,8 @@ fn random_bodies_under_random_gradings() {
             Err(TetError::Empty) => continue,
             Err(e) => panic!("{what}: {e}"),
         };
-        let graded = tetmesh(&grid, &options.with_grading(grading))
-            .unwrap_or_else(|e| panic!("{what}: {e}"));
-        let c = assert_valid(&graded, &what);
-        let u = uniform.check();
-        assert!((c.volume - u.volume).abs() <= 1e-9 * u.volume, "{what}");
-        assert_eq!(graded.surface, uniform.surface, "{what}");
+        let graded = graded_like(&grid, &options, grading, &uniform, &what);
         assert_eq!(graded.walls.is_empty(), uniform.walls.is_empty(), "{what}");
-        assert!(graded.tets.len() <= uniform.tets.len(), "{what}");
         coarser += usize::from(graded.tets.len() < uniform.tets.len());
         let longest = (1u32 << grading.max_level) as f64 * 3f64.sqrt();
         for t in &graded.tets {
