@@ -5,10 +5,11 @@
 
 Every built-in sample (`isocube samples`' list but the contour stack) at each size, with seeds
 1..S for the samples that take one (noise, packed-spheres), both sides (the values below the
-level and, with `--flip`, the rest), and five option sets: the default (ternary, snap 0.3,
+level and, with `--flip`, the rest), and six option sets: the default (ternary, snap 0.3,
 vertices on the crossings), `--method mc`, `--snap-position grid` (snap 0.3 on the grid
-points), `--snap 0.5` and `--snap 0.5 --snap-position grid`. Each run is the command end to end
-(sample, mesh, check, binary `.msh` written). A run is *refused* when the command fails: the
+points), `--snap 0.5`, `--snap 0.5 --snap-position grid`, and the default with a graded
+interior (`--max-size 64c`). Each run is the command end to end (sample, mesh, check, binary
+`.msh` written). A run is *refused* when the command fails: the
 message is kept and printed. For each option set the table gives meshed / refused and the
 range of the smallest and largest dihedral angles over the meshes, how many meshes have an
 angle outside [10°, 165°], and of those, by the summary's classes of the elements outside
@@ -49,6 +50,7 @@ MODES = {
     "0.3 grid": ["--snap-position", "grid"],
     "0.5": ["--snap", "0.5"],
     "0.5 grid": ["--snap", "0.5", "--snap-position", "grid"],
+    "graded": ["--max-size", "64c"],
 }
 LOW, HIGH = 10.0, 165.0
 

@@ -173,7 +173,7 @@ def test_a_graded_interior_keeps_the_boundary_with_fewer_elements(flip: bool) ->
     assert 0 < stats["cube_tets"] < len(graded.tets)
     assert uniform.stats["cubes"] == 0
     assert check["volume"] == pytest.approx(uniform.check()["volume"], rel=1e-9)
-    fewer = len(graded.tets) < len(uniform.tets) / (1 if flip else 1.5)
+    fewer = len(graded.tets) < len(uniform.tets) / (1 if flip else 1.3)
     assert fewer, (len(graded.tets), len(uniform.tets))
     with pytest.raises(isocube.InputError, match="max_size"):
         isocube.tetmesh(ball, 0.8, max_size="big")
