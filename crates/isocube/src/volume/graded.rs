@@ -27,7 +27,9 @@
 
 use rayon::prelude::*;
 
-/// How the interior of a volume mesh coarsens away from the surface.
+/// How the interior of a volume mesh coarsens away from the surface. The default grades,
+/// cubes up to 16 cells on a side; [`crate::extract::ExtractOptions`] starts from
+/// [`Grading::UNIFORM`].
 ///
 /// ```
 /// use isocube::volume::Grading;
