@@ -27,6 +27,9 @@
 
 use rayon::prelude::*;
 
+use super::check::{cross, dot, sub};
+use super::coords;
+
 /// How the interior of a volume mesh coarsens away from the surface. The default grades,
 /// cubes up to 16 cells on a side; [`crate::extract::ExtractOptions`] starts from
 /// [`Grading::UNIFORM`].
@@ -276,7 +279,9 @@ impl Cubes {
             tets.extend(KUHN.iter().map(|t| t.map(|c| id(corner(usize::from(c))))));
             for (f, tris) in faces.iter().enumerate() {
                 if on_wall(f) {
-                    walls.extend(tris.iter().map(|t| outward(t, s).map(|q| id(add(o, q)))));
+                    // The cube's side is even: its centre is a grid point.
+                    let out = |t: &[[usize; 3]; 3]| away_from(*t, [s / 2; 3]);
+                    walls.extend(tris.iter().map(|t| out(t).map(|q| id(add(o, q)))));
                 }
             }
             return;
@@ -351,10 +356,6 @@ fn spread(flags: &[bool], d: [usize; 3], cells: [usize; 3], k: usize, m: usize) 
 /// each positive.
 const KUHN: [[u8; 4]; 6] = super::KUHN;
 
-fn coords(c: usize, d: [usize; 3]) -> [usize; 3] {
-    [c % d[0], c / d[0] % d[1], c / (d[0] * d[1])]
-}
-
 fn add(a: [usize; 3], b: [usize; 3]) -> [usize; 3] {
     std::array::from_fn(|i| a[i] + b[i])
 }
@@ -379,17 +380,6 @@ fn cube_faces(s: usize) -> [[[[usize; 3]; 3]; 2]; 6] {
     })
 }
 
-/// Triangle `t` of a cube's face at the origin, turned to face out of the cube of side `s`.
-fn outward(t: &[[usize; 3]; 3], s: usize) -> [[usize; 3]; 3] {
-    let centre = [s as f64 / 2.0; 3];
-    let p = t.map(|q| q.map(|x| x as f64));
-    if facing(p, centre) > 0.0 {
-        [t[0], t[2], t[1]]
-    } else {
-        *t
-    }
-}
-
 /// Triangle `t` turned so that `centre` lies on its negative side.
 fn away_from(t: [[usize; 3]; 3], centre: [usize; 3]) -> [[usize; 3]; 3] {
     let p = t.map(|q| q.map(|x| x as f64));
@@ -403,11 +393,7 @@ fn away_from(t: [[usize; 3]; 3], centre: [usize; 3]) -> [[usize; 3]; 3] {
 /// The signed volume of (`t`, `c`): positive when `c` lies on the side `t`'s normal
 /// (right-hand rule) points to. Exact for grid coordinates under 2^17.
 fn facing(t: [[f64; 3]; 3], c: [f64; 3]) -> f64 {
-    let u: [f64; 3] = std::array::from_fn(|i| t[1][i] - t[0][i]);
-    let v: [f64; 3] = std::array::from_fn(|i| t[2][i] - t[0][i]);
-    let w: [f64; 3] = std::array::from_fn(|i| c[i] - t[0][i]);
-    u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-        + u[2] * (v[0] * w[1] - v[1] * w[0])
+    dot(sub(t[1], t[0]), cross(sub(t[2], t[0]), sub(c, t[0])))
 }
 
 /// Triangle `t` cut at the midpoints of its edges that are present (`split[e]` on the edge from
