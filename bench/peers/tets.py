@@ -4,13 +4,13 @@
 
 For each sample (by default sphere:48, torus:48 and packed-spheres:48:1), isocube runs as a
 user runs it: `isocube tetmesh sample:... -o out.vtu` (the field sampled, meshed, checked and
-written), timed from outside, with the default flags and with `--method mc`. The peers get the
-same field in the form each takes:
+written), timed from outside, with the default flags, with `--method mc` and graded
+(`--max-size 16c`). The peers get the same field in the form each takes:
 
 - TetGen (PyPI `tetgen`) gets the default mesh's boundary (`isocube extract --method
   ternary`'s surface, closed by the box's faces where the region meets them): `-pYqQ` keeps it as it is (quality refinement inside only), and
   `-pqQa` with isocube's mean element volume as the bound (elements of the same size) may split
-  it. Its time is the `tetrahedralize` call alone, input already in memory.
+  it, and `-pqQ` (no size bound: TetGen grades as its quality rule allows). Its time is the `tetrahedralize` call alone, input already in memory.
 - fTetWild (PyPI `wildmeshing`) gets the same surface with its defaults (envelope 1e-3 of the
   diagonal, target edge 5 % of it): it stays within the envelope, it does not keep the
   triangles. Its time is `tetrahedralize` plus `get_tet_mesh`.
@@ -18,7 +18,8 @@ same field in the form each takes:
   `Torus`, the samples' radii) with the criteria CGAL's users start from (facet angle 25°,
   radius–edge 2), the surface and element size the grid spacing and the facet distance
   isocube's own largest boundary distance (the same accuracy asked for); then its optimisers'
-  defaults (perturb, exude). Packed spheres have no built-in domain: CGAL is not run there.
+  defaults (perturb, exude); once with cells bounded by the grid spacing and once by 16 of them
+  (graded, beside `--max-size 16c`). Packed spheres have no built-in domain: CGAL is not run there.
   Its time is the `generate_mesh` call.
 
 Each mesh is measured the same way: elements, smallest and largest dihedral angle, and the
@@ -43,6 +44,8 @@ import meshio
 import numpy as np
 
 SPHERE_RADIUS = 0.8
+# The graded rows' largest element, in grid spacings.
+GRADED = 16
 TORUS = (0.6, 0.25)
 
 
@@ -212,6 +215,7 @@ def main() -> None:
             for label, options in [
                 ("isocube tetmesh (defaults)", []),
                 ("isocube tetmesh --method mc", ["--method", "mc"]),
+                (f"isocube tetmesh --max-size {GRADED}c", ["--max-size", f"{GRADED}c"]),
             ]:
                 out = work / "t.vtu"
                 start = time.perf_counter()
@@ -268,7 +272,7 @@ def main() -> None:
                     nodes, elems = wild.get_tet_mesh()[:2]
                 return nodes, elems, time.perf_counter() - start
 
-            def cgal_job():
+            def cgal_job(cell: float):
                 domain = (
                     pygalmesh.Ball([0.0, 0.0, 0.0], SPHERE_RADIUS)
                     if name == "sphere"
@@ -281,7 +285,7 @@ def main() -> None:
                     max_radius_surface_delaunay_ball=h,
                     max_facet_distance=max(isocube_distance, 1e-3) * h,
                     max_circumradius_edge_ratio=2.0,
-                    max_cell_circumradius=h,
+                    max_cell_circumradius=cell * h,
                     verbose=False,
                     seed=1,
                 )
@@ -289,12 +293,19 @@ def main() -> None:
 
             jobs = [
                 (f"TetGen -{sw}", lambda sw=sw: tetgen_job(sw))
-                for sw in ["pYqQ", f"pqQa{mean_volume:.3e}"]
+                for sw in ["pYqQ", f"pqQa{mean_volume:.3e}", "pqQ"]
             ]
             if wildmeshing is not None:
                 jobs.append(("fTetWild (defaults)", wild_job))
             if pygalmesh is not None and name in ("sphere", "torus"):
-                jobs.append(("CGAL Mesh_3 (pygalmesh)", cgal_job))
+                jobs.append(("CGAL Mesh_3 (pygalmesh)", lambda: cgal_job(1.0)))
+                # Graded: elements up to the graded mesh's largest cube inside.
+                jobs.append(
+                    (
+                        f"CGAL Mesh_3, cells up to {GRADED}h",
+                        lambda: cgal_job(float(GRADED)),
+                    )
+                )
             for tool, job in jobs:
                 result = isolated(work, job)
                 if isinstance(result, str):

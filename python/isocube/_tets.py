@@ -241,8 +241,8 @@ def tetmesh(
     max_size : float or str, optional
         A graded interior, as ``isocube tetmesh --max-size``: away from the surface, cells are
         gathered into cubes of 2, 4, 8, ... cells up to this size, a distance in the units of
-        `spacing` or ``'16c'`` for 16 cells (the boundary is unchanged). Default: uniform.
-        Not yet for `labels`.
+        `spacing` or ``'16c'`` for 16 cells (the boundary is unchanged; with `labels`,
+        every label's interior, the interfaces unchanged too). Default: uniform.
     grading : int
         With `max_size`: cubes of each size keep this many cubes of their size from the cells
         the surface passes through (0: sizes may double from one cube to the next).

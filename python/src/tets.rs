@@ -285,11 +285,6 @@ pub(crate) fn tetmesh(
                 "max_size {size}: expected a size > 0"
             )))
         }
-        Some(_) if labels => {
-            return Err(InputError::new_err(
-                "max_size: segmentations are meshed uniformly for now",
-            ))
-        }
         Some(size) => Grading::within(if max_size_cells { size } else { size / cell }, grading),
     };
     let mut detail = snap_detail(&ExtractOptions::default());
@@ -301,7 +296,8 @@ pub(crate) fn tetmesh(
         }
         let mut options = LabelOptions::default()
             .with_smoothing(0)
-            .with_background(background);
+            .with_background(background)
+            .with_grading(grading);
         if let Some(list) = only {
             options = options.with_labels(LabelSelection::Only(list));
         }

@@ -142,6 +142,29 @@ def test_labels_conform_across_their_interfaces() -> None:
     assert only.tet_labels is not None and set(np.unique(only.tet_labels)) == {7}
 
 
+def test_graded_labels_keep_their_interfaces_and_volumes() -> None:
+    seg = np.zeros((40, 36, 34), np.uint8)
+    seg[2:22, 2:34, 2:32] = 3
+    seg[22:38, 2:34, 2:32] = 7
+    uniform = isocube.tetmesh(seg, labels=True)
+    graded = isocube.tetmesh(seg, labels=True, max_size="8c")
+    assert graded.stats["cubes"] > 0 and len(graded.tets) < len(uniform.tets)
+    assert graded.check()["conforming"] and graded.check()["unused"] == 0
+    assert (signed_volumes(graded.vertices, graded.tets) > 0).all()
+    assert graded.interfaces is not None and uniform.interfaces is not None
+    np.testing.assert_array_equal(graded.interfaces, uniform.interfaces)
+    np.testing.assert_array_equal(graded.surface, uniform.surface)
+    assert graded.tet_labels is not None and graded.surface_labels is not None
+    for label, cells in ((3, 20 * 32 * 30), (7, 16 * 32 * 30)):
+        own = faces_once(graded.tets[graded.tet_labels == label])
+        bounding = triples(graded.surface[graded.surface_labels == label]) | triples(
+            graded.interfaces
+        )
+        assert own == bounding
+        volumes = signed_volumes(graded.vertices, graded.tets[graded.tet_labels == label])
+        assert volumes.sum() == pytest.approx(cells)
+
+
 def test_bad_input_names_the_reason() -> None:
     with pytest.raises(isocube.InputError, match="no region"):
         isocube.tetmesh(np.ones((4, 4, 4), np.float32), 0.0)

@@ -81,12 +81,16 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     background: i64,
     /// Graded interior: away from the surface, cells are gathered into cubes of 2, 4, 8, …
-    /// cells on a side (each six Kuhn tetrahedra, or coned from its centre where it meets
-    /// finer cubes: dihedral angles 19.47°–144.74°), up to this size: `16c` (cells) or a
-    /// distance in the file's units. The boundary is the same. [default: uniform, every inside
+    /// cells on a side (each six Kuhn tetrahedra, or coned from a corner or its centre where
+    /// it meets finer cubes: dihedral angles 17.72°–144.74°), up to this size: `16c` (cells)
+    /// or a distance in the file's units. The boundary is the same (with --labels, every
+    /// label's interior; the interfaces are the same too). [default: uniform, every inside
     /// cell six tetrahedra]
     #[arg(long, value_name = "SIZE", value_parser = parse_max_size)]
     max_size: Option<MaxSize>,
+    /// Every inside cell six tetrahedra (today's default; refused with --max-size).
+    #[arg(long, conflicts_with = "max_size")]
+    uniform: bool,
     /// With --max-size: cubes of each size keep this many cubes of their size from the cells
     /// the surface passes through (0: sizes may double from one cube to the next).
     #[arg(long, value_name = "LAYERS", default_value_t = 0)]
@@ -180,11 +184,6 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
         .into_iter()
         .map(f64::abs)
         .fold(f64::INFINITY, f64::min);
-    if args.labels.is_some() && args.max_size.is_some() {
-        return Err(Failure::input(anyhow::anyhow!(
-            "--max-size: labelled volumes are meshed uniformly for now"
-        )));
-    }
     let options = extract_options(args, room, level).with_grading(grading(args, cell));
     let loaded = started.elapsed();
     let meshed = match &args.labels {
@@ -193,7 +192,8 @@ pub(crate) fn run(args: &Args, quiet: bool) -> Result<(), Failure> {
             &LabelOptions::default()
                 .with_smoothing(0)
                 .with_background(args.background)
-                .with_labels(selection.clone()),
+                .with_labels(selection.clone())
+                .with_grading(options.grading),
             room,
         ),
         None => tetmesh(view, &options),
@@ -315,7 +315,7 @@ fn parse_max_size(s: &str) -> Result<MaxSize, String> {
 /// The grading `--max-size` and `--grading` ask for, over cells `cell` wide: the largest
 /// power of two cells within the size.
 fn grading(args: &Args, cell: f64) -> Grading {
-    let Some(size) = args.max_size else {
+    let Some(size) = args.max_size.filter(|_| !args.uniform) else {
         return Grading::UNIFORM;
     };
     let cells = match size {
@@ -404,7 +404,8 @@ fn finish(
     if s.cubes > 0 {
         eprintln!(
             "graded: {} cubes of 2 to {} cells on a side hold {} of the tetrahedra ({:.1} %); \
-             the cells the surface passes through and their neighbours hold the rest",
+             single cells (those the surface passes through, and whole ones beside them) hold \
+             the rest",
             s.cubes,
             s.largest_cube,
             s.cube_tets,

@@ -53,6 +53,9 @@ pub struct LabelOptions {
     /// surfaces at once, so shared interfaces stay shared), never more than one cell from where
     /// it started along any axis. 0 keeps the voxels' staircase.
     pub smoothing: usize,
+    /// Volume meshes ([`crate::volume::tetmesh_labels`]): how each label's interior coarsens
+    /// away from its surfaces (surfaces ignore it).
+    pub grading: crate::volume::Grading,
 }
 
 impl Default for LabelOptions {
@@ -62,6 +65,7 @@ impl Default for LabelOptions {
             background: 0,
             labels: LabelSelection::All,
             smoothing: 60,
+            grading: crate::volume::Grading::UNIFORM,
         }
     }
 }
@@ -98,6 +102,19 @@ impl LabelOptions {
     /// ```
     pub fn with_background(mut self, background: i64) -> LabelOptions {
         self.background = background;
+        self
+    }
+
+    /// With the interiors of volume meshes graded by `grading`.
+    ///
+    /// ```
+    /// use isocube::extract::LabelOptions;
+    /// use isocube::volume::Grading;
+    /// let options = LabelOptions::default().with_grading(Grading::default());
+    /// assert_eq!(options.grading.largest_cells(), 16);
+    /// ```
+    pub fn with_grading(mut self, grading: crate::volume::Grading) -> LabelOptions {
+        self.grading = grading;
         self
     }
 }

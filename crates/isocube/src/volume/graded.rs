@@ -6,29 +6,36 @@
 //! cube, ordering the coordinates' offsets orders those of its cells), and so on up. A cube
 //! meeting only cubes of its own size is its six Kuhn tetrahedra; one touching a finer cube
 //! finds the finer cube's corners at midpoints of its edges and of its faces' Kuhn diagonals
-//! (the cubes are balanced: neighbours, even across an edge or a corner, differ by one size at
-//! most, so those midpoints are the only points there). Such a *transition* cube is coned from
-//! its centre over its faces, each face's two Kuhn triangles cut at the midpoints present by a
-//! rule that reads only the face: so both sides of a face cut it alike, and a face next to a
-//! finer cube is cut into the finer cube's four triangles. The mesh is conforming by
-//! construction, and its elements come in a few shapes, whatever the sizes: the Kuhn
-//! tetrahedron (dihedral angles 45°, 60°, 90°) and the cones of a transition cube, whose
-//! angles [`tests`] enumerates over every pattern of midpoints.
+//! (the cubes are balanced: neighbours across a face or an edge differ by one size at most, so
+//! those midpoints are the only points there; a cube touching another at a corner only shares
+//! a grid point with it). Such a *transition* cube cuts each face's two Kuhn triangles at the
+//! midpoints present by a rule that reads only the face, so both sides of a face cut it alike
+//! and a face next to a finer cube is cut into the finer cube's four triangles. It is then
+//! coned over its faces from an apex: its lowest corner when no midpoint lies on an edge
+//! ending there, else its highest corner likewise, else its centre (and from the centre too
+//! where a corner's cone would leave [`CORNER_CONES`], on long cells). The Kuhn tetrahedra are
+//! the cone from the lowest corner over the three faces away from it; a midpoint on one of
+//! those faces' edges that the faces at the apex share splits a triangle there at the point
+//! joined to the apex, as the face rule does. The mesh is conforming by construction, and its
+//! elements come in a few shapes, whatever the sizes: the Kuhn tetrahedron (dihedral angles
+//! 45°, 60°, 90°) and the cones of transition cubes, whose angles [`tests`] enumerates over
+//! every pattern of midpoints (17.72° to 135.00° from a corner, 19.47° to 144.74° from the
+//! centre).
 //!
 //! Every corner and centre is a grid point, so a graded mesh adds no point: it leaves grid
-//! points out (those strictly inside cubes that need no centre).
+//! points out (those strictly inside cubes, but the centres coned from).
 //!
 //! Where cubes may go: a cube of level `k` (side `2^k` cells, its corner a multiple of `2^k`)
-//! when all its cells are filled whole (every corner inside, no surface) and none is beside a
-//! cell the surface passes through, and so are all cubes
+//! when all its cells are filled whole (every corner inside, no surface), and so are all cubes
 //! of its level within [`Grading::layers`] of it (cubes beyond the grid count as whole, cubes
 //! the grid cuts do not). Each cell takes the largest such cube holding it; then cubes touching
-//! cells more than one level finer are split until none does.
+//! cells more than one level finer across a face or an edge are split until none does.
 
 use rayon::prelude::*;
 
 use super::check::{cross, dot, sub};
 use super::coords;
+use super::quality::dihedral_extremes;
 
 /// How the interior of a volume mesh coarsens away from the surface. The default grades,
 /// cubes up to 16 cells on a side; [`crate::extract::ExtractOptions`] starts from
@@ -96,26 +103,32 @@ impl Grading {
 pub(super) struct Cubes {
     cells: [usize; 3],
     level: Vec<u8>,
+    /// The cells' sides (for the shapes of transition cones).
+    spacing: [f64; 3],
 }
 
 impl Cubes {
-    /// The cubes over a grid of `cells` cells, `whole[c]` telling whether cell `c` (x fastest)
-    /// is filled with its six Kuhn tetrahedra on grid points alone.
-    pub(super) fn new(cells: [usize; 3], whole: &[bool], grading: Grading) -> Cubes {
+    /// The cubes over a grid of `cells` cells of sides `spacing`, `whole[c]` telling whether
+    /// cell `c` (x fastest) is filled with its six Kuhn tetrahedra on grid points alone.
+    pub(super) fn new(
+        cells: [usize; 3],
+        spacing: [f64; 3],
+        whole: Vec<bool>,
+        grading: Grading,
+    ) -> Cubes {
         let n = cells[0] * cells[1] * cells[2];
         debug_assert_eq!(whole.len(), n);
-        let mut level = vec![0u8; n];
+        let spacing = spacing.map(f64::abs);
         let top = grading.max_level.min(Grading::MAX_LEVEL);
         if top == 0 || n == 0 {
-            return Cubes { cells, level };
+            return Cubes {
+                cells,
+                level: vec![0u8; n],
+                spacing,
+            };
         }
-        // The whole cells beside a cut cell stay single: the improvement moves the grid
-        // points of cut cells, and the cells around them then bend with them (a cube there
-        // would leave it less room: on the sweep of the samples 2 more elements outside the
-        // range, and 14 more beside fine detail).
-        let clear = spread(whole, cells, cells, 0, 1);
         // Whole cubes level by level (a cube the grid cuts is not whole).
-        let mut whole_at: Vec<(Vec<bool>, [usize; 3])> = vec![(clear, cells)];
+        let mut whole_at: Vec<(Vec<bool>, [usize; 3])> = vec![(whole, cells)];
         for _ in 1..=top {
             let (below, d) = whole_at.last().expect("level 0 is there");
             let up = d.map(|x| x / 2);
@@ -134,6 +147,9 @@ impl Cubes {
                 .collect();
             whole_at.push((flags, up));
         }
+        // The cells' own flags are done with before their levels are made (a byte a cell each).
+        whole_at[0].0 = Vec::new();
+        let mut level = vec![0u8; n];
         // Where a cube may go: whole with every cube of its level within the layers.
         let m = usize::from(grading.layers);
         let allowed: Vec<(Vec<bool>, [usize; 3])> = whole_at
@@ -153,9 +169,42 @@ impl Cubes {
                 }
             }
         });
-        let mut cubes = Cubes { cells, level };
+        let mut cubes = Cubes {
+            cells,
+            level,
+            spacing,
+        };
         cubes.balance();
         cubes
+    }
+
+    /// Whether each grid point (x fastest, over the cells' corners) can be a vertex of the
+    /// mesh: a corner of a single cell, or a corner or the centre of a cube.
+    pub(super) fn grid_points(&self) -> Vec<bool> {
+        let c = self.cells;
+        let d = c.map(|x| x + 1);
+        let mut used: Vec<bool> = (0..d[0] * d[1] * d[2])
+            .into_par_iter()
+            .map(|p| {
+                let q = coords(p, d);
+                (0..8).any(|o| {
+                    let cell: [Option<usize>; 3] = std::array::from_fn(|a| {
+                        let x = (q[a] + (o >> a & 1)).checked_sub(1)?;
+                        (x < c[a]).then_some(x)
+                    });
+                    matches!(cell, [Some(x), Some(y), Some(z)] if self.level([x, y, z]) == 0)
+                })
+            })
+            .collect();
+        for (o, k) in self.origins(1) {
+            let s = 1usize << k;
+            let mut mark = |q: [usize; 3]| used[q[0] + d[0] * (q[1] + d[1] * q[2])] = true;
+            for b in 0..8 {
+                mark(std::array::from_fn(|a| o[a] + s * (b >> a & 1)));
+            }
+            mark(add(o, [s / 2; 3]));
+        }
+        used
     }
 
     /// The level of the cube holding `cell`.
@@ -207,8 +256,8 @@ impl Cubes {
             .collect()
     }
 
-    /// Whether a cell touching the cube at `o` of level `k` (across a face, an edge or a
-    /// corner) is of a level under `bound`.
+    /// Whether a cell touching the cube at `o` of level `k` across a face or an edge is of a
+    /// level under `bound`.
     fn touches_finer_than(&self, o: [usize; 3], k: u8, bound: u8) -> bool {
         let s = 1usize << k;
         let lo = o.map(|x| x.saturating_sub(1));
@@ -216,8 +265,12 @@ impl Cubes {
         for z in lo[2]..hi[2] {
             for y in lo[1]..hi[1] {
                 let inner_yz = (o[1]..o[1] + s).contains(&y) && (o[2]..o[2] + s).contains(&z);
+                let beside_yz = (o[1]..o[1] + s).contains(&y) || (o[2]..o[2] + s).contains(&z);
                 for x in lo[0]..hi[0] {
-                    if inner_yz && (o[0]..o[0] + s).contains(&x) {
+                    let inner_x = (o[0]..o[0] + s).contains(&x);
+                    // Inside, or touching at a corner only (a shared corner is a grid point
+                    // both have: no point of the finer cube lies on the cube's edges).
+                    if inner_yz && inner_x || !beside_yz && !inner_x {
                         continue;
                     }
                     if self.level([x, y, z]) < bound {
@@ -256,57 +309,108 @@ impl Cubes {
         walls: &mut Vec<[u32; 3]>,
     ) {
         let s = 1usize << k;
-        let corner = |c: usize| -> [usize; 3] { std::array::from_fn(|a| o[a] + s * (c >> a & 1)) };
         let mid = |a: [usize; 3], b: [usize; 3]| -> [usize; 3] {
             std::array::from_fn(|i| (a[i] + b[i]) / 2)
         };
-        // A cube is a transition cube when a finer cube's corner lies on one of its edges or
-        // faces: at a midpoint of an edge or a Kuhn diagonal.
-        let faces = cube_faces(s);
-        let transition = faces
-            .iter()
-            .flatten()
-            .any(|t| (0..3).any(|e| self.finer_at(mid(add(o, t[e]), add(o, t[(e + 1) % 3])), k)));
-        let on_wall = |f: usize| {
-            let (n, side) = (f / 2, f % 2);
-            if side == 0 {
-                o[n] == 0
-            } else {
-                o[n] + s == self.cells[n]
-            }
-        };
-        if !transition {
-            tets.extend(KUHN.iter().map(|t| t.map(|c| id(corner(usize::from(c))))));
-            for (f, tris) in faces.iter().enumerate() {
-                if on_wall(f) {
-                    // The cube's side is even: its centre is a grid point.
-                    let out = |t: &[[usize; 3]; 3]| away_from(*t, [s / 2; 3]);
-                    walls.extend(tris.iter().map(|t| out(t).map(|q| id(add(o, q)))));
-                }
-            }
-            return;
-        }
-        let centre = add(o, [s / 2; 3]);
-        let c = id(centre);
-        for (f, tris) in faces.iter().enumerate() {
-            for t in tris {
+        // A finer cube's corner on one of the cube's edges or faces lies at a midpoint of an
+        // edge or a Kuhn diagonal: each face triangle is cut at those present.
+        let faces = cube_faces(s).map(|tris| {
+            tris.map(|t| {
                 let t = t.map(|q| add(o, q));
                 let split: [Option<[usize; 3]>; 3] = std::array::from_fn(|e| {
                     let m = mid(t[e], t[(e + 1) % 3]);
                     self.finer_at(m, k).then_some(m)
                 });
-                for piece in cut(t, split) {
-                    // Turned to face away from the centre: the cone over it is positive, and
-                    // reversed it faces out of the cube.
-                    let piece = away_from(piece, centre);
-                    tets.push([id(piece[0]), id(piece[2]), id(piece[1]), c]);
-                    if on_wall(f) {
-                        walls.push(piece.map(id));
-                    }
+                (t, split)
+            })
+        });
+        // The cube's side is even: its centre is a grid point.
+        let centre = add(o, [s / 2; 3]);
+        for (f, tris) in faces.iter().enumerate() {
+            let (n, side) = (f / 2, f % 2);
+            let on_wall = if side == 0 {
+                o[n] == 0
+            } else {
+                o[n] + s == self.cells[n]
+            };
+            if on_wall {
+                for &(t, split) in tris {
+                    walls.extend(cut(t, split).iter().map(|&p| away_from(p, centre).map(id)));
                 }
             }
         }
+        let apex = apex(&faces, [o, add(o, [s; 3])], centre, self.spacing);
+        tets.extend(cone(&faces, apex).map(|t| t.map(id)));
     }
+}
+
+/// A face triangle of a cube and the midpoints of its edges present (`split[e]` on the edge
+/// from corner `e` to corner `e + 1`).
+type CutTriangle = ([[usize; 3]; 3], [Option<[usize; 3]>; 3]);
+
+/// The dihedral angles a cube's cone from a corner must keep, or the cube is coned from its
+/// centre.
+const CORNER_CONES: (f64, f64) = (15.0, 150.0);
+
+/// The point a cube whose faces' Kuhn triangles are cut as `faces` says is coned from: its
+/// lowest corner (`ends[0]`) without midpoints (the Kuhn tetrahedra); else the lowest, then
+/// the highest corner (`ends[1]`) where the cone from it can be made ([`split_at`]) and keeps
+/// its dihedral angles within [`CORNER_CONES`] on cells of sides `spacing` (always on cubic
+/// cells: 17.72° to 135°); else its `centre` (on long cells the centre's cones stay fuller at
+/// the narrow end).
+fn apex(
+    faces: &[[CutTriangle; 2]; 6],
+    ends: [[usize; 3]; 2],
+    centre: [usize; 3],
+    spacing: [f64; 3],
+) -> [usize; 3] {
+    let transition = faces
+        .iter()
+        .flatten()
+        .any(|(_, split)| split.iter().any(Option::is_some));
+    if !transition {
+        return ends[0];
+    }
+    let world = |q: [usize; 3]| -> [f64; 3] { std::array::from_fn(|a| q[a] as f64 * spacing[a]) };
+    let fits = |c: [usize; 3]| {
+        !split_at(faces, c)
+            && cone(faces, c).all(|t| {
+                let (lo, hi) = dihedral_extremes(t.map(world));
+                lo >= CORNER_CONES.0 && hi <= CORNER_CONES.1
+            })
+    };
+    ends.into_iter().find(|&c| fits(c)).unwrap_or(centre)
+}
+
+/// Whether a midpoint in `faces` is on an edge ending at corner `c`.
+fn split_at(faces: &[[CutTriangle; 2]; 6], c: [usize; 3]) -> bool {
+    faces
+        .iter()
+        .flatten()
+        .any(|(t, split)| (0..3).any(|e| split[e].is_some() && (t[e] == c || t[(e + 1) % 3] == c)))
+}
+
+/// The tetrahedra of a cube whose faces' Kuhn triangles are cut as `faces` says, coned from
+/// `apex` over the faces away from it, each positive. The apex is the cube's centre, or its
+/// lowest or highest corner when no midpoint is on an edge ending there ([`split_at`]): the
+/// faces at that corner are not coned, each of their triangles cut at most at the midpoint of
+/// its edge facing the corner, which the cone joins to the corner as `cut` does (without
+/// midpoints, from the lowest corner: the Kuhn tetrahedra).
+fn cone(
+    faces: &[[CutTriangle; 2]; 6],
+    apex: [usize; 3],
+) -> impl Iterator<Item = [[usize; 3]; 4]> + '_ {
+    faces
+        .iter()
+        .flatten()
+        .filter(move |(t, _)| !t.contains(&apex))
+        .flat_map(move |&(t, split)| {
+            cut(t, split).into_iter().map(move |piece| {
+                // Turned to face away from the apex: the cone over it is positive.
+                let piece = away_from(piece, apex);
+                [piece[0], piece[2], piece[1], apex]
+            })
+        })
 }
 
 /// Whether each cube of level `k` (`flags` over `d` cubes, the grid `cells` cells) is whole
@@ -351,10 +455,6 @@ fn spread(flags: &[bool], d: [usize; 3], cells: [usize; 3], k: usize, m: usize) 
     }
     out
 }
-
-/// The six Kuhn tetrahedra of a cube, as corner offsets (bit 0: +x, bit 1: +y, bit 2: +z),
-/// each positive.
-const KUHN: [[u8; 4]; 6] = super::KUHN;
 
 fn add(a: [usize; 3], b: [usize; 3]) -> [usize; 3] {
     std::array::from_fn(|i| a[i] + b[i])
@@ -445,6 +545,7 @@ fn cut(t: [[usize; 3]; 3], split: [Option<[usize; 3]>; 3]) -> Vec<[[usize; 3]; 3
 mod tests {
     use super::*;
     use crate::volume::quality::dihedral_extremes;
+    use crate::volume::KUHN;
     use rustc_hash::FxHashMap as HashMap;
 
     /// Meshes the whole cells of a grid of `cells` with cubes and single cells' Kuhn
@@ -454,7 +555,7 @@ mod tests {
         whole: &[bool],
         grading: Grading,
     ) -> (Cubes, Vec<[u32; 4]>, Vec<[u32; 3]>) {
-        let cubes = Cubes::new(cells, whole, grading);
+        let cubes = Cubes::new(cells, [1.0; 3], whole.to_vec(), grading);
         let points = cells.map(|c| c + 1);
         let id = |p: [usize; 3]| (p[0] + points[0] * (p[1] + points[1] * p[2])) as u32;
         let mut tets = Vec::new();
@@ -680,12 +781,14 @@ mod tests {
         assert_eq!(area2 / 2.0 + singles as f64, 6.0 * 256.0);
     }
 
-    #[test]
-    fn transition_cones_keep_their_angles_in_every_pattern() {
-        // Every pattern of midpoints a cube can meet: the 12 edges and 6 diagonals, each
-        // present or not, as far as a face's pattern allows (a face diagonal's midpoint comes
-        // with the finer cube across the face, so with that face's four edges).
-        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    /// The dihedral angle ranges of the cones from the corners and from the centre over every
+    /// pattern of midpoints a cube can meet, on cells of sides `spacing`: the 12 edges and 6
+    /// diagonals, each present or not, as far as a face's pattern allows (a face diagonal's
+    /// midpoint comes with the finer cube across the face, so with that face's four edges).
+    /// Checks on the way that each cone is positive and fills the cube, and that a cube
+    /// without midpoints is its Kuhn tetrahedra.
+    fn cone_ranges(spacing: [f64; 3]) -> [(f64, f64); 2] {
+        let mut ranges = [(f64::INFINITY, 0.0f64); 2];
         let faces = cube_faces(2);
         let edges: Vec<[[usize; 3]; 2]> = {
             let mut e: Vec<[[usize; 3]; 2]> = faces
@@ -704,6 +807,8 @@ mod tests {
             e
         };
         assert_eq!(edges.len(), 18);
+        let ends = [[0; 3], [2; 3]];
+        let mut cones = [0usize; 3];
         for mask in 0u32..1 << 18 {
             let has = |a: [usize; 3], b: [usize; 3]| {
                 let mut pair = [a, b];
@@ -714,31 +819,72 @@ mod tests {
                 let diagonal = has(tris[0][0], tris[0][2]);
                 !diagonal || tris.iter().all(|t| has(t[0], t[1]) && has(t[1], t[2]))
             });
-            if !consistent || mask == 0 {
+            if !consistent {
                 continue;
             }
-            for tris in &faces {
-                for &t in tris {
+            let cut_faces = faces.map(|tris| {
+                tris.map(|t| {
                     let split = std::array::from_fn(|e| {
                         let (a, b) = (t[e], t[(e + 1) % 3]);
                         has(a, b).then(|| std::array::from_fn(|i| (a[i] + b[i]) / 2))
                     });
-                    for piece in cut(t, split) {
-                        let piece = away_from(piece, [1; 3]);
-                        let p =
-                            [piece[0], piece[2], piece[1], [1, 1, 1]].map(|q| q.map(|x| x as f64));
-                        assert!(volume6(p) > 0.0);
-                        let (a, b) = dihedral_extremes(p);
-                        lo = lo.min(a);
-                        hi = hi.max(b);
-                    }
-                }
+                    (t, split)
+                })
+            });
+            let apex = apex(&cut_faces, ends, [1; 3], spacing);
+            let tets: Vec<[[usize; 3]; 4]> = cone(&cut_faces, apex).collect();
+            if mask == 0 {
+                let corners = |t: [usize; 4]| {
+                    let mut c = t;
+                    c.sort_unstable();
+                    c
+                };
+                let mut got: Vec<[usize; 4]> = tets
+                    .iter()
+                    .map(|t| corners(t.map(|p| p[0] / 2 + 2 * (p[1] / 2) + 4 * (p[2] / 2))))
+                    .collect();
+                let mut kuhn: Vec<[usize; 4]> =
+                    KUHN.iter().map(|t| corners(t.map(usize::from))).collect();
+                got.sort_unstable();
+                kuhn.sort_unstable();
+                assert_eq!(got, kuhn);
             }
+            let from_centre = apex == [1; 3];
+            cones[usize::from(apex == ends[1]) + 2 * usize::from(from_centre)] += 1;
+            let mut volume = 0.0;
+            for t in tets {
+                let p = t.map(|q| q.map(|x| x as f64));
+                let v = volume6(p);
+                assert!(v > 0.0, "mask {mask:#x}: {t:?}");
+                volume += v;
+                let (a, b) =
+                    dihedral_extremes(t.map(|q| std::array::from_fn(|i| q[i] as f64 * spacing[i])));
+                let range = &mut ranges[usize::from(from_centre)];
+                *range = (range.0.min(a), range.1.max(b));
+            }
+            // The cone fills the cube (of side 2: volume 8, six times over).
+            assert_eq!(volume, 48.0, "mask {mask:#x}");
         }
+        // Each apex turns up.
+        assert!(cones.iter().all(|&n| n > 0), "{cones:?}");
+        ranges
+    }
+
+    #[test]
+    fn transition_cones_keep_their_angles_in_every_pattern() {
         // The bounds the module documentation and the README state.
+        let [corner, centre] = cone_ranges([1.0; 3]);
+        let near = |(lo, hi): (f64, f64), (a, b): (f64, f64)| {
+            (lo - a).abs() < 0.01 && (hi - b).abs() < 0.01
+        };
+        assert!(near(corner, (17.72, 135.0)), "corners: {corner:?}");
+        assert!(near(centre, (19.47, 144.74)), "centre: {centre:?}");
+        // Long cells: the corners' cones are kept to their range, the centre's take the rest.
+        let [corner, centre] = cone_ranges([0.5, 0.25, 0.75]);
         assert!(
-            (lo - 19.47).abs() < 0.01 && (hi - 144.74).abs() < 0.01,
-            "{lo}..{hi}"
+            corner.0 >= CORNER_CONES.0 && corner.1 <= CORNER_CONES.1,
+            "corners: {corner:?}"
         );
+        assert!(near(centre, (14.21, 163.40)), "centre: {centre:?}");
     }
 }

@@ -16,11 +16,17 @@
 //! interface triangles, and the boundary against the unmeshed labels (the background, the
 //! outside) is exactly the labels' surfaces there. No point is added beyond the surfaces'
 //! vertices and the grid points.
+//!
+//! Graded ([`LabelOptions::grading`]): the cells whose eight corners carry one meshed label
+//! are filled with their six Kuhn tetrahedra whole, so away from the interfaces they are
+//! gathered into cubes as a one-region mesh's whole cells are ([`super::graded`]); cells
+//! sharing a corner share its label, so a cube holds one label, and its faces towards the
+//! cells cut by interfaces are those cells' Kuhn triangles.
 
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
-use super::{check, TetError, TetMesh, TetStats};
+use super::{check, graded::Cubes, TetError, TetMesh, TetStats};
 use crate::extract::{
     label_slabs, KeyKind, LabelOptions, LabelSelection, Labelled, VertexKey, KUHN_PATHS,
 };
@@ -136,26 +142,47 @@ pub fn tetmesh_labels<'a>(
         }
     }
 
+    // Graded: the cells of one meshed label gathered into cubes.
+    let cell_dims = [px - 1, py - 1, pz - 1];
+    let cubes = (options.grading.max_level > 0).then(|| {
+        let whole: Vec<bool> = (0..cell_dims[0] * cell_dims[1] * cell_dims[2])
+            .into_par_iter()
+            .map(|c| {
+                let [i, j, k] = super::coords(c, cell_dims);
+                let base = i + px * (j + py * k);
+                let first = labelled.padded[base];
+                labelled.meshed(first)
+                    && (1..8).all(|b| labelled.padded[labelled.corner(base, b)] == first)
+            })
+            .collect();
+        Cubes::new(cell_dims, grid.spacing(), whole, options.grading)
+    });
     let ctx = Context {
         labelled: &labelled,
         by_key: &by_key,
         rank: &rank,
         index: &index,
         positions: &positions,
+        cubes: cubes.as_ref(),
     };
     // Room reserved as estimated (not touched): the vectors seldom move.
-    let mut tets = Vec::with_capacity(estimate);
-    let mut tet_labels = Vec::with_capacity(estimate);
+    let mut tets = Vec::with_capacity(if cubes.is_some() { 0 } else { estimate });
+    let mut tet_labels = Vec::with_capacity(tets.capacity());
+    let mut graded = [0usize; 3];
     super::in_batches(
         pz - 1,
         |k| ctx.layer(k),
         |_| Ok(()),
-        |(t, l)| {
-            tets.extend(t);
-            tet_labels.extend(l);
+        |layer| {
+            tets.extend(layer.tets);
+            tet_labels.extend(layer.labels);
+            graded[0] += layer.cubes;
+            graded[1] = graded[1].max(layer.largest_cube);
+            graded[2] += layer.cube_tets;
             Ok(())
         },
     )?;
+    drop(cubes);
 
     // Surface triangles: a triangle both of whose sides are meshed labels is an interface
     // (it comes twice, once facing out of each); the others bound the mesh.
@@ -202,12 +229,22 @@ pub fn tetmesh_labels<'a>(
         base as u32..grid_end,
         grid_end..grid_end,
     );
-    let stats = TetStats {
+    let mut stats = TetStats {
         grid_points: grid_end as usize - base - improve.removed_grid,
         steiner_points: improve.inserted - improve.removed,
+        cubes: graded[0],
+        largest_cube: graded[1],
+        cube_tets: graded[2],
         improve,
         ..TetStats::default()
     };
+    if options.grading.max_level > 0 {
+        // The grid points strictly inside cubes (but the centres coned from) are in no
+        // element: dropped, the later points numbered down.
+        let unused = check::unused_points(positions.len(), &tets, base as u32);
+        stats.grid_points -= unused.len();
+        check::drop_points(&mut positions, &mut tets, &mut Vec::new(), &unused);
+    }
     let mut mesh = TetMesh {
         positions,
         tets,
@@ -239,6 +276,17 @@ struct Context<'a, 'b> {
     /// Label index by dense label number (`u32::MAX` for labels not meshed).
     index: &'a [u32],
     positions: &'a [[f32; 3]],
+    /// Graded meshes: the cubes the cells of one label are gathered into.
+    cubes: Option<&'a Cubes>,
+}
+
+/// A layer of cells' tetrahedra and their labels, with the cubes met there.
+struct Layer {
+    tets: Vec<[u32; 4]>,
+    labels: Vec<u32>,
+    cubes: usize,
+    largest_cube: usize,
+    cube_tets: usize,
 }
 
 impl Context<'_, '_> {
@@ -273,13 +321,39 @@ impl Context<'_, '_> {
         Ok(())
     }
 
-    fn layer(&self, k: usize) -> Result<(Vec<[u32; 4]>, Vec<u32>), TetError> {
+    fn layer(&self, k: usize) -> Result<Layer, TetError> {
         let l = self.labelled;
         let [px, py, _] = l.dims;
         let mut out = (Vec::new(), Vec::new());
+        let (mut cubes, mut largest_cube, mut cube_tets) = (0, 0, 0);
+        let id = |p: [usize; 3]| self.rank[p[0] + px * (p[1] + py * p[2])];
+        let mut cube_out = (Vec::new(), Vec::new());
         for j in 0..py - 1 {
             for i in 0..px - 1 {
                 let base = i + px * (j + py * k);
+                if let Some(c) = self.cubes {
+                    let level = c.level([i, j, k]);
+                    if level > 0 {
+                        // Emitted once, at the cube's first cell.
+                        let mask = (1usize << level) - 1;
+                        if i & mask == 0 && j & mask == 0 && k & mask == 0 {
+                            let label = self.index[l.padded[base] as usize];
+                            cube_out.0.clear();
+                            c.cube([i, j, k], level, &id, &mut cube_out.0, &mut cube_out.1);
+                            debug_assert!(
+                                cube_out.1.is_empty(),
+                                "the padding keeps cubes off the walls"
+                            );
+                            cubes += 1;
+                            largest_cube = largest_cube.max(1 << level);
+                            cube_tets += cube_out.0.len();
+                            for &t in &cube_out.0 {
+                                self.push(t, label, &mut out)?;
+                            }
+                        }
+                        continue;
+                    }
+                }
                 for path in KUHN_PATHS {
                     let pts = path.map(|b| l.corner(base, b));
                     let lab = pts.map(|p| l.padded[p]);
@@ -336,6 +410,12 @@ impl Context<'_, '_> {
                 }
             }
         }
-        Ok(out)
+        Ok(Layer {
+            tets: out.0,
+            labels: out.1,
+            cubes,
+            largest_cube,
+            cube_tets,
+        })
     }
 }

@@ -82,6 +82,7 @@ mod front;
 mod graded;
 mod improve;
 mod labels;
+mod numbering;
 mod quality;
 
 pub use check::{positive, TetCheck};
@@ -333,20 +334,23 @@ fn mesh_region(
     // Each grid point's vertex: a zero point (ternary) is the surface's vertex there; inside
     // points are numbered after the surface's vertices in grid order.
     let point_count = dims[0] * dims[1] * dims[2];
-    let mut rank = vec![u32::MAX; point_count];
-    for (v, key) in keys.iter().enumerate() {
-        if let KeyKind::Point(p) = key.kind() {
-            rank[p] = v as u32;
-        }
-    }
     let ternary = matches!(options.method, Method::Ternary(_));
     let base = surface.positions.len();
+    let zero_vertices = keys
+        .iter()
+        .enumerate()
+        .filter_map(|(v, key)| match key.kind() {
+            KeyKind::Point(p) => Some((p as u32, v as u32)),
+            _ => None,
+        })
+        .collect();
+    let mut rank = numbering::Numbering::new(point_count, base as u32, zero_vertices);
     let is_in = |[i, j, k]: [usize; 3]| {
         let p = i + dims[0] * (j + dims[1] * k);
         if ternary && extractor.is_zero_point([i, j, k]) {
             // A zero point the surface does not pass through: the surface around it vanished
             // as the point reached the level, leaving it on the side of its neighbours.
-            rank[p] == u32::MAX && {
+            !rank.is_zero(p) && {
                 let c = [i, j, k];
                 let sides: Vec<bool> = (0..6)
                     .filter_map(|e| {
@@ -366,27 +370,36 @@ fn mesh_region(
             inside(extractor.value_at([i, j, k]))
         }
     };
-    // Classified slice by slice in parallel, numbered in grid order.
-    let slices: Vec<Vec<u32>> = (0..dims[2])
-        .into_par_iter()
-        .map(|k| {
-            let mut points = Vec::new();
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    if is_in([i, j, k]) {
-                        points.push((i + dims[0] * (j + dims[1] * k)) as u32);
-                    }
-                }
-            }
-            points
+    // Classified slice by slice in parallel, numbered in grid order: counted first, then
+    // written in place (a large body's points are not held twice).
+    let slice_points = |k: usize| {
+        (0..dims[1]).flat_map(move |j| {
+            (0..dims[0])
+                .filter(move |&i| is_in([i, j, k]))
+                .map(move |i| (i + dims[0] * (j + dims[1] * k)) as u32)
         })
+    };
+    let counts: Vec<usize> = (0..dims[2])
+        .into_par_iter()
+        .map(|k| slice_points(k).count())
         .collect();
-    asked(cells)?;
-    let inside_points: Vec<u32> = slices.concat();
-    drop(slices);
-    for (r, &p) in inside_points.iter().enumerate() {
-        rank[p as usize] = (base + r) as u32;
+    let mut inside_points = vec![0u32; counts.iter().sum()];
+    let mut parts = Vec::with_capacity(dims[2]);
+    let mut rest = &mut inside_points[..];
+    for &n in &counts {
+        let (part, tail) = rest.split_at_mut(n);
+        parts.push(part);
+        rest = tail;
     }
+    parts.into_par_iter().enumerate().for_each(|(k, part)| {
+        for (slot, p) in part.iter_mut().zip(slice_points(k)) {
+            *slot = p;
+        }
+    });
+    asked(cells)?;
+    // The extraction's own state (its sign masks and zero points) is done with.
+    drop(extractor);
+    rank.number(&inside_points);
     if inside_points.is_empty() {
         return Err(TetError::Empty);
     }
@@ -397,7 +410,7 @@ fn mesh_region(
         // About six tetrahedra per inside point, the positions and the surface.
         let bytes = inside_points.len() as u64 * (6 * 16 + 12 + 4)
             + surface.triangles.len() as u64 * 24
-            + point_count as u64 * 4;
+            + point_count as u64 / 4;
         if bytes > limit {
             return Err(TetError::Memory { bytes, limit });
         }
@@ -475,8 +488,8 @@ fn mesh_region(
     let mut ctx = Context {
         grid,
         dims,
-        rank: &rank,
-        inside_points: &inside_points,
+        rank,
+        inside_points,
         positions: &surface.positions,
         surface: &surface.triangles,
         by_cell: &by_cell,
@@ -491,42 +504,47 @@ fn mesh_region(
     };
     asked(cells)?;
     // Graded: away from the surface, whole cells gathered into cubes (see `graded`).
-    if options.grading.max_level > 0 {
+    let cubes = (options.grading.max_level > 0).then(|| {
         let shared = &ctx;
-        let whole: Vec<bool> = (0..cell_dims[2])
+        let whole: Vec<bool> = (0..cells)
             .into_par_iter()
-            .flat_map_iter(|k| {
-                (0..cell_dims[1]).flat_map(move |j| {
-                    (0..cell_dims[0]).map(move |i| {
-                        matches!(shared.cell_fill([i, j, k]), CellFill::Whole(ids)
-                            if ids.iter().all(|&v| v != u32::MAX && v as usize >= shared.base))
-                    })
-                })
+            .map(|c| {
+                matches!(shared.cell_fill(coords(c, cell_dims)), CellFill::Whole(ids)
+                    if ids.iter().all(|&v| v != u32::MAX && v as usize >= shared.base))
             })
             .collect();
-        ctx.cubes = Some(graded::Cubes::new(cell_dims, &whole, options.grading));
+        graded::Cubes::new(cell_dims, grid.spacing(), whole, options.grading)
+    });
+    if let Some(cubes) = &cubes {
+        // Only the grid points the mesh can use are numbered (most of a large body's are
+        // inside cubes): the others' positions are never made.
+        let used = cubes.grid_points();
+        ctx.inside_points.retain(|&p| used[p as usize]);
+        ctx.inside_points.shrink_to_fit();
+        ctx.rank.number(&ctx.inside_points);
     }
+    ctx.cubes = cubes;
     asked(cells)?;
     // The layers of cells are meshed in parallel a batch at a time and appended in order, each
     // freed once copied: the tetrahedra are held about once (all the layers first, then their
     // concatenation, held them twice, the allocator keeping the freed layers for a while).
     // Steiner points come after the grid points, in layer order.
-    let steiner_base = base + inside_points.len();
+    let steiner_base = base + ctx.inside_points.len();
     let mut positions = Vec::with_capacity(steiner_base);
     positions.extend_from_slice(&surface.positions);
     positions.par_extend(
-        inside_points
+        ctx.inside_points
             .par_iter()
             .map(|&p| ctx.point_position(p as usize)),
     );
     let mut stats = TetStats {
-        grid_points: inside_points.len(),
+        grid_points: ctx.inside_points.len(),
         extract: extract_stats,
         ..TetStats::default()
     };
     // Room for six tetrahedra per inside point and a few per surface triangle reserved (not
     // touched): the vector seldom moves.
-    let mut tets = Vec::with_capacity(6 * inside_points.len() + 8 * surface.triangles.len());
+    let mut tets = Vec::with_capacity(6 * ctx.inside_points.len() + 8 * surface.triangles.len());
     let mut walls = Vec::new();
     let layer_cells = cell_dims[0] * cell_dims[1];
     // Snapped onto crossings, zero points carry the cells' corners off the grid: a cell face
@@ -591,7 +609,8 @@ fn mesh_region(
     });
     // The look-ups the cells were filled from are done with: a million small allocations, freed
     // while the work goes on (or the stop returns at once).
-    release((segments, crossings, by_cell, keys, rank, inside_points));
+    let numbering = std::mem::take(&mut ctx.inside_points);
+    release((segments, crossings, by_cell, keys, numbering));
     if let Err(e) = filled {
         release((tets, positions, walls, surface));
         return Err(e);
@@ -933,9 +952,11 @@ impl Layer {
 struct Context<'a> {
     grid: GridView<'a>,
     dims: [usize; 3],
-    /// Inside grid points' vertex numbers (`u32::MAX` outside).
-    rank: &'a [u32],
-    inside_points: &'a [u32],
+    /// Inside grid points' vertex numbers (`u32::MAX` outside; a graded mesh numbers only
+    /// those it can use).
+    rank: numbering::Numbering,
+    /// The grid points numbered, in order.
+    inside_points: Vec<u32>,
     positions: &'a [[f32; 3]],
     surface: &'a [[u32; 3]],
     /// (cell, triangle), sorted.
@@ -1024,7 +1045,8 @@ impl Context<'_> {
     }
 
     fn point_id(&self, c: [usize; 3]) -> u32 {
-        self.rank[c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])]
+        self.rank
+            .get(c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2]))
     }
 
     /// The side of the corner whose vertex (by [`Context::point_id`]) is `id`.

@@ -1430,6 +1430,24 @@ fn graded_like(
     graded
 }
 
+/// No edge of `mesh` (on a grid of unit spacing) is longer than the diagonal of `grading`'s
+/// largest cube.
+fn assert_edges_within(mesh: &TetMesh, grading: Grading, what: &str) {
+    let longest = (1u32 << grading.max_level) as f64 * 3f64.sqrt();
+    for t in &mesh.tets {
+        for a in 0..4 {
+            for b in a + 1..4 {
+                let [p, q] = [t[a], t[b]].map(|v| mesh.positions[v as usize]);
+                let d = (0..3)
+                    .map(|i| f64::from(p[i] - q[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                assert!(d <= longest + 1e-6, "{what}: an edge of {d}");
+            }
+        }
+    }
+}
+
 /// Graded meshes: conforming, positive, the same boundary as the uniform mesh (the surface is
 /// `extract`'s) and the same volume, with fewer elements and no point in none; on smooth
 /// fields with the default method every angle stays in [10°, 165°].
@@ -1524,19 +1542,94 @@ fn random_bodies_under_random_gradings() {
         let graded = graded_like(&grid, &options, grading, &uniform, &what);
         assert_eq!(graded.walls.is_empty(), uniform.walls.is_empty(), "{what}");
         coarser += usize::from(graded.tets.len() < uniform.tets.len());
-        let longest = (1u32 << grading.max_level) as f64 * 3f64.sqrt();
-        for t in &graded.tets {
-            for a in 0..4 {
-                for b in a + 1..4 {
-                    let [p, q] = [t[a], t[b]].map(|v| graded.positions[v as usize]);
-                    let d = (0..3)
-                        .map(|i| f64::from(p[i] - q[i]).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    assert!(d <= longest + 1e-6, "{what}: an edge of {d}");
+        assert_edges_within(&graded, grading, &what);
+    }
+    assert!(coarser >= 20, "{coarser} of 40 coarsened");
+}
+
+/// Labelled volumes under random gradings: valid, the uniform mesh's boundary and interfaces
+/// over the same vertices, each label's volume unchanged, fewer elements, no edge longer than
+/// the largest cube's diagonal.
+#[test]
+fn graded_labelled_volumes_keep_their_interfaces() {
+    use crate::extract::LabelOptions;
+    let mut rng = crate::TestRng::new(52);
+    let volumes = |mesh: &TetMesh| {
+        let labels = mesh.labels.as_ref().expect("labelled");
+        let mut v = vec![0.0f64; labels.names.len()];
+        for (t, &l) in mesh.tets.iter().zip(&labels.tets) {
+            let p = t.map(|i| mesh.positions[i as usize].map(f64::from));
+            let d: [[f64; 3]; 3] =
+                std::array::from_fn(|k| std::array::from_fn(|a| p[k + 1][a] - p[0][a]));
+            v[l as usize] += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1])
+                - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0])
+                + d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0]))
+                / 6.0;
+        }
+        v
+    };
+    for case in 0..8 {
+        let dims = [0; 3].map(|_| 24 + (rng.next_u64() % 16) as usize);
+        // Three or four labels splitting a ball (nearest of random seeds), background around.
+        let seeds: Vec<[f64; 3]> = (0..3 + case % 2)
+            .map(|_| std::array::from_fn(|a| dims[a] as f64 * (0.2 + 0.6 * rng.unit())))
+            .collect();
+        let centre = dims.map(|d| (d as f64 - 1.0) / 2.0);
+        let radius = 0.42 * dims.iter().min().copied().unwrap_or(24) as f64;
+        let mut values = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let p = [i, j, k].map(|x| x as f64);
+                    let d = |c: &[f64; 3]| (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>();
+                    let label = if d(&centre) > radius * radius {
+                        0
+                    } else {
+                        1 + (0..seeds.len())
+                            .min_by(|&a, &b| d(&seeds[a]).total_cmp(&d(&seeds[b])))
+                            .unwrap_or(0)
+                    };
+                    values.push(label as f32);
                 }
             }
         }
+        let grid = Grid::new(dims, values).unwrap();
+        let grading = Grading {
+            max_level: 1 + (rng.next_u64() % 4) as u8,
+            layers: (rng.next_u64() % 2) as u8,
+        };
+        let what = format!("case {case} {dims:?} {grading:?}");
+        let options = LabelOptions::default().with_smoothing(0);
+        let uniform = tetmesh_labels(&grid, &options, None).unwrap();
+        let graded = tetmesh_labels(&grid, &options.clone().with_grading(grading), None)
+            .unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert_valid(&graded, &what);
+        assert!(graded.stats.cubes > 0, "{what}");
+        assert!(graded.tets.len() < uniform.tets.len(), "{what}");
+        assert_eq!(graded.surface, uniform.surface, "{what}");
+        assert_eq!(
+            graded.positions[..graded.surface_vertices],
+            uniform.positions[..uniform.surface_vertices],
+            "{what}"
+        );
+        let (g, u) = (
+            graded.labels.as_ref().unwrap(),
+            uniform.labels.as_ref().unwrap(),
+        );
+        assert_eq!(g.interfaces, u.interfaces, "{what}");
+        assert_eq!(g.pairs, u.pairs, "{what}");
+        assert_eq!(g.surface, u.surface, "{what}");
+        for (a, b) in volumes(&graded).iter().zip(volumes(&uniform)) {
+            assert!(
+                (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                "{what}: {a} against {b}"
+            );
+        }
+        assert_eq!(
+            graded.positions.len(),
+            graded.surface_vertices + graded.stats.grid_points + graded.stats.steiner_points,
+            "{what}"
+        );
+        assert_edges_within(&graded, grading, &what);
     }
-    assert!(coarser >= 20, "{coarser} of 40 coarsened");
 }
