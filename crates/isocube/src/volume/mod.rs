@@ -609,8 +609,8 @@ fn mesh_region(
     });
     // The look-ups the cells were filled from are done with: a million small allocations, freed
     // while the work goes on (or the stop returns at once).
-    let numbering = std::mem::take(&mut ctx.inside_points);
-    release((segments, crossings, by_cell, keys, numbering));
+    let points = std::mem::take(&mut ctx.inside_points);
+    release((segments, crossings, by_cell, keys, points));
     if let Err(e) = filled {
         release((tets, positions, walls, surface));
         return Err(e);

@@ -1,6 +1,6 @@
-"""Draws the README's cut through a graded volume mesh (docs/pictures/graded-cut.png).
+"""Draws the README's cut through a graded volume mesh (docs/graded-cut.png).
 
-    python docs/pictures/cut.py ISOCUBE [OUT.png]
+    python bench/tetmesh/cut.py ISOCUBE [OUT.png]
 
 Needs the Python package (`isocube`, with NumPy). A ball of radius 0.8 sampled on 64 points
 per axis is meshed graded (`max_size="16c"`, ternary snapping); the tetrahedra whose centroid
@@ -23,7 +23,9 @@ import numpy as np
 def main() -> None:
     binary = sys.argv[1]
     out = Path(
-        sys.argv[2] if len(sys.argv) > 2 else Path(__file__).with_name("graded-cut.png")
+        sys.argv[2]
+        if len(sys.argv) > 2
+        else Path(__file__).parents[2] / "docs" / "graded-cut.png"
     )
     x, y, z = np.mgrid[-1:1:64j, -1:1:64j, -1:1:64j]
     field = np.sqrt(x**2 + y**2 + z**2)
