@@ -4,12 +4,13 @@
 
 For each sample (by default sphere:48, torus:48 and packed-spheres:48:1), isocube runs as a
 user runs it: `isocube tetmesh sample:... -o out.vtu` (the field sampled, meshed, checked and
-written), timed from outside, with the default flags, with `--method mc` and graded
-(`--max-size 16c`). The peers get the same field in the form each takes:
+written), timed from outside, with `--uniform` (every inside cell six tetrahedra), with
+`--method mc --uniform` and with the default flags (graded: cubes up to 16 cells on a side).
+The peers get the same field in the form each takes:
 
-- TetGen (PyPI `tetgen`) gets the default mesh's boundary (`isocube extract --method
+- TetGen (PyPI `tetgen`) gets the meshes' boundary (`isocube extract --method
   ternary`'s surface, closed by the box's faces where the region meets them): `-pYqQ` keeps it as it is (quality refinement inside only), and
-  `-pqQa` with isocube's mean element volume as the bound (elements of the same size) may split
+  `-pqQa` with the uniform mesh's mean element volume as the bound (elements of the same size) may split
   it, and `-pqQ` (no size bound: TetGen grades as its quality rule allows). Its time is the `tetrahedralize` call alone, input already in memory.
 - fTetWild (PyPI `wildmeshing`) gets the same surface with its defaults (envelope 1e-3 of the
   diagonal, target edge 5 % of it): it stays within the envelope, it does not keep the
@@ -19,7 +20,7 @@ written), timed from outside, with the default flags, with `--method mc` and gra
   radius–edge 2), the surface and element size the grid spacing and the facet distance
   isocube's own largest boundary distance (the same accuracy asked for); then its optimisers'
   defaults (perturb, exude); once with cells bounded by the grid spacing and once by 16 of them
-  (graded, beside `--max-size 16c`). Packed spheres have no built-in domain: CGAL is not run there.
+  (graded, beside isocube's default). Packed spheres have no built-in domain: CGAL is not run there.
   Its time is the `generate_mesh` call.
 
 Each mesh is measured the same way: elements, smallest and largest dihedral angle, and the
@@ -213,9 +214,12 @@ def main() -> None:
             h = (box[1] - box[0]) / (int(n) - 1)
             reference = None
             for label, options in [
-                ("isocube tetmesh (defaults)", []),
-                ("isocube tetmesh --method mc", ["--method", "mc"]),
-                (f"isocube tetmesh --max-size {GRADED}c", ["--max-size", f"{GRADED}c"]),
+                ("isocube tetmesh --uniform", ["--uniform"]),
+                (
+                    "isocube tetmesh --method mc --uniform",
+                    ["--method", "mc", "--uniform"],
+                ),
+                (f"isocube tetmesh (defaults: graded to {GRADED}c)", []),
             ]:
                 out = work / "t.vtu"
                 start = time.perf_counter()

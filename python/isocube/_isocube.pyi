@@ -147,6 +147,7 @@ def tetmesh(
     max_size: float | None = None,
     max_size_cells: bool = False,
     grading: int = 0,
+    uniform: bool = False,
     progress: Callable[[int, int], object] | None = None,
 ) -> TetMesh: ...
 def contours_read(

@@ -46,7 +46,8 @@ class TetMesh:
         faces out of).
     stats : dict
         Counts (``lattice_cells``, ``cut_cells``, ``grid_points``, ``steiner_points``; graded:
-        ``cubes``, ``largest_cube`` (cells on a side) and ``cube_tets``; the
+        ``cubes``, ``largest_cube`` (cells on a side) and ``cube_tets``, ``cells_too_long``
+        when the cells are longer than 3:1 and the interior stays uniform; the
         improvement's ``flips_23``, ``moved_points``, ``widened`` (elements worked on around
         those left outside [10°, 165°]), ... and the surface's) and ``seconds``.
     """
@@ -206,6 +207,7 @@ def tetmesh(
     max_memory: int | None = None,
     max_size: float | str | None = None,
     grading: int = 0,
+    uniform: bool = False,
     progress: bool | Callable[[int, int], object] = False,
 ) -> TetMesh:
     """Fills the region of `volume` below `level` (above it with `flip`) with tetrahedra, as
@@ -239,13 +241,17 @@ def tetmesh(
     max_memory : int, optional
         Refuse (``MemoryLimitError``) a mesh estimated to need more bytes.
     max_size : float or str, optional
-        A graded interior, as ``isocube tetmesh --max-size``: away from the surface, cells are
-        gathered into cubes of 2, 4, 8, ... cells up to this size, a distance in the units of
-        `spacing` or ``'16c'`` for 16 cells (the boundary is unchanged; with `labels`,
-        every label's interior, the interfaces unchanged too). Default: uniform.
+        The graded interior's largest cubes, as ``isocube tetmesh --max-size``: away from the
+        surface, cells are gathered into cubes of 2, 4, 8, ... cells up to this size, a
+        distance in the units of `spacing` or ``'16c'`` for 16 cells (the boundary is
+        unchanged; with `labels`, every label's interior, the interfaces unchanged too).
+        Default: 16 cells. On cells longer than 3:1 the interior is uniform (the transition
+        cubes' elements would leave 10°–165°).
     grading : int
-        With `max_size`: cubes of each size keep this many cubes of their size from the cells
-        the surface passes through (0: sizes may double from one cube to the next).
+        Cubes of each size keep this many cubes of their size from the cells the surface
+        passes through (0: sizes may double from one cube to the next).
+    uniform : bool
+        Every inside cell six tetrahedra (no `max_size`), as ``--uniform``.
     progress : bool or callable
         As in :func:`extract` (the surface's cells, then the cells filled, out of twice the
         volume's cells). Ctrl-C stops the work within a fraction of a second
@@ -298,6 +304,7 @@ def tetmesh(
             max_size=size,
             max_size_cells=in_cells,
             grading=int(grading),
+            uniform=bool(uniform),
             progress=report,
         )
     return TetMesh(mesh)

@@ -147,6 +147,7 @@ impl PyTetMesh {
         d.set_item("cubes", s.cubes)?;
         d.set_item("largest_cube", s.largest_cube)?;
         d.set_item("cube_tets", s.cube_tets)?;
+        d.set_item("cells_too_long", s.cells_too_long)?;
         d.set_item("grid_points", s.grid_points)?;
         d.set_item("steiner_points", s.steiner_points)?;
         d.set_item("poor_elements", s.improve.poor)?;
@@ -246,7 +247,7 @@ pub(crate) fn tet_error(e: TetError) -> PyErr {
 #[pyo3(signature = (
     volume, level, *, spacing, origin, direction, method, topology, triangulate, snap,
     zero_threshold, snap_position, flip, labels, only, background, max_memory, max_size=None,
-    max_size_cells=false, grading=0, progress=None
+    max_size_cells=false, grading=0, uniform=false, progress=None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn tetmesh(
@@ -270,6 +271,7 @@ pub(crate) fn tetmesh(
     max_size: Option<f64>,
     max_size_cells: bool,
     grading: u8,
+    uniform: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<PyTetMesh> {
     let direction = direction_of(direction)?;
@@ -279,7 +281,16 @@ pub(crate) fn tetmesh(
         .map(f64::abs)
         .fold(f64::INFINITY, f64::min);
     let grading = match max_size {
-        None => Grading::UNIFORM,
+        None if uniform => Grading::UNIFORM,
+        None => Grading {
+            layers: grading,
+            ..Grading::DEFAULT
+        },
+        Some(_) if uniform => {
+            return Err(InputError::new_err(
+                "max_size and uniform: a uniform interior has no largest size",
+            ))
+        }
         Some(size) if !(size.is_finite() && size > 0.0) => {
             return Err(InputError::new_err(format!(
                 "max_size {size}: expected a size > 0"

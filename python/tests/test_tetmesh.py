@@ -146,7 +146,7 @@ def test_graded_labels_keep_their_interfaces_and_volumes() -> None:
     seg = np.zeros((40, 36, 34), np.uint8)
     seg[2:22, 2:34, 2:32] = 3
     seg[22:38, 2:34, 2:32] = 7
-    uniform = isocube.tetmesh(seg, labels=True)
+    uniform = isocube.tetmesh(seg, labels=True, uniform=True)
     graded = isocube.tetmesh(seg, labels=True, max_size="8c")
     assert graded.stats["cubes"] > 0 and len(graded.tets) < len(uniform.tets)
     assert graded.check()["conforming"] and graded.check()["unused"] == 0
@@ -184,7 +184,7 @@ def test_bad_input_names_the_reason() -> None:
 def test_a_graded_interior_keeps_the_boundary_with_fewer_elements(flip: bool) -> None:
     x, y, z = np.mgrid[-1:1:40j, -1:1:41j, -1:1:42j]
     ball = np.sqrt(x**2 + y**2 + z**2)
-    uniform = isocube.tetmesh(ball, 0.8, flip=flip)
+    uniform = isocube.tetmesh(ball, 0.8, flip=flip, uniform=True)
     graded = isocube.tetmesh(ball, 0.8, flip=flip, max_size="8c")
     assert (signed_volumes(graded.vertices, graded.tets) > 0).all()
     assert faces_once(graded.tets) == triples(graded.surface) | triples(graded.walls)
@@ -200,6 +200,24 @@ def test_a_graded_interior_keeps_the_boundary_with_fewer_elements(flip: bool) ->
     assert fewer, (len(graded.tets), len(uniform.tets))
     with pytest.raises(isocube.InputError, match="max_size"):
         isocube.tetmesh(ball, 0.8, max_size="big")
+    with pytest.raises(isocube.InputError, match="uniform"):
+        isocube.tetmesh(ball, 0.8, max_size="8c", uniform=True)
+
+
+def test_the_default_interior_is_graded_up_to_16_cells() -> None:
+    x, y, z = np.mgrid[-1:1:72j, -1:1:72j, -1:1:72j]
+    ball = np.sqrt(x**2 + y**2 + z**2)
+    default = isocube.tetmesh(ball, 0.9)
+    explicit = isocube.tetmesh(ball, 0.9, max_size="16c")
+    np.testing.assert_array_equal(default.tets, explicit.tets)
+    np.testing.assert_array_equal(default.vertices, explicit.vertices)
+    assert default.stats["cubes"] > 0 and default.stats["largest_cube"] <= 16
+    uniform = isocube.tetmesh(ball, 0.9, uniform=True)
+    assert uniform.stats["cubes"] == 0 and len(uniform.tets) > 2 * len(default.tets)
+    # Cells longer than 3:1: the transition cubes would leave 10°-165°, the interior stays
+    # uniform.
+    long = isocube.tetmesh(ball, 0.9, spacing=(1.0, 1.0, 4.0))
+    assert long.stats["cubes"] == 0 and long.stats["cells_too_long"]
 
 
 def test_peers_read_the_mesh() -> None:

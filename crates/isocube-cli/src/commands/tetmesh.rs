@@ -80,19 +80,19 @@ pub(crate) struct Args {
     /// The label that is not meshed (with --labels).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     background: i64,
-    /// Graded interior: away from the surface, cells are gathered into cubes of 2, 4, 8, …
-    /// cells on a side (each six Kuhn tetrahedra, or coned from a corner or its centre where
-    /// it meets finer cubes: dihedral angles 17.72°–144.74°), up to this size: `16c` (cells)
-    /// or a distance in the file's units. The boundary is the same (with --labels, every
-    /// label's interior; the interfaces are the same too). [default: uniform, every inside
-    /// cell six tetrahedra]
+    /// The graded interior's largest cubes: away from the surface, cells are gathered into
+    /// cubes of 2, 4, 8, … cells on a side (each six Kuhn tetrahedra, or coned from a corner
+    /// or its centre where it meets finer cubes: dihedral angles 17.72°–144.74° on cubic
+    /// cells), up to this size: `16c` (cells) or a distance in the file's units. The boundary
+    /// is the same (with --labels, every label's interior; the interfaces are the same too).
+    /// On cells longer than 3:1 the interior is uniform. [default: 16c]
     #[arg(long, value_name = "SIZE", value_parser = parse_max_size)]
     max_size: Option<MaxSize>,
-    /// Every inside cell six tetrahedra (today's default; refused with --max-size).
+    /// Every inside cell six tetrahedra, no graded interior (refused with --max-size).
     #[arg(long, conflicts_with = "max_size")]
     uniform: bool,
-    /// With --max-size: cubes of each size keep this many cubes of their size from the cells
-    /// the surface passes through (0: sizes may double from one cube to the next).
+    /// Cubes of each size keep this many cubes of their size from the cells the surface
+    /// passes through (0: sizes may double from one cube to the next).
     #[arg(long, value_name = "LAYERS", default_value_t = 0)]
     grading: u8,
     /// Keep the mesh in grid index coordinates instead of the file's world coordinates.
@@ -313,10 +313,16 @@ fn parse_max_size(s: &str) -> Result<MaxSize, String> {
 }
 
 /// The grading `--max-size` and `--grading` ask for, over cells `cell` wide: the largest
-/// power of two cells within the size.
+/// power of two cells within the size (by default [`Grading::DEFAULT`]'s).
 fn grading(args: &Args, cell: f64) -> Grading {
-    let Some(size) = args.max_size.filter(|_| !args.uniform) else {
+    if args.uniform {
         return Grading::UNIFORM;
+    }
+    let Some(size) = args.max_size else {
+        return Grading {
+            layers: args.grading,
+            ..Grading::DEFAULT
+        };
     };
     let cells = match size {
         MaxSize::Cells(n) => n,
@@ -401,6 +407,13 @@ fn finish(
         mesh.surface.len(),
         mesh.walls.len()
     );
+    if s.cells_too_long {
+        eprintln!(
+            "graded: no, the cells are longer than {}:1 (where the transition cubes' elements \
+             would leave [10°, 165°]): every inside cell six tetrahedra",
+            Grading::MAX_ASPECT
+        );
+    }
     if s.cubes > 0 {
         eprintln!(
             "graded: {} cubes of 2 to {} cells on a side hold {} of the tetrahedra ({:.1} %); \

@@ -288,7 +288,8 @@ mod tests {
     fn planes_between_sections_keep_the_cuts_and_mend_the_shapes() {
         let stack = SectionStack::sample_orebody();
         let plane = PlaneGrid::across(&stack, 24);
-        let options = ExtractOptions::default();
+        // Uniform: the layers' cells, not cubes of them, make the count.
+        let options = ExtractOptions::default().with_grading(crate::volume::Grading::UNIFORM);
         let coarse = tetmesh(&stack, &plane, Cap::Extend(6.0), None, &options).unwrap();
         let fine = tetmesh(
             &stack,

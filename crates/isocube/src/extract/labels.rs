@@ -65,7 +65,7 @@ impl Default for LabelOptions {
             background: 0,
             labels: LabelSelection::All,
             smoothing: 60,
-            grading: crate::volume::Grading::UNIFORM,
+            grading: crate::volume::Grading::DEFAULT,
         }
     }
 }

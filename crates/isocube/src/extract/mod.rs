@@ -145,8 +145,8 @@ pub struct ExtractOptions {
     /// killer, whatever the front end.
     pub max_memory: Option<u64>,
     /// Volume meshes ([`crate::volume::tetmesh`]) only: how the interior coarsens away from
-    /// the surface ([`crate::volume::Grading::UNIFORM`], the default: not at all). Extraction
-    /// ignores it.
+    /// the surface (by default [`crate::volume::Grading::DEFAULT`], cubes up to 16 cells on a
+    /// side; [`crate::volume::Grading::UNIFORM`]: not at all). Extraction ignores it.
     pub grading: crate::volume::Grading,
 }
 
@@ -183,7 +183,7 @@ impl Default for ExtractOptions {
             triangulation: Strategy::Fan,
             relax: 0,
             max_memory: None,
-            grading: crate::volume::Grading::UNIFORM,
+            grading: crate::volume::Grading::DEFAULT,
         }
     }
 }

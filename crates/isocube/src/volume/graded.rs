@@ -20,7 +20,8 @@
 //! elements come in a few shapes, whatever the sizes: the Kuhn tetrahedron (dihedral angles
 //! 45°, 60°, 90°) and the cones of transition cubes, whose angles [`tests`] enumerates over
 //! every pattern of midpoints (17.72° to 135.00° from a corner, 19.47° to 144.74° from the
-//! centre).
+//! centre). On long or flat cells the cones widen as the Kuhn tetrahedra do; up to 3:1 they
+//! stay within [10°, 165°] ([`Grading::MAX_ASPECT`]; beyond, the interior stays uniform).
 //!
 //! Every corner and centre is a grid point, so a graded mesh adds no point: it leaves grid
 //! points out (those strictly inside cubes, but the centres coned from).
@@ -37,9 +38,10 @@ use super::check::{cross, dot, sub};
 use super::coords;
 use super::quality::dihedral_extremes;
 
-/// How the interior of a volume mesh coarsens away from the surface. The default grades,
-/// cubes up to 16 cells on a side; [`crate::extract::ExtractOptions`] starts from
-/// [`Grading::UNIFORM`].
+/// How the interior of a volume mesh coarsens away from the surface. The default
+/// ([`Grading::DEFAULT`], as [`crate::extract::ExtractOptions`] and
+/// [`crate::extract::LabelOptions`] start) grades, cubes up to 16 cells on a side;
+/// [`Grading::UNIFORM`] cuts every inside cell into six tetrahedra.
 ///
 /// ```
 /// use isocube::volume::Grading;
@@ -59,10 +61,7 @@ pub struct Grading {
 
 impl Default for Grading {
     fn default() -> Self {
-        Grading {
-            max_level: 4,
-            layers: 0,
-        }
+        Grading::DEFAULT
     }
 }
 
@@ -70,6 +69,12 @@ impl Grading {
     /// No coarsening: every inside cell is cut into six Kuhn tetrahedra.
     pub const UNIFORM: Grading = Grading {
         max_level: 0,
+        layers: 0,
+    };
+
+    /// The default: cubes up to 16 cells on a side, sizes doubling from one cube to the next.
+    pub const DEFAULT: Grading = Grading {
+        max_level: 4,
         layers: 0,
     };
 
@@ -96,6 +101,32 @@ impl Grading {
     /// The side of the largest cubes, in cells.
     pub fn largest_cells(&self) -> usize {
         1 << self.max_level
+    }
+
+    /// The longest cells, side to side, whose transition cubes keep every element within
+    /// [10°, 165°] (checked over every pattern of midpoints at 1:1:3, 3:3:1, 1:2:3; at 1:1:4
+    /// the cones reach 9.45°, at 4:4:1 166.37°, where the Kuhn tetrahedra alone keep 14.04°).
+    pub const MAX_ASPECT: f64 = 3.0;
+
+    /// This grading on cells of sides `spacing`: itself, or [`Grading::UNIFORM`] on cells
+    /// longer than [`Grading::MAX_ASPECT`] to one (there a graded interior would be worse
+    /// shaped than the uniform one).
+    ///
+    /// ```
+    /// use isocube::volume::Grading;
+    /// let graded = Grading::default();
+    /// assert_eq!(graded.on_cells([0.5, 0.5, 1.5]), graded);
+    /// assert_eq!(graded.on_cells([0.5, 0.5, 2.0]), Grading::UNIFORM);
+    /// ```
+    pub fn on_cells(self, spacing: [f64; 3]) -> Grading {
+        let sides = spacing.map(f64::abs);
+        let longest = sides.iter().copied().fold(0.0, f64::max);
+        let shortest = sides.iter().copied().fold(f64::INFINITY, f64::min);
+        if longest <= Grading::MAX_ASPECT * shortest * (1.0 + 1e-9) {
+            self
+        } else {
+            Grading::UNIFORM
+        }
     }
 }
 
@@ -181,19 +212,12 @@ impl Cubes {
     /// Whether each grid point (x fastest, over the cells' corners) can be a vertex of the
     /// mesh: a corner of a single cell, or a corner or the centre of a cube.
     pub(super) fn grid_points(&self) -> Vec<bool> {
-        let c = self.cells;
-        let d = c.map(|x| x + 1);
+        let d = self.cells.map(|x| x + 1);
         let mut used: Vec<bool> = (0..d[0] * d[1] * d[2])
             .into_par_iter()
             .map(|p| {
-                let q = coords(p, d);
-                (0..8).any(|o| {
-                    let cell: [Option<usize>; 3] = std::array::from_fn(|a| {
-                        let x = (q[a] + (o >> a & 1)).checked_sub(1)?;
-                        (x < c[a]).then_some(x)
-                    });
-                    matches!(cell, [Some(x), Some(y), Some(z)] if self.level([x, y, z]) == 0)
-                })
+                self.cells_around(coords(p, d))
+                    .any(|cell| self.level(cell) == 0)
             })
             .collect();
         for (o, k) in self.origins(1) {
@@ -205,6 +229,29 @@ impl Cubes {
             mark(add(o, [s / 2; 3]));
         }
         used
+    }
+
+    /// About how many tetrahedra the mesh takes where the uniform mesh takes `uniform`: the
+    /// cells gathered into cubes take six each there, and a cube takes six to 48 (24
+    /// counted).
+    pub(super) fn element_estimate(&self, uniform: usize) -> usize {
+        let cubes = self.origins(1);
+        let cells: usize = cubes.iter().map(|&(_, k)| 1usize << (3 * k)).sum();
+        (uniform + 24 * cubes.len()).saturating_sub(6 * cells)
+    }
+
+    /// The cells of the grid that have grid point `p` as a corner (up to eight).
+    fn cells_around(&self, p: [usize; 3]) -> impl Iterator<Item = [usize; 3]> + '_ {
+        (0..8).filter_map(move |o| {
+            let cell: [Option<usize>; 3] = std::array::from_fn(|a| {
+                let x = (p[a] + (o >> a & 1)).checked_sub(1)?;
+                (x < self.cells[a]).then_some(x)
+            });
+            match cell {
+                [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+                _ => None,
+            }
+        })
     }
 
     /// The level of the cube holding `cell`.
@@ -285,16 +332,7 @@ impl Cubes {
     /// Whether grid point `p` is a corner of a cube finer than level `k` (for a midpoint of an
     /// edge or a face diagonal of a cube of level `k`: whether that point is in the mesh).
     fn finer_at(&self, p: [usize; 3], k: u8) -> bool {
-        (0..8).any(|o| {
-            let c: [Option<usize>; 3] = std::array::from_fn(|a| {
-                let x = (p[a] + (o >> a & 1)).checked_sub(1)?;
-                (x < self.cells[a]).then_some(x)
-            });
-            match c {
-                [Some(x), Some(y), Some(z)] => self.level([x, y, z]) < k,
-                _ => false,
-            }
-        })
+        self.cells_around(p).any(|cell| self.level(cell) < k)
     }
 
     /// The tetrahedra of the cube at corner cell `o` of level `k` ≥ 1, over the vertices
@@ -335,12 +373,16 @@ impl Cubes {
             };
             if on_wall {
                 for &(t, split) in tris {
-                    walls.extend(cut(t, split).iter().map(|&p| away_from(p, centre).map(id)));
+                    walls.extend(
+                        cut(t, split, self.spacing)
+                            .iter()
+                            .map(|&p| away_from(p, centre).map(id)),
+                    );
                 }
             }
         }
         let apex = apex(&faces, [o, add(o, [s; 3])], centre, self.spacing);
-        tets.extend(cone(&faces, apex).map(|t| t.map(id)));
+        tets.extend(cone(&faces, apex, self.spacing).map(|t| t.map(id)));
     }
 }
 
@@ -374,7 +416,7 @@ fn apex(
     let world = |q: [usize; 3]| -> [f64; 3] { std::array::from_fn(|a| q[a] as f64 * spacing[a]) };
     let fits = |c: [usize; 3]| {
         !split_at(faces, c)
-            && cone(faces, c).all(|t| {
+            && cone(faces, c, spacing).all(|t| {
                 let (lo, hi) = dihedral_extremes(t.map(world));
                 lo >= CORNER_CONES.0 && hi <= CORNER_CONES.1
             })
@@ -399,13 +441,14 @@ fn split_at(faces: &[[CutTriangle; 2]; 6], c: [usize; 3]) -> bool {
 fn cone(
     faces: &[[CutTriangle; 2]; 6],
     apex: [usize; 3],
+    spacing: [f64; 3],
 ) -> impl Iterator<Item = [[usize; 3]; 4]> + '_ {
     faces
         .iter()
         .flatten()
         .filter(move |(t, _)| !t.contains(&apex))
         .flat_map(move |&(t, split)| {
-            cut(t, split).into_iter().map(move |piece| {
+            cut(t, split, spacing).into_iter().map(move |piece| {
                 // Turned to face away from the apex: the cone over it is positive.
                 let piece = away_from(piece, apex);
                 [piece[0], piece[2], piece[1], apex]
@@ -497,11 +540,17 @@ fn facing(t: [[f64; 3]; 3], c: [f64; 3]) -> f64 {
 }
 
 /// Triangle `t` cut at the midpoints of its edges that are present (`split[e]` on the edge from
-/// corner `e` to corner `e + 1`). The rule reads only the triangle's points, whatever their
-/// order, so the two cubes sharing a face cut it alike: one midpoint joins the far corner; two
-/// cut off the corner between them, the quadrilateral left cut along its shorter diagonal (the
-/// one with the smaller end point on a tie); three give the four halves-sized triangles.
-fn cut(t: [[usize; 3]; 3], split: [Option<[usize; 3]>; 3]) -> Vec<[[usize; 3]; 3]> {
+/// corner `e` to corner `e + 1`), on cells of sides `spacing`. The rule reads only the
+/// triangle's points, whatever their order, so the two cubes sharing a face cut it alike: one
+/// midpoint joins the far corner; two cut off the corner between them, the quadrilateral left
+/// cut along its diagonal shorter in world units (the one with the smaller end point on a tie;
+/// on a cell 1:1:3, the diagonal shorter in cells would leave a sliver at 166.74°); three give
+/// the four halves-sized triangles.
+fn cut(
+    t: [[usize; 3]; 3],
+    split: [Option<[usize; 3]>; 3],
+    spacing: [f64; 3],
+) -> Vec<[[usize; 3]; 3]> {
     let present = split.iter().filter(|m| m.is_some()).count();
     match present {
         0 => vec![t],
@@ -523,12 +572,13 @@ fn cut(t: [[usize; 3]; 3], split: [Option<[usize; 3]>; 3]) -> Vec<[[usize; 3]; 3
             );
             let corner = [m1, b, m2];
             // Quadrilateral a, m1, m2, c: diagonal a–m2 or m1–c.
-            let length = |p: [usize; 3], q: [usize; 3]| -> usize {
-                (0..3).map(|i| p[i].abs_diff(q[i]).pow(2)).sum()
+            let length = |p: [usize; 3], q: [usize; 3]| -> f64 {
+                (0..3)
+                    .map(|i| (p[i].abs_diff(q[i]) as f64 * spacing[i]).powi(2))
+                    .sum()
             };
-            let first = (length(a, m2), a.min(m2));
-            let second = (length(m1, c), m1.min(c));
-            if first <= second {
+            let (first, second) = (length(a, m2), length(m1, c));
+            if first < second || (first == second && a.min(m2) <= m1.min(c)) {
                 vec![corner, [a, m1, m2], [a, m2, c]]
             } else {
                 vec![corner, [a, m1, c], [m1, m2, c]]
@@ -832,7 +882,7 @@ mod tests {
                 })
             });
             let apex = apex(&cut_faces, ends, [1; 3], spacing);
-            let tets: Vec<[[usize; 3]; 4]> = cone(&cut_faces, apex).collect();
+            let tets: Vec<[[usize; 3]; 4]> = cone(&cut_faces, apex, spacing).collect();
             if mask == 0 {
                 let corners = |t: [usize; 4]| {
                     let mut c = t;
@@ -879,12 +929,27 @@ mod tests {
         };
         assert!(near(corner, (17.72, 135.0)), "corners: {corner:?}");
         assert!(near(centre, (19.47, 144.74)), "centre: {centre:?}");
-        // Long cells: the corners' cones are kept to their range, the centre's take the rest.
-        let [corner, centre] = cone_ranges([0.5, 0.25, 0.75]);
-        assert!(
-            corner.0 >= CORNER_CONES.0 && corner.1 <= CORNER_CONES.1,
-            "corners: {corner:?}"
-        );
-        assert!(near(centre, (14.21, 163.40)), "centre: {centre:?}");
+        // Long and flat cells up to 3:1: the corners' cones are kept to their range, the
+        // centre's take the rest, and every transition element stays within [10°, 165°] (the
+        // worst at 1:1:3, 11.98°–154.76°, and at 3:3:1, 12.92°–162.45°).
+        for spacing in [
+            [0.5, 0.25, 0.75],
+            [1.0, 1.0, 3.0],
+            [1.0, 1.0, 1.0 / 3.0],
+            [1.0, 2.0, 3.0],
+            [3.0, 1.0, 2.0],
+        ] {
+            let [corner, centre] = cone_ranges(spacing);
+            assert!(
+                corner.0 >= CORNER_CONES.0 && corner.1 <= CORNER_CONES.1,
+                "{spacing:?}: corners {corner:?}"
+            );
+            assert!(
+                centre.0 >= 10.0 && centre.1 <= 165.0,
+                "{spacing:?}: centre {centre:?}"
+            );
+        }
+        assert!(near(cone_ranges([1.0, 1.0, 3.0])[1], (11.98, 154.76)));
+        assert!(near(cone_ranges([1.0, 1.0, 1.0 / 3.0])[1], (12.92, 162.45)));
     }
 }

@@ -132,19 +132,21 @@ pub fn tetmesh_labels<'a>(
     // Six tetrahedra per grid point and about two per surface triangle (measured: 1.2 on blobs
     // and packed spheres).
     let estimate = 6 * (positions.len() - base) + 2 * surface.triangles.len();
-    if let Some(limit) = max_memory {
-        // Each tetrahedron with its label; the positions; the surfaces.
-        let bytes = estimate as u64 * 20
-            + positions.len() as u64 * 12
-            + surface.triangles.len() as u64 * 16;
+    // Each tetrahedron with its label; the positions; the surfaces.
+    let needs = |tets: usize| {
+        tets as u64 * 20 + positions.len() as u64 * 12 + surface.triangles.len() as u64 * 16
+    };
+    // Graded: the cells of one meshed label gathered into cubes, on cells whose transition
+    // cubes keep their angles.
+    let cell_dims = [px - 1, py - 1, pz - 1];
+    let grading = options.grading.on_cells(grid.spacing());
+    if let Some(limit) = max_memory.filter(|_| grading.max_level == 0) {
+        let bytes = needs(estimate);
         if bytes > limit {
             return Err(TetError::Memory { bytes, limit });
         }
     }
-
-    // Graded: the cells of one meshed label gathered into cubes.
-    let cell_dims = [px - 1, py - 1, pz - 1];
-    let cubes = (options.grading.max_level > 0).then(|| {
+    let cubes = (grading.max_level > 0).then(|| {
         let whole: Vec<bool> = (0..cell_dims[0] * cell_dims[1] * cell_dims[2])
             .into_par_iter()
             .map(|c| {
@@ -155,8 +157,14 @@ pub fn tetmesh_labels<'a>(
                     && (1..8).all(|b| labelled.padded[labelled.corner(base, b)] == first)
             })
             .collect();
-        Cubes::new(cell_dims, grid.spacing(), whole, options.grading)
+        Cubes::new(cell_dims, grid.spacing(), whole, grading)
     });
+    if let (Some(cubes), Some(limit)) = (&cubes, max_memory) {
+        let bytes = needs(cubes.element_estimate(estimate));
+        if bytes > limit {
+            return Err(TetError::Memory { bytes, limit });
+        }
+    }
     let ctx = Context {
         labelled: &labelled,
         by_key: &by_key,
@@ -235,10 +243,11 @@ pub fn tetmesh_labels<'a>(
         cubes: graded[0],
         largest_cube: graded[1],
         cube_tets: graded[2],
+        cells_too_long: options.grading.max_level > 0 && grading.max_level == 0,
         improve,
         ..TetStats::default()
     };
-    if options.grading.max_level > 0 {
+    if grading.max_level > 0 {
         // The grid points strictly inside cubes (but the centres coned from) are in no
         // element: dropped, the later points numbered down.
         let unused = check::unused_points(positions.len(), &tets, base as u32);

@@ -131,6 +131,9 @@ pub struct TetStats {
     pub largest_cube: usize,
     /// The tetrahedra of the cubes.
     pub cube_tets: usize,
+    /// Grading was asked for, but the cells are longer than [`Grading::MAX_ASPECT`] to one:
+    /// the interior is uniform.
+    pub cells_too_long: bool,
     /// Grid points inside the region (vertices of the mesh).
     pub grid_points: usize,
     /// Points added inside cut cells (one per connected part).
@@ -406,11 +409,20 @@ fn mesh_region(
     if base + inside_points.len() >= STEINER as usize {
         return Err(TetError::TooManyVertices);
     }
-    if let Some(limit) = options.max_memory {
-        // About six tetrahedra per inside point, the positions and the surface.
-        let bytes = inside_points.len() as u64 * (6 * 16 + 12 + 4)
+    // Graded: away from the surface, whole cells gathered into cubes (see `graded`), on
+    // cells whose transition cubes keep their angles.
+    let grading = options.grading.on_cells(grid.spacing());
+    // The bytes of the mesh with `tets` tetrahedra over `points` grid points (their positions
+    // and numbers), the surface and the numbering's bits.
+    let needs = |tets: usize, points: usize| {
+        tets as u64 * 16
+            + points as u64 * (12 + 4)
             + surface.triangles.len() as u64 * 24
-            + point_count as u64 / 4;
+            + point_count as u64 / 4
+    };
+    if let Some(limit) = options.max_memory.filter(|_| grading.max_level == 0) {
+        // About six tetrahedra per inside point.
+        let bytes = needs(6 * inside_points.len(), inside_points.len());
         if bytes > limit {
             return Err(TetError::Memory { bytes, limit });
         }
@@ -503,8 +515,7 @@ fn mesh_region(
         cubes: None,
     };
     asked(cells)?;
-    // Graded: away from the surface, whole cells gathered into cubes (see `graded`).
-    let cubes = (options.grading.max_level > 0).then(|| {
+    let cubes = (grading.max_level > 0).then(|| {
         let shared = &ctx;
         let whole: Vec<bool> = (0..cells)
             .into_par_iter()
@@ -513,15 +524,22 @@ fn mesh_region(
                     if ids.iter().all(|&v| v != u32::MAX && v as usize >= shared.base))
             })
             .collect();
-        graded::Cubes::new(cell_dims, grid.spacing(), whole, options.grading)
+        graded::Cubes::new(cell_dims, grid.spacing(), whole, grading)
     });
     if let Some(cubes) = &cubes {
         // Only the grid points the mesh can use are numbered (most of a large body's are
         // inside cubes): the others' positions are never made.
         let used = cubes.grid_points();
+        let uniform = 6 * ctx.inside_points.len();
         ctx.inside_points.retain(|&p| used[p as usize]);
         ctx.inside_points.shrink_to_fit();
         ctx.rank.number(&ctx.inside_points);
+        if let Some(limit) = options.max_memory {
+            let bytes = needs(cubes.element_estimate(uniform), ctx.inside_points.len());
+            if bytes > limit {
+                return Err(TetError::Memory { bytes, limit });
+            }
+        }
     }
     ctx.cubes = cubes;
     asked(cells)?;
@@ -540,6 +558,7 @@ fn mesh_region(
     let mut stats = TetStats {
         grid_points: ctx.inside_points.len(),
         extract: extract_stats,
+        cells_too_long: options.grading.max_level > 0 && grading.max_level == 0,
         ..TetStats::default()
     };
     // Room for six tetrahedra per inside point and a few per surface triangle reserved (not
@@ -642,7 +661,7 @@ fn mesh_region(
         stats.steiner_points -= stats.improve.removed;
         stats.grid_points -= stats.improve.removed_grid;
     }
-    if options.grading.max_level > 0 {
+    if grading.max_level > 0 {
         // The grid points strictly inside cubes (but the centres of transition cubes) are in
         // no element: dropped, the later points numbered down.
         let unused = check::unused_points(positions.len(), &tets, base as u32);

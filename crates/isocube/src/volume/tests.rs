@@ -1461,7 +1461,7 @@ fn graded_meshes_keep_the_boundary_with_fewer_elements() {
     ] {
         let grid = sample.grid(n);
         for options in [ternary, ternary.with_flip(true), ExtractOptions::default()] {
-            let uniform = tetmesh(&grid, &options).unwrap();
+            let uniform = tetmesh(&grid, &options.with_grading(Grading::UNIFORM)).unwrap();
             for layers in [0, 1] {
                 let grading = Grading {
                     max_level: 3,
@@ -1534,7 +1534,7 @@ fn random_bodies_under_random_gradings() {
             _ => ExtractOptions::default().with_method(Method::Ternary(Default::default())),
         };
         let what = format!("case {case} {dims:?} {grading:?} {options:?}");
-        let uniform = match tetmesh(&grid, &options) {
+        let uniform = match tetmesh(&grid, &options.with_grading(Grading::UNIFORM)) {
             Ok(mesh) => mesh,
             Err(TetError::Empty) => continue,
             Err(e) => panic!("{what}: {e}"),
@@ -1600,7 +1600,8 @@ fn graded_labelled_volumes_keep_their_interfaces() {
         };
         let what = format!("case {case} {dims:?} {grading:?}");
         let options = LabelOptions::default().with_smoothing(0);
-        let uniform = tetmesh_labels(&grid, &options, None).unwrap();
+        let uniform =
+            tetmesh_labels(&grid, &options.clone().with_grading(Grading::UNIFORM), None).unwrap();
         let graded = tetmesh_labels(&grid, &options.clone().with_grading(grading), None)
             .unwrap_or_else(|e| panic!("{what}: {e}"));
         assert_valid(&graded, &what);
@@ -1631,5 +1632,41 @@ fn graded_labelled_volumes_keep_their_interfaces() {
             "{what}"
         );
         assert_edges_within(&graded, grading, &what);
+    }
+}
+
+/// Long and flat cells: up to 3:1 the default grades and leaves no more elements outside
+/// [10°, 165°] than the uniform mesh (the transition cubes stay inside it); beyond, the
+/// interior is the uniform mesh, and the counts say why.
+#[test]
+fn long_cells_grade_up_to_three_to_one() {
+    let outside = |mesh: &TetMesh| {
+        mesh.qualities()
+            .iter()
+            .filter(|q| q.min_dihedral < 10.0 || q.max_dihedral > 165.0)
+            .count()
+    };
+    let ternary = ExtractOptions::default().with_method(Method::Ternary(Default::default()));
+    assert_eq!(ternary.grading, Grading::DEFAULT);
+    for (spacing, graded) in [
+        ([0.5, 0.5, 1.5], true),
+        ([1.0, 1.0 / 3.0, 1.0], true),
+        ([0.3, 0.6, 0.9], true),
+        ([1.0, 1.0, 3.2], false),
+        ([0.3, 1.0, 1.0], false),
+    ] {
+        let grid = Sample::Sphere.grid(32).with_spacing(spacing).unwrap();
+        let what = format!("{spacing:?}");
+        let uniform = tetmesh(&grid, &ternary.with_grading(Grading::UNIFORM)).unwrap();
+        let mesh = graded_like(&grid, &ternary, Grading::DEFAULT, &uniform, &what);
+        assert_eq!(mesh.stats.cells_too_long, !graded, "{what}");
+        assert_eq!(mesh.stats.cubes > 0, graded, "{what}");
+        assert!(!uniform.stats.cells_too_long, "{what}");
+        if graded {
+            assert!(mesh.tets.len() < uniform.tets.len(), "{what}");
+            assert!(outside(&mesh) <= outside(&uniform), "{what}");
+        } else {
+            assert_eq!(mesh.tets, uniform.tets, "{what}");
+        }
     }
 }
